@@ -1,0 +1,252 @@
+//! Mechanism geometry: six legs, the home position and the optional limits.
+//!
+//! Frames and units (mm throughout):
+//! * base frame B: origin at the fixed platform centre, z up, sliders move along B's z;
+//! * moving frame M: origin at the moving platform's rotation centre.
+//!
+//! [`GeometryParams`] is the `f64` source of truth (what a geometry file or a calibrated
+//! parameter table holds). [`Geometry<T>`] is what the kinematics evaluate: the same
+//! parameters in the working float type plus quantities derived *in `f64`* and rounded
+//! once, so that an `f32` evaluation starts from the best `f32` approximation of each
+//! derived quantity rather than from a difference of rounded large numbers.
+
+use super::real::Real;
+
+/// Number of legs (sliders) of the 6-PSS platform.
+pub const LEGS: usize = 6;
+
+/// Nominal parameters of one leg, `f64`, mm.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LegParams {
+    /// Lower spherical-joint centre at zero slider stroke, base frame B (mm).
+    pub a_mm: [f64; 3],
+    /// Upper spherical-joint centre, moving frame M (mm).
+    pub b_mm: [f64; 3],
+}
+
+/// Slider stroke limits, per leg (mm, along B's z, relative to the home stroke 0).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StrokeLimits {
+    /// Lowest allowed stroke of each slider (mm).
+    pub min_mm: [f64; LEGS],
+    /// Highest allowed stroke of each slider (mm).
+    pub max_mm: [f64; LEGS],
+}
+
+/// Symmetric workspace box around the home pose.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorkspaceLimits {
+    /// Largest |x|, |y|, |z| translation from p0 (mm, base axes).
+    pub translation_mm: [f64; 3],
+    /// Largest |alpha|, |beta|, |gamma| (rad).
+    pub rotation_rad: [f64; 3],
+}
+
+/// Everything that defines a mechanism for the kinematics, in `f64`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GeometryParams {
+    /// The six legs, in slider order 1..6.
+    pub legs: [LegParams; LEGS],
+    /// Home position of M's origin in B (mm): the pose where every stroke is zero.
+    pub p0_mm: [f64; 3],
+    /// Slider limits; `None` applies none.
+    pub stroke_limits: Option<StrokeLimits>,
+    /// Workspace limits; `None` applies none.
+    pub workspace: Option<WorkspaceLimits>,
+}
+
+/// Why a set of parameters does not describe a usable mechanism.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GeometryError {
+    /// A coordinate, p0 component or limit is NaN or infinite.
+    NonFinite,
+    /// Leg (0-based): the upper joint is not above the lower joint at home
+    /// (the vertical component of the rod must be positive).
+    UpperNotAboveLower {
+        /// 0-based leg index.
+        leg: u8,
+    },
+    /// Leg (0-based): stroke limits with min > max, or not containing the home stroke 0.
+    BadStrokeLimits {
+        /// 0-based leg index.
+        leg: u8,
+    },
+    /// A workspace half-range is negative.
+    BadWorkspaceLimits,
+}
+
+impl GeometryError {
+    /// Stable numeric code for telemetry.
+    pub const fn code(&self) -> u16 {
+        match self {
+            GeometryError::NonFinite => 0x0101,
+            GeometryError::UpperNotAboveLower { .. } => 0x0102,
+            GeometryError::BadStrokeLimits { .. } => 0x0103,
+            GeometryError::BadWorkspaceLimits => 0x0104,
+        }
+    }
+}
+
+/// Smallest accepted vertical rod component at home (mm): below this the IK of the
+/// leg degenerates (the rod would be horizontal).
+pub const MIN_ROD_VERTICAL_MM: f64 = 1.0;
+
+/// One leg in the working float type.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Leg<T> {
+    /// Lower joint at zero stroke, frame B (mm).
+    pub a_mm: [T; 3],
+    /// Upper joint, frame M (mm).
+    pub b_mm: [T; 3],
+    /// Rod vector at home, `b + p0 - a`, frame B (mm); derived in f64.
+    pub d0_mm: [T; 3],
+    /// Rod length `|d0|` (mm); derived in f64.
+    pub rod_mm: T,
+}
+
+/// Stroke limits in the working float type (mm).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StrokeBounds<T> {
+    /// Per-leg lower limit (mm).
+    pub min_mm: [T; LEGS],
+    /// Per-leg upper limit (mm).
+    pub max_mm: [T; LEGS],
+}
+
+/// Workspace limits in the working float type.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct WorkspaceBounds<T> {
+    /// Half-range of x, y, z (mm).
+    pub translation_mm: [T; 3],
+    /// Half-range of alpha, beta, gamma (rad).
+    pub rotation_rad: [T; 3],
+}
+
+/// The mechanism as the kinematics evaluate it, in float type `T`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Geometry<T> {
+    /// Legs 1..6.
+    pub legs: [Leg<T>; LEGS],
+    /// Home position (mm, frame B).
+    pub p0_mm: [T; 3],
+    /// Slider limits, if any.
+    pub stroke: Option<StrokeBounds<T>>,
+    /// Workspace limits, if any.
+    pub workspace: Option<WorkspaceBounds<T>>,
+}
+
+fn all_finite(v: &[f64]) -> bool {
+    v.iter().all(|x| x.is_finite())
+}
+
+fn map3<T: Real>(v: [f64; 3]) -> [T; 3] {
+    [T::from_f64(v[0]), T::from_f64(v[1]), T::from_f64(v[2])]
+}
+
+fn map6<T: Real>(v: [f64; LEGS]) -> [T; LEGS] {
+    let mut out = [T::ZERO; LEGS];
+    for (o, x) in out.iter_mut().zip(v.iter()) {
+        *o = T::from_f64(*x);
+    }
+    out
+}
+
+impl GeometryParams {
+    /// Parameters without limits.
+    pub const fn new(legs: [LegParams; LEGS], p0_mm: [f64; 3]) -> Self {
+        Self {
+            legs,
+            p0_mm,
+            stroke_limits: None,
+            workspace: None,
+        }
+    }
+
+    /// Checks that the parameters describe a usable mechanism.
+    pub fn validate(&self) -> Result<(), GeometryError> {
+        if !all_finite(&self.p0_mm) {
+            return Err(GeometryError::NonFinite);
+        }
+        for (i, leg) in self.legs.iter().enumerate() {
+            if !all_finite(&leg.a_mm) || !all_finite(&leg.b_mm) {
+                return Err(GeometryError::NonFinite);
+            }
+            let d0z = leg.b_mm[2] + self.p0_mm[2] - leg.a_mm[2];
+            if d0z.is_nan() || d0z < MIN_ROD_VERTICAL_MM {
+                return Err(GeometryError::UpperNotAboveLower { leg: i as u8 });
+            }
+        }
+        if let Some(s) = &self.stroke_limits {
+            if !all_finite(&s.min_mm) || !all_finite(&s.max_mm) {
+                return Err(GeometryError::NonFinite);
+            }
+            for (i, (lo, hi)) in s.min_mm.iter().zip(s.max_mm.iter()).enumerate() {
+                if lo > hi || *lo > 0.0 || *hi < 0.0 {
+                    return Err(GeometryError::BadStrokeLimits { leg: i as u8 });
+                }
+            }
+        }
+        if let Some(w) = &self.workspace {
+            if !all_finite(&w.translation_mm) || !all_finite(&w.rotation_rad) {
+                return Err(GeometryError::NonFinite);
+            }
+            if w.translation_mm
+                .iter()
+                .chain(w.rotation_rad.iter())
+                .any(|v| *v < 0.0)
+            {
+                return Err(GeometryError::BadWorkspaceLimits);
+            }
+        }
+        Ok(())
+    }
+
+    /// Rod length of each leg, `|b_i + p0 - a_i|` (mm).
+    pub fn rod_lengths_mm(&self) -> [f64; LEGS] {
+        let mut out = [0.0; LEGS];
+        for (o, leg) in out.iter_mut().zip(self.legs.iter()) {
+            let d = home_rod(leg, &self.p0_mm);
+            *o = libm::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        }
+        out
+    }
+}
+
+/// Rod vector at home, `b + p0 - a` (mm, frame B), in f64.
+fn home_rod(leg: &LegParams, p0: &[f64; 3]) -> [f64; 3] {
+    [
+        leg.b_mm[0] + p0[0] - leg.a_mm[0],
+        leg.b_mm[1] + p0[1] - leg.a_mm[1],
+        leg.b_mm[2] + p0[2] - leg.a_mm[2],
+    ]
+}
+
+impl<T: Real> Geometry<T> {
+    /// Validates the parameters and derives the working geometry (derived quantities are
+    /// computed in f64 and rounded once to `T`).
+    pub fn new(params: &GeometryParams) -> Result<Self, GeometryError> {
+        params.validate()?;
+        let mut legs = [Leg::default(); LEGS];
+        for (out, leg) in legs.iter_mut().zip(params.legs.iter()) {
+            let d0 = home_rod(leg, &params.p0_mm);
+            *out = Leg {
+                a_mm: map3(leg.a_mm),
+                b_mm: map3(leg.b_mm),
+                d0_mm: map3(d0),
+                rod_mm: T::from_f64(libm::sqrt(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2])),
+            };
+        }
+        Ok(Self {
+            legs,
+            p0_mm: map3(params.p0_mm),
+            stroke: params.stroke_limits.map(|s| StrokeBounds {
+                min_mm: map6(s.min_mm),
+                max_mm: map6(s.max_mm),
+            }),
+            workspace: params.workspace.map(|w| WorkspaceBounds {
+                translation_mm: map3(w.translation_mm),
+                rotation_rad: map3(w.rotation_rad),
+            }),
+        })
+    }
+}

@@ -1,0 +1,25 @@
+//! Kinematics of the 6-PSS platform, generic over the float type ([`Real`]): the firmware
+//! instantiates it in `f32`, the ground tools and the simulated plant in `f64`.
+//!
+//! * [`geometry`]: legs, home position, limits (`f64` parameters -> working geometry).
+//! * [`pose`]: pose convention `R = Rz(gamma) Ry(beta) Rx(alpha)`, `R - I` without cancellation.
+//! * [`ik`]: pose -> strokes, formulated relative to the home pose for f32 accuracy.
+//! * [`fk`]: strokes -> pose, Newton-Raphson with the analytic Jacobian.
+//! * [`workspace`]: every reason a pose is refused, without motion.
+
+pub mod fk;
+pub mod geometry;
+pub mod ik;
+pub mod linalg;
+pub mod pose;
+pub mod real;
+pub mod workspace;
+
+pub use fk::{fk, FkConfig, FkError, FkSolution};
+pub use geometry::{
+    Geometry, GeometryError, GeometryParams, LegParams, StrokeLimits, WorkspaceLimits, LEGS,
+};
+pub use ik::{ik, IkError};
+pub use pose::{Pose, ARCSEC_PER_RAD};
+pub use real::Real;
+pub use workspace::{check, Refusals};

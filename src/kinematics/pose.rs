@@ -1,0 +1,119 @@
+//! Mirror pose and the rotation convention.
+//!
+//! A pose is the displacement of the moving frame M from its home position p0:
+//! translation `[x, y, z]` (mm, base axes) and rotation angles `[alpha, beta, gamma]`
+//! (rad) with `R = Rz(gamma) * Ry(beta) * Rx(alpha)`, exactly as in the source paper.
+//! Telecommands and files carry the angles in arcseconds; [`ARCSEC_PER_RAD`] converts.
+
+use super::real::Real;
+
+/// Arcseconds per radian (180 * 3600 / pi).
+pub const ARCSEC_PER_RAD: f64 = 180.0 * 3600.0 / core::f64::consts::PI;
+
+/// Mirror pose relative to home.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Pose<T> {
+    /// Translation of M's origin from p0, along B's axes (mm).
+    pub translation_mm: [T; 3],
+    /// `[alpha, beta, gamma]` about x, y, z (rad); `R = Rz(gamma) Ry(beta) Rx(alpha)`.
+    pub rotation_rad: [T; 3],
+}
+
+impl<T: Real> Pose<T> {
+    /// The home pose (all strokes zero).
+    pub fn home() -> Self {
+        Self::default()
+    }
+
+    /// A pose from mm and arcsec given in f64 (converted once to `T`).
+    pub fn from_mm_arcsec(translation_mm: [f64; 3], rotation_arcsec: [f64; 3]) -> Self {
+        Self {
+            translation_mm: translation_mm.map(T::from_f64),
+            rotation_rad: rotation_arcsec.map(|a| T::from_f64(a / ARCSEC_PER_RAD)),
+        }
+    }
+
+    /// The six components `[x, y, z, alpha, beta, gamma]` (mm, mm, mm, rad, rad, rad).
+    pub fn to_array(&self) -> [T; 6] {
+        let [x, y, z] = self.translation_mm;
+        let [a, b, c] = self.rotation_rad;
+        [x, y, z, a, b, c]
+    }
+
+    /// Inverse of [`Pose::to_array`].
+    pub fn from_array(v: [T; 6]) -> Self {
+        let [x, y, z, a, b, c] = v;
+        Self {
+            translation_mm: [x, y, z],
+            rotation_rad: [a, b, c],
+        }
+    }
+
+    /// Every component is finite.
+    pub fn is_finite(&self) -> bool {
+        self.to_array().iter().all(|v| v.is_finite())
+    }
+
+    /// Rotation angles in arcsec (f64).
+    pub fn rotation_arcsec(&self) -> [f64; 3] {
+        self.rotation_rad.map(|r| r.to_f64() * ARCSEC_PER_RAD)
+    }
+
+    /// The same pose in another float type.
+    pub fn cast<U: Real>(&self) -> Pose<U> {
+        Pose {
+            translation_mm: self.translation_mm.map(|v| U::from_f64(v.to_f64())),
+            rotation_rad: self.rotation_rad.map(|v| U::from_f64(v.to_f64())),
+        }
+    }
+}
+
+/// `R - I` and the sines/cosines of a pose's rotation, formed without cancellation.
+#[derive(Clone, Copy, Debug)]
+pub struct RotationDelta<T> {
+    /// `R - I`, row-major (dimensionless).
+    pub w: [[T; 3]; 3],
+    /// `sin(gamma)`, `cos(gamma)`: the Jacobian needs `Rz(gamma) e_y = (-sg, cg, 0)`.
+    pub sg: T,
+    /// `cos(gamma)`.
+    pub cg: T,
+}
+
+impl<T: Real> RotationDelta<T> {
+    /// Builds `R - I` for `R = Rz(gamma) Ry(beta) Rx(alpha)`. Diagonal terms are sums of
+    /// `cos - 1` values, never `cos - 1` computed as a difference.
+    pub fn new(rotation_rad: &[T; 3]) -> Self {
+        let [alpha, beta, gamma] = *rotation_rad;
+        let (sa, cma) = alpha.sin_cosm1();
+        let (sb, cmb) = beta.sin_cosm1();
+        let (sg, cmg) = gamma.sin_cosm1();
+        let ca = T::ONE + cma;
+        let cb = T::ONE + cmb;
+        let cg = T::ONE + cmg;
+        let w = [
+            [
+                cmg + cmb + cmg * cmb,
+                cg * sb * sa - sg * ca,
+                cg * sb * ca + sg * sa,
+            ],
+            [
+                sg * cb,
+                sg * sb * sa + (cmg + cma + cmg * cma),
+                sg * sb * ca - cg * sa,
+            ],
+            [-sb, cb * sa, cmb + cma + cmb * cma],
+        ];
+        Self { w, sg, cg }
+    }
+
+    /// `(R - I) v`.
+    #[inline(always)]
+    pub fn apply_delta(&self, v: &[T; 3]) -> [T; 3] {
+        let w = &self.w;
+        [
+            w[0][0] * v[0] + w[0][1] * v[1] + w[0][2] * v[2],
+            w[1][0] * v[0] + w[1][1] * v[1] + w[1][2] * v[2],
+            w[2][0] * v[0] + w[2][1] * v[1] + w[2][2] * v[2],
+        ]
+    }
+}

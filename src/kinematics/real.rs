@@ -1,0 +1,199 @@
+//! The float abstraction that lets one implementation of the kinematics run in `f32` on
+//! the flight computer and in `f64` on the ground and in the simulated plant.
+//!
+//! Only what the equations need is here. Two functions are deliberately not the obvious
+//! library calls, because the firmware must be fast and exact on a single-precision FPU:
+//!
+//! * [`Real::sqrt`] for `f32` is a Newton iteration from a bit-level first guess (plain
+//!   FPU divide/multiply/add). `libm::sqrtf` is a bit-by-bit software loop on Cortex-M4F
+//!   (libm has no ARM hardware path) and `core` has no stable `f32::sqrt` in `no_std`.
+//!   The result is within 2 ulp of the correctly rounded root; the kinematics only use it
+//!   where such an error is suppressed by a factor of about 1e-2 (see `ik`).
+//! * [`Real::sin_cosm1`] returns `sin x` and `cos x - 1` (not `cos x`), so that the
+//!   rotation minus the identity can be formed without cancellation. For the small angles
+//!   of the mechanism (|x| <= [`SMALL_ANGLE_RAD`]) it is a short polynomial; beyond, it
+//!   falls back to `libm` (slow on the target, never used by flight poses).
+//!
+//! Both are deterministic IEEE-754 arithmetic (no fused multiply-add is emitted by rustc
+//! unless asked), so the target and the host produce bit-identical `f32` results.
+
+use core::fmt::Debug;
+use core::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
+
+/// Angles up to this magnitude (rad, about 5.7 degrees) use the polynomial path of
+/// [`Real::sin_cosm1`]. The truncation error there is below 1e-14 relative.
+pub const SMALL_ANGLE_RAD: f64 = 0.1;
+
+/// A real number type the kinematics can be evaluated in (`f32` or `f64`).
+pub trait Real:
+    Copy
+    + Debug
+    + Default
+    + PartialOrd
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+    + AddAssign
+    + SubAssign
+    + MulAssign
+    + 'static
+{
+    /// 0.
+    const ZERO: Self;
+    /// 1.
+    const ONE: Self;
+    /// 2.
+    const TWO: Self;
+    /// Machine epsilon of the type.
+    const EPSILON: Self;
+    /// Nearest value of this type (round to nearest even).
+    fn from_f64(v: f64) -> Self;
+    /// Exact widening (or identity) to `f64`.
+    fn to_f64(self) -> f64;
+    /// Square root (see the module docs for the `f32` accuracy). NaN for negative input.
+    fn sqrt(self) -> Self;
+    /// Absolute value.
+    fn abs(self) -> Self;
+    /// Neither NaN nor infinite.
+    fn is_finite(self) -> bool;
+    /// `(sin x, cos x - 1)` for `x` in radians.
+    fn sin_cosm1(self) -> (Self, Self);
+    /// The larger of two values (NaN-free inputs assumed).
+    fn max(self, other: Self) -> Self {
+        if other > self {
+            other
+        } else {
+            self
+        }
+    }
+}
+
+/// Coefficients of the odd sine series, x^3 .. x^9 (1/3!, 1/5!, 1/7!, 1/9!).
+const SIN_COEFF: [f64; 4] = [-1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362_880.0];
+/// Coefficients of cos x - 1 in powers x^2 .. x^10.
+const COSM1_COEFF: [f64; 5] = [
+    -0.5,
+    1.0 / 24.0,
+    -1.0 / 720.0,
+    1.0 / 40_320.0,
+    -1.0 / 3_628_800.0,
+];
+
+/// Horner evaluation of `sum c_k y^(k+1)` for `y = x^2`.
+#[inline(always)]
+fn poly_in_square<T: Real>(y: T, coeff: &[f64]) -> T {
+    let mut acc = T::ZERO;
+    for c in coeff.iter().rev() {
+        acc = (acc + T::from_f64(*c)) * y;
+    }
+    acc
+}
+
+impl Real for f32 {
+    const ZERO: Self = 0.0;
+    const ONE: Self = 1.0;
+    const TWO: Self = 2.0;
+    const EPSILON: Self = f32::EPSILON;
+    #[inline(always)]
+    fn from_f64(v: f64) -> Self {
+        v as f32
+    }
+    #[inline(always)]
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+    #[inline]
+    fn sqrt(self) -> Self {
+        sqrt_f32_newton(self)
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        f32::from_bits(self.to_bits() & 0x7fff_ffff)
+    }
+    #[inline(always)]
+    fn is_finite(self) -> bool {
+        f32::is_finite(self)
+    }
+    #[inline]
+    fn sin_cosm1(self) -> (Self, Self) {
+        if f64::from(self.abs()) <= SMALL_ANGLE_RAD {
+            let y = self * self;
+            // Only the first three sine and four cosine terms matter in f32 at 0.1 rad.
+            let s = self + self * poly_in_square(y, &SIN_COEFF[..3]);
+            let c = poly_in_square(y, &COSM1_COEFF[..4]);
+            (s, c)
+        } else {
+            let h = libm::sinf(0.5 * self);
+            (libm::sinf(self), -2.0 * h * h)
+        }
+    }
+}
+
+impl Real for f64 {
+    const ZERO: Self = 0.0;
+    const ONE: Self = 1.0;
+    const TWO: Self = 2.0;
+    const EPSILON: Self = f64::EPSILON;
+    #[inline(always)]
+    fn from_f64(v: f64) -> Self {
+        v
+    }
+    #[inline(always)]
+    fn to_f64(self) -> f64 {
+        self
+    }
+    #[inline]
+    fn sqrt(self) -> Self {
+        libm::sqrt(self)
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        libm::fabs(self)
+    }
+    #[inline(always)]
+    fn is_finite(self) -> bool {
+        f64::is_finite(self)
+    }
+    #[inline]
+    fn sin_cosm1(self) -> (Self, Self) {
+        if self.abs() <= SMALL_ANGLE_RAD {
+            let y = self * self;
+            let s = self + self * poly_in_square(y, &SIN_COEFF);
+            let c = poly_in_square(y, &COSM1_COEFF);
+            (s, c)
+        } else {
+            let h = libm::sin(0.5 * self);
+            (libm::sin(self), -2.0 * h * h)
+        }
+    }
+}
+
+/// Number of Newton steps after the bit-level first guess: the guess is within 3.5 %,
+/// and each step squares the relative error (3.5e-2 -> 6e-4 -> 2e-7 -> f32 rounding).
+const SQRT_NEWTON_STEPS: usize = 3;
+/// Magic constant of the classic `sqrt` first guess (halves the exponent in the bits).
+const SQRT_GUESS_MAGIC: u32 = 0x1fbd_1df5;
+
+/// Square root of an `f32` by Newton's method, FPU add/multiply/divide only.
+/// Returns NaN for negative or NaN input, the input for 0 and +infinity.
+fn sqrt_f32_newton(x: f32) -> f32 {
+    if x.is_nan() || x < 0.0 {
+        return f32::NAN;
+    }
+    if x == 0.0 || x == f32::INFINITY {
+        return x;
+    }
+    // Scale subnormal/tiny inputs into the normal range so the bit guess holds.
+    let (xs, scale) = if x < f32::MIN_POSITIVE * 4.0 {
+        (x * 16_777_216.0, 1.0 / 4096.0) // 2^24 in, 2^-12 out
+    } else {
+        (x, 1.0)
+    };
+    let mut r = f32::from_bits(SQRT_GUESS_MAGIC.wrapping_add(xs.to_bits() >> 1));
+    for _ in 0..SQRT_NEWTON_STEPS {
+        r = 0.5 * (r + xs / r);
+    }
+    r * scale
+}

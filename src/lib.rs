@@ -1,0 +1,25 @@
+//! # m2ctl: controller of a space telescope's secondary-mirror (M2) mechanism
+//!
+//! A 6-PSS Stewart platform (six vertical sliders, spherical joints, fixed-length rods)
+//! positions the secondary mirror. This crate holds the flight software and, behind the
+//! `host` feature, the simulated plant and the ground tools.
+//!
+//! Layers (hardware-independent unless noted):
+//! * [`kinematics`]: geometry, IK, FK, workspace check, generic over `f32`/`f64`.
+//! * [`nominal`]: the compiled-in nominal geometry of the prototype.
+//! * [`selftest`]: the golden-vector self-test the firmware runs at boot.
+//! * `sim` (host): the simulated plant (true geometry, sliders, encoders).
+//! * `ground` (host): files, CLI support, calibration.
+#![cfg_attr(not(feature = "host"), no_std)]
+#![deny(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod hw;
+pub mod kinematics;
+pub mod nominal;
+pub mod selftest;
+
+#[cfg(feature = "host")]
+pub mod ground;
+#[cfg(feature = "host")]
+pub mod sim;

@@ -1,0 +1,54 @@
+//! The prototype's nominal geometry, compiled in: the table the controller falls back to
+//! when no valid calibrated table is stored. Joint centres are those of
+//! `testdata/geometry.toml` (the seed paper's Table 1, nominal column); a host test
+//! checks that the two agree.
+
+use crate::kinematics::{GeometryParams, LegParams, StrokeLimits, WorkspaceLimits, LEGS};
+
+/// Flight workspace half-range in translation (mm per axis).
+pub const WORKSPACE_TRANSLATION_MM: f64 = 2.0;
+/// Flight workspace half-range in rotation (arcsec per axis).
+pub const WORKSPACE_ROTATION_ARCSEC: f64 = 600.0;
+/// Slider soft stroke limit, symmetric about home (mm). The workspace corners need up to
+/// about 4 mm; 5 mm leaves margin without letting the mechanism reach its hard stops.
+pub const STROKE_LIMIT_MM: f64 = 5.0;
+
+const fn leg(a_mm: [f64; 3], b_mm: [f64; 3]) -> LegParams {
+    LegParams { a_mm, b_mm }
+}
+
+/// Nominal joint centres and home position, no limits (as in `geometry.toml`).
+pub const PROTOTYPE: GeometryParams = GeometryParams::new(
+    [
+        leg([67.8981, 61.7825, -134.1000], [103.3452, 35.5846, 85.7000]),
+        leg([19.5562, 89.6928, -134.1000], [-20.8554, 107.2919, 85.7000]),
+        leg([-87.4543, 27.9102, -134.1000], [-82.4898, 71.7073, 85.7000]),
+        leg(
+            [-87.4543, -27.9102, -134.1000],
+            [-82.4898, -71.7073, 85.7000],
+        ),
+        leg(
+            [19.5562, -89.6928, -134.1000],
+            [-20.8554, -107.2919, 85.7000],
+        ),
+        leg(
+            [67.8981, -61.7825, -134.1000],
+            [103.3452, -35.5846, 85.7000],
+        ),
+    ],
+    [0.0, 0.0, -150.0],
+);
+
+/// The nominal geometry with the flight stroke and workspace limits.
+pub const fn prototype_with_flight_limits() -> GeometryParams {
+    let mut g = PROTOTYPE;
+    g.stroke_limits = Some(StrokeLimits {
+        min_mm: [-STROKE_LIMIT_MM; LEGS],
+        max_mm: [STROKE_LIMIT_MM; LEGS],
+    });
+    g.workspace = Some(WorkspaceLimits {
+        translation_mm: [WORKSPACE_TRANSLATION_MM; 3],
+        rotation_rad: [WORKSPACE_ROTATION_ARCSEC / crate::kinematics::ARCSEC_PER_RAD; 3],
+    });
+    g
+}
