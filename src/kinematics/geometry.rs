@@ -102,7 +102,19 @@ pub struct Leg<T> {
     pub d0_mm: [T; 3],
     /// Rod length `|d0|` (mm); derived in f64.
     pub rod_mm: T,
+    /// `1 / (2 d0_z)` (1/mm); derived in f64. Scales the first-order guess of the
+    /// vertical rod component in the IK.
+    pub inv_two_d0z_per_mm: T,
+    /// Largest change of the horizontal rod length squared (mm^2) for which the IK's
+    /// two-step square root is exact to f32/f64 rounding: [`SQRT_FAST_FRACTION`] `* d0_z^2`.
+    pub fast_sqrt_delta_mm2: T,
 }
+
+/// Fraction of `d0_z^2` up to which the IK's first-order guess of the vertical rod
+/// component (relative error <= 0.1^2/8 = 1.3e-3) plus two Newton steps (-> 8.5e-7 ->
+/// 4e-13) is exact to rounding. That is a horizontal joint displacement of about 5 mm,
+/// beyond the mechanism's reach; larger values take the general square root.
+pub const SQRT_FAST_FRACTION: f64 = 0.1;
 
 /// Stroke limits in the working float type (mm).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -234,6 +246,8 @@ impl<T: Real> Geometry<T> {
                 b_mm: map3(leg.b_mm),
                 d0_mm: map3(d0),
                 rod_mm: T::from_f64(libm::sqrt(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2])),
+                inv_two_d0z_per_mm: T::from_f64(0.5 / d0[2]),
+                fast_sqrt_delta_mm2: T::from_f64(SQRT_FAST_FRACTION * d0[2] * d0[2]),
             };
         }
         Ok(Self {

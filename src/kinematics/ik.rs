@@ -88,7 +88,15 @@ pub(crate) fn leg_state<T: Real>(
     if !(radicand > T::ZERO) {
         return None;
     }
-    let q = radicand.sqrt();
+    let q = if delta.abs() <= leg.fast_sqrt_delta_mm2 {
+        // First-order guess d0_z - delta / (2 d0_z), then two Newton steps (see
+        // `SQRT_FAST_FRACTION`): cheaper than a general square root.
+        let mut q = d0[2] - delta * leg.inv_two_d0z_per_mm;
+        q = T::HALF * (q + radicand / q);
+        T::HALF * (q + radicand / q)
+    } else {
+        radicand.sqrt()
+    };
     Some(LegState {
         stroke_mm: u[2] + delta / (q + d0[2]),
         h_mm: [d0[0] + u[0], d0[1] + u[1]],

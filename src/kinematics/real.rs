@@ -46,6 +46,8 @@ pub trait Real:
     const ONE: Self;
     /// 2.
     const TWO: Self;
+    /// 0.5.
+    const HALF: Self;
     /// Machine epsilon of the type.
     const EPSILON: Self;
     /// Nearest value of this type (round to nearest even).
@@ -81,12 +83,29 @@ const COSM1_COEFF: [f64; 5] = [
     -1.0 / 3_628_800.0,
 ];
 
+/// [`SMALL_ANGLE_RAD`] in f32 (compared in f32: an f64 compare is software on the target).
+const SMALL_ANGLE_RAD_F32: f32 = SMALL_ANGLE_RAD as f32;
+/// The sine coefficients rounded to f32 once, at compile time (x^3, x^5, x^7 suffice in
+/// f32 up to 0.1 rad: the x^9 term is below 3e-15).
+const SIN_COEFF_F32: [f32; 3] = [
+    SIN_COEFF[0] as f32,
+    SIN_COEFF[1] as f32,
+    SIN_COEFF[2] as f32,
+];
+/// The `cos - 1` coefficients rounded to f32 (x^2 .. x^8; the x^10 term is below 3e-17).
+const COSM1_COEFF_F32: [f32; 4] = [
+    COSM1_COEFF[0] as f32,
+    COSM1_COEFF[1] as f32,
+    COSM1_COEFF[2] as f32,
+    COSM1_COEFF[3] as f32,
+];
+
 /// Horner evaluation of `sum c_k y^(k+1)` for `y = x^2`.
 #[inline(always)]
-fn poly_in_square<T: Real>(y: T, coeff: &[f64]) -> T {
+fn poly_in_square<T: Real, const N: usize>(y: T, coeff: &[T; N]) -> T {
     let mut acc = T::ZERO;
     for c in coeff.iter().rev() {
-        acc = (acc + T::from_f64(*c)) * y;
+        acc = (acc + *c) * y;
     }
     acc
 }
@@ -95,6 +114,7 @@ impl Real for f32 {
     const ZERO: Self = 0.0;
     const ONE: Self = 1.0;
     const TWO: Self = 2.0;
+    const HALF: Self = 0.5;
     const EPSILON: Self = f32::EPSILON;
     #[inline(always)]
     fn from_f64(v: f64) -> Self {
@@ -118,11 +138,10 @@ impl Real for f32 {
     }
     #[inline]
     fn sin_cosm1(self) -> (Self, Self) {
-        if f64::from(self.abs()) <= SMALL_ANGLE_RAD {
+        if self.abs() <= SMALL_ANGLE_RAD_F32 {
             let y = self * self;
-            // Only the first three sine and four cosine terms matter in f32 at 0.1 rad.
-            let s = self + self * poly_in_square(y, &SIN_COEFF[..3]);
-            let c = poly_in_square(y, &COSM1_COEFF[..4]);
+            let s = self + self * poly_in_square(y, &SIN_COEFF_F32);
+            let c = poly_in_square(y, &COSM1_COEFF_F32);
             (s, c)
         } else {
             let h = libm::sinf(0.5 * self);
@@ -135,6 +154,7 @@ impl Real for f64 {
     const ZERO: Self = 0.0;
     const ONE: Self = 1.0;
     const TWO: Self = 2.0;
+    const HALF: Self = 0.5;
     const EPSILON: Self = f64::EPSILON;
     #[inline(always)]
     fn from_f64(v: f64) -> Self {

@@ -56,24 +56,21 @@ pub fn evaluate<T: Real>(geom: &Geometry<T>, pose: &Pose<T>) -> ([T; LEGS], Refu
             w.rotation_rad[2],
         ];
         for (k, (v, lim)) in pose.to_array().iter().zip(limits.iter()).enumerate() {
-            if v.abs() > *lim {
-                r.axes_outside |= 1 << k;
-            }
+            r.axes_outside |= u8::from(v.abs() > *lim) << k;
         }
     }
     let (strokes, unreachable) = strokes_unchecked(geom, pose);
     r.legs_unreachable = unreachable;
     if let Some(lim) = &geom.stroke {
-        for (i, s) in strokes.iter().enumerate() {
-            if unreachable & (1 << i) != 0 {
-                continue;
-            }
-            if *s < lim.min_mm[i] {
-                r.legs_below_min |= 1 << i;
-            }
-            if *s > lim.max_mm[i] {
-                r.legs_above_max |= 1 << i;
-            }
+        // Unreachable legs carry stroke 0, which validated limits always contain.
+        for (i, ((s, lo), hi)) in strokes
+            .iter()
+            .zip(lim.min_mm.iter())
+            .zip(lim.max_mm.iter())
+            .enumerate()
+        {
+            r.legs_below_min |= u8::from(*s < *lo) << i;
+            r.legs_above_max |= u8::from(*s > *hi) << i;
         }
     }
     (strokes, r)
