@@ -4,7 +4,16 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use m2ctl::ground::calib::{cuckoo::CuckooConfig, CalibConfig, SolverKind};
+use m2ctl::ground::calib_cmd::{
+    run_calibrate, run_campaign, run_plan, CalibrateArgs, CampaignArgs,
+};
+use m2ctl::ground::campaign::{Tracker, DEFAULT_MANUFACTURING_SIGMA_MM};
 use m2ctl::ground::ikfk::{run_file, IkFk};
+use m2ctl::ground::plan::{
+    PlanConfig, DEFAULT_AXIS_MM, DEFAULT_CUBE_HALF_MM, DEFAULT_ROTATION_ARCSEC,
+};
+use m2ctl::ground::report::{bench, table3, TableConfig};
 
 #[derive(Parser)]
 #[command(
@@ -23,6 +32,223 @@ enum Cmd {
     Ik(IoArgs),
     /// Forward kinematics: stroke columns of a CSV -> 12-column CSV with poses (f64).
     Fk(IoArgs),
+    /// Calibrate the 36 joint coordinates from a measurement CSV.
+    Calibrate(CalibrateCli),
+    /// Write the calibration sampling plan's poses (6-column CSV).
+    Plan(PlanCli),
+    /// Write a measurement CSV from a simulated campaign (true mechanism + tracker noise).
+    SimulateCampaign(CampaignCli),
+    /// Print the paper's Table 3 comparison on a simulated campaign (and write the plot).
+    Table3(TableCli),
+    /// Print the wall time of each solver on the simulated campaign.
+    Bench(BenchCli),
+}
+
+#[derive(clap::Args)]
+struct SolverCli {
+    /// Half-width of the feasible box Omega around nominal (mm).
+    #[arg(long, default_value_t = m2ctl::ground::calib::DEFAULT_OMEGA_HALF_WIDTH_MM)]
+    omega_mm: f64,
+    /// Seed of the stochastic solvers.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Cuckoo search: number of nests.
+    #[arg(long, default_value_t = m2ctl::ground::calib::cuckoo::DEFAULT_NESTS)]
+    nests: usize,
+    /// Cuckoo search: generation budget T_max.
+    #[arg(long, default_value_t = m2ctl::ground::calib::cuckoo::DEFAULT_MAX_GENERATIONS)]
+    generations: usize,
+    /// Cuckoo search: Nelder-Mead iterations per refined nest per generation.
+    #[arg(long, default_value_t = m2ctl::ground::calib::cuckoo::DEFAULT_NM_ITERATIONS)]
+    nm_iterations: usize,
+    /// LM: assumed spread of the true joints about nominal (mm).
+    #[arg(long, default_value_t = m2ctl::ground::calib::lm::DEFAULT_PRIOR_SIGMA_MM)]
+    prior_sigma_mm: f64,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+impl SolverCli {
+    fn config(&self, solver: SolverKind) -> CalibConfig {
+        let mut c = CalibConfig {
+            solver,
+            omega_half_width_mm: self.omega_mm,
+            seed: self.seed,
+            cuckoo: CuckooConfig {
+                nests: self.nests,
+                max_generations: self.generations,
+                nm_iterations: self.nm_iterations,
+                ..CuckooConfig::default()
+            },
+            progress: !self.quiet,
+            ..CalibConfig::default()
+        };
+        c.lm.prior_sigma_mm = self.prior_sigma_mm;
+        c
+    }
+}
+
+#[derive(clap::Args)]
+struct CalibrateCli {
+    /// Measurement CSV (12 columns: pose mm/arcsec, strokes mm).
+    #[arg(long)]
+    data: PathBuf,
+    /// Nominal geometry file.
+    #[arg(long)]
+    nominal: PathBuf,
+    /// Output calibrated geometry file.
+    #[arg(long)]
+    out: PathBuf,
+    /// Solver: lm | lm-unbounded | smcs | improved | improved+lm.
+    #[arg(long, default_value = "lm")]
+    solver: String,
+    #[command(flatten)]
+    solver_cli: SolverCli,
+    /// Print the evaluation (pose errors before/after).
+    #[arg(long)]
+    report: bool,
+    /// True geometry of a simulated campaign: adds the held-out evaluation.
+    #[arg(long)]
+    truth: Option<PathBuf>,
+    /// Write an SVG plot of the per-pose errors (with --report).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct PlanArgsCli {
+    /// Half-side of the translation cube whose corners are sampled (mm); 0 leaves them out.
+    #[arg(long, default_value_t = DEFAULT_CUBE_HALF_MM)]
+    cube_half_mm: f64,
+    /// Distance of the axis points (mm); 0 leaves them out.
+    #[arg(long, default_value_t = DEFAULT_AXIS_MM)]
+    axis_mm: f64,
+    /// Rotation magnitude combined with all 8 sign patterns (arcsec).
+    #[arg(long, default_value_t = DEFAULT_ROTATION_ARCSEC)]
+    rotation_arcsec: f64,
+    /// Leave out the centre point.
+    #[arg(long)]
+    no_centre: bool,
+}
+
+impl PlanArgsCli {
+    fn config(&self) -> PlanConfig {
+        PlanConfig {
+            centre: !self.no_centre,
+            cube_half_mm: (self.cube_half_mm > 0.0).then_some(self.cube_half_mm),
+            axis_mm: (self.axis_mm > 0.0).then_some(self.axis_mm),
+            rotation_arcsec: self.rotation_arcsec,
+        }
+    }
+}
+
+#[derive(clap::Args)]
+struct PlanCli {
+    #[command(flatten)]
+    plan: PlanArgsCli,
+    /// Output file (default: stdout).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct CampaignCli {
+    /// Nominal geometry file (default: the compiled-in prototype).
+    #[arg(long)]
+    nominal: Option<PathBuf>,
+    /// Output measurement CSV (default: stdout).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Also write the simulated true geometry here.
+    #[arg(long)]
+    truth_out: Option<PathBuf>,
+    /// Manufacturing error sigma per joint coordinate (mm).
+    #[arg(long, default_value_t = DEFAULT_MANUFACTURING_SIGMA_MM)]
+    sigma_mm: f64,
+    /// Seed of the true geometry.
+    #[arg(long, default_value_t = 1)]
+    geometry_seed: u64,
+    /// Tracker noise on the translation (um, per axis).
+    #[arg(long, default_value_t = Tracker::PAPER.noise_um)]
+    noise_um: f64,
+    /// Tracker noise on the rotation (arcsec, per axis).
+    #[arg(long, default_value_t = Tracker::PAPER.noise_arcsec)]
+    noise_arcsec: f64,
+    /// Seed of the tracker noise.
+    #[arg(long, default_value_t = 2)]
+    noise_seed: u64,
+    #[command(flatten)]
+    plan: PlanArgsCli,
+}
+
+#[derive(clap::Args)]
+struct TableCli {
+    #[command(flatten)]
+    solver_cli: SolverCli,
+    /// Write the per-pose error plot (SVG).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct BenchCli {
+    #[command(flatten)]
+    solver_cli: SolverCli,
+    /// Runs per solver.
+    #[arg(long, default_value_t = 3)]
+    repeats: usize,
+}
+
+fn table_config(s: &SolverCli, plot: Option<PathBuf>) -> TableConfig {
+    let mut t = TableConfig::default();
+    t.calib = SolverCli::config(s, SolverKind::Lm);
+    t.plot = plot;
+    t
+}
+
+fn calibrate_cmd(a: &CalibrateCli) -> Result<(), String> {
+    let solver = SolverKind::parse(&a.solver).ok_or_else(|| {
+        format!(
+            "unknown solver '{}' (lm, lm-unbounded, smcs, improved, improved+lm)",
+            a.solver
+        )
+    })?;
+    let args = CalibrateArgs {
+        data: a.data.clone(),
+        nominal: a.nominal.clone(),
+        cfg: a.solver_cli.config(solver),
+        report: a.report,
+        truth: a.truth.clone(),
+        plot: a.plot.clone(),
+    };
+    let (text, summary) = run_calibrate(&args)?;
+    std::fs::write(&a.out, text).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    print!("{summary}");
+    println!("wrote {}", a.out.display());
+    Ok(())
+}
+
+fn campaign_cmd(a: &CampaignCli) -> Result<(), String> {
+    let nominal = match &a.nominal {
+        Some(p) => m2ctl::ground::files::read_geometry(p)?.params,
+        None => m2ctl::nominal::PROTOTYPE,
+    };
+    let (csv, truth) = run_campaign(&CampaignArgs {
+        nominal,
+        sigma_mm: a.sigma_mm,
+        geometry_seed: a.geometry_seed,
+        tracker: Tracker {
+            noise_um: a.noise_um,
+            noise_arcsec: a.noise_arcsec,
+        },
+        noise_seed: a.noise_seed,
+        plan: a.plan.config(),
+    })?;
+    if let Some(p) = &a.truth_out {
+        std::fs::write(p, truth).map_err(|e| format!("{}: {e}", p.display()))?;
+    }
+    write_out(a.out.as_ref(), &csv)
 }
 
 #[derive(clap::Args)]
@@ -56,6 +282,15 @@ fn main() -> ExitCode {
                 .and_then(|t| write_out(a.output.as_ref(), &t)),
             Cmd::Fk(a) => run_file(IkFk::Fk, &a.geometry, &a.input)
                 .and_then(|t| write_out(a.output.as_ref(), &t)),
+            Cmd::Calibrate(a) => calibrate_cmd(a),
+            Cmd::Plan(a) => write_out(a.out.as_ref(), &run_plan(&a.plan.config())),
+            Cmd::SimulateCampaign(a) => campaign_cmd(a),
+            Cmd::Table3(a) => {
+                table3(&table_config(&a.solver_cli, a.plot.clone())).map(|t| print!("{t}"))
+            }
+            Cmd::Bench(a) => {
+                bench(&table_config(&a.solver_cli, None), a.repeats).map(|t| print!("{t}"))
+            }
         };
     match result {
         Ok(()) => ExitCode::SUCCESS,

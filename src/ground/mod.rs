@@ -1,4 +1,10 @@
 //! Ground tools (host only): file formats, the `ik`/`fk` commands, calibration.
 
+pub mod calib;
+pub mod calib_cmd;
+pub mod campaign;
+pub mod eval;
 pub mod files;
 pub mod ikfk;
+pub mod plan;
+pub mod report;

@@ -1,0 +1,128 @@
+//! Evaluation as the paper scores a calibration: accuracy when commanding with the
+//! calibrated parameters. For each held-out target pose, command
+//! `IK(target, calibrated)`, let the true mechanism move (FK with the true parameters)
+//! and compare the reached pose with the target, per axis (um, arcsec).
+
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64;
+
+use super::campaign::{true_motion, CampaignError};
+use super::plan::DEFAULT_AXIS_MM;
+use crate::kinematics::{ik, Geometry, GeometryParams, Pose, ARCSEC_PER_RAD};
+
+/// um per mm.
+pub const UM_PER_MM: f64 = 1.0e3;
+/// Default number of held-out evaluation poses.
+pub const DEFAULT_EVAL_POSES: usize = 200;
+/// Default translation half-range of held-out poses (mm): the paper's stroke, 1 mm.
+pub const DEFAULT_EVAL_TRANSLATION_MM: f64 = DEFAULT_AXIS_MM;
+/// Default rotation half-range of held-out poses (arcsec): the paper's stroke, 1'.
+pub const DEFAULT_EVAL_ROTATION_ARCSEC: f64 = 60.0;
+
+/// Axis names of a pose error row.
+pub const AXES: [&str; 6] = ["x", "y", "z", "alpha", "beta", "gamma"];
+
+/// `n` poses uniformly in `+-translation_mm` and `+-rotation_arcsec` per axis, from `seed`.
+pub fn random_poses(
+    n: usize,
+    translation_mm: f64,
+    rotation_arcsec: f64,
+    seed: u64,
+) -> Vec<Pose<f64>> {
+    let mut rng = Pcg64::seed_from_u64(seed);
+    (0..n)
+        .map(|_| {
+            let t = [0; 3].map(|_| rng.random_range(-1.0..=1.0) * translation_mm);
+            let r = [0; 3].map(|_| rng.random_range(-1.0..=1.0) * rotation_arcsec);
+            Pose::from_mm_arcsec(t, r)
+        })
+        .collect()
+}
+
+/// Per-axis pose errors of a calibration on a set of targets.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Accuracy {
+    /// Per target: reached - target, `[x, y, z]` um and `[alpha, beta, gamma]` arcsec.
+    pub errors: Vec<[f64; 6]>,
+    /// Largest |error| per axis (um x3, arcsec x3).
+    pub max_abs: [f64; 6],
+    /// RMS error per axis (um x3, arcsec x3).
+    pub rms: [f64; 6],
+}
+
+impl Accuracy {
+    /// Largest translation error over x, y, z (um).
+    pub fn max_um(&self) -> f64 {
+        self.max_abs[..3].iter().fold(0.0, |m, v| m.max(*v))
+    }
+
+    /// Largest rotation error over alpha, beta, gamma (arcsec).
+    pub fn max_arcsec(&self) -> f64 {
+        self.max_abs[3..].iter().fold(0.0, |m, v| m.max(*v))
+    }
+
+    /// Per target: the largest translation error (um) and rotation error (arcsec).
+    pub fn per_pose_max(&self) -> Vec<(f64, f64)> {
+        self.errors
+            .iter()
+            .map(|e| {
+                (
+                    e[..3].iter().fold(0.0f64, |m, v| m.max(v.abs())),
+                    e[3..].iter().fold(0.0f64, |m, v| m.max(v.abs())),
+                )
+            })
+            .collect()
+    }
+}
+
+/// Commands each target with `commanded` parameters on the `truth` mechanism.
+pub fn accuracy(
+    commanded: &GeometryParams,
+    truth: &GeometryParams,
+    targets: &[Pose<f64>],
+) -> Result<Accuracy, CampaignError> {
+    let cmd = Geometry::<f64>::new(commanded)
+        .map_err(|e| CampaignError(super::files::describe_geometry_error(&e)))?;
+    let tru = Geometry::<f64>::new(truth)
+        .map_err(|e| CampaignError(super::files::describe_geometry_error(&e)))?;
+    let mut errors = Vec::with_capacity(targets.len());
+    for (k, t) in targets.iter().enumerate() {
+        let s = ik(&cmd, t).map_err(|e| {
+            CampaignError(format!(
+                "target {}: {}",
+                k + 1,
+                super::ikfk::describe_ik_error(&e)
+            ))
+        })?;
+        let p = true_motion(&tru, &s, t)?;
+        let mut e = [0.0; 6];
+        for a in 0..3 {
+            e[a] = (p.translation_mm[a] - t.translation_mm[a]) * UM_PER_MM;
+            e[a + 3] = (p.rotation_rad[a] - t.rotation_rad[a]) * ARCSEC_PER_RAD;
+        }
+        errors.push(e);
+    }
+    let mut max_abs = [0.0f64; 6];
+    let mut sumsq = [0.0f64; 6];
+    for e in &errors {
+        for a in 0..6 {
+            max_abs[a] = max_abs[a].max(e[a].abs());
+            sumsq[a] += e[a] * e[a];
+        }
+    }
+    let n = errors.len().max(1) as f64;
+    Ok(Accuracy {
+        errors,
+        max_abs,
+        rms: sumsq.map(|s| (s / n).sqrt()),
+    })
+}
+
+/// Largest |calibrated - true| over the 36 joint coordinates (mm); reported, not scored.
+pub fn max_param_error_mm(calibrated: &GeometryParams, truth: &GeometryParams) -> f64 {
+    let a = super::calib::to_vec(calibrated);
+    let b = super::calib::to_vec(truth);
+    a.iter()
+        .zip(b.iter())
+        .fold(0.0, |m, (x, y)| m.max((x - y).abs()))
+}

@@ -1,0 +1,400 @@
+//! The paper's simulation comparison (its Table 3), the solver benchmark and the
+//! per-pose error plot, on one simulated campaign.
+//!
+//! Campaign: true geometry = nominal + manufacturing errors ([`Experiment::sigma_mm`],
+//! seed [`Experiment::geometry_seed`]), the sampling plan's poses commanded with nominal
+//! parameters, the tracker noise of each table part. Score: held-out random poses in the
+//! stroke, commanded with the calibrated parameters on the true mechanism.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use super::calib::{calibrate, CalibConfig, CalibResult, Measurement, SolverKind};
+use super::campaign::{
+    perturbed, simulate, CampaignError, Tracker, DEFAULT_MANUFACTURING_SIGMA_MM,
+};
+use super::eval::{
+    accuracy, max_param_error_mm, random_poses, Accuracy, DEFAULT_EVAL_POSES,
+    DEFAULT_EVAL_ROTATION_ARCSEC, DEFAULT_EVAL_TRANSLATION_MM,
+};
+use super::plan::{plan_poses, PlanConfig};
+use crate::kinematics::{GeometryParams, Pose};
+use crate::nominal::PROTOTYPE;
+
+/// Default seed of the true geometry of the table campaign.
+pub const DEFAULT_GEOMETRY_SEED: u64 = 2018;
+/// Default seed of the tracker noise of the table campaign.
+pub const DEFAULT_NOISE_SEED: u64 = 47;
+/// Default seed of the held-out evaluation poses.
+pub const DEFAULT_EVAL_SEED: u64 = 518_002;
+/// Default seed of the cuckoo-search solvers.
+pub const DEFAULT_SOLVER_SEED: u64 = 1;
+
+/// One simulated experiment (campaign + evaluation).
+#[derive(Clone, Debug)]
+pub struct Experiment {
+    /// Nominal geometry (what the controller flies before calibration).
+    pub nominal: GeometryParams,
+    /// Manufacturing error sigma (mm).
+    pub sigma_mm: f64,
+    /// Seed of the true geometry.
+    pub geometry_seed: u64,
+    /// Seed of the tracker noise.
+    pub noise_seed: u64,
+    /// Sampling plan.
+    pub plan: PlanConfig,
+    /// Held-out poses.
+    pub eval_poses: usize,
+    /// Seed of the held-out poses.
+    pub eval_seed: u64,
+}
+
+impl Default for Experiment {
+    fn default() -> Self {
+        Self {
+            nominal: PROTOTYPE,
+            sigma_mm: DEFAULT_MANUFACTURING_SIGMA_MM,
+            geometry_seed: DEFAULT_GEOMETRY_SEED,
+            noise_seed: DEFAULT_NOISE_SEED,
+            plan: PlanConfig::default(),
+            eval_poses: DEFAULT_EVAL_POSES,
+            eval_seed: DEFAULT_EVAL_SEED,
+        }
+    }
+}
+
+/// A prepared experiment: truth, measurements, held-out targets.
+#[derive(Clone, Debug)]
+pub struct Prepared {
+    /// The true geometry.
+    pub truth: GeometryParams,
+    /// The campaign's measurements.
+    pub meas: Vec<Measurement>,
+    /// Held-out targets.
+    pub targets: Vec<Pose<f64>>,
+}
+
+impl Experiment {
+    /// Builds the truth, simulates the campaign with `tracker`, draws the targets.
+    pub fn prepare(&self, tracker: &Tracker) -> Result<Prepared, CampaignError> {
+        let truth = perturbed(&self.nominal, self.sigma_mm, self.geometry_seed);
+        let meas = simulate(
+            &self.nominal,
+            &truth,
+            &plan_poses(&self.plan),
+            tracker,
+            self.noise_seed,
+        )?;
+        let targets = random_poses(
+            self.eval_poses,
+            DEFAULT_EVAL_TRANSLATION_MM,
+            DEFAULT_EVAL_ROTATION_ARCSEC,
+            self.eval_seed,
+        );
+        Ok(Prepared {
+            truth,
+            meas,
+            targets,
+        })
+    }
+}
+
+/// One table row.
+#[derive(Clone, Debug)]
+pub struct Row {
+    /// Label.
+    pub label: String,
+    /// Held-out accuracy.
+    pub acc: Accuracy,
+    /// The calibration (None for "before").
+    pub calib: Option<CalibResult>,
+    /// Largest joint-coordinate error vs truth (mm).
+    pub param_error_mm: f64,
+}
+
+/// Runs one solver on a prepared experiment and scores it.
+pub fn run_solver(exp: &Experiment, prep: &Prepared, cfg: &CalibConfig) -> Result<Row, String> {
+    let r = calibrate(&exp.nominal, &prep.meas, cfg).map_err(|e| e.to_string())?;
+    let acc = accuracy(&r.params, &prep.truth, &prep.targets).map_err(|e| e.to_string())?;
+    Ok(Row {
+        label: cfg.solver.name().to_string(),
+        param_error_mm: max_param_error_mm(&r.params, &prep.truth),
+        acc,
+        calib: Some(r),
+    })
+}
+
+/// The "before calibration" row (commanding with nominal parameters).
+pub fn before_row(exp: &Experiment, prep: &Prepared) -> Result<Row, String> {
+    Ok(Row {
+        label: "before".into(),
+        acc: accuracy(&exp.nominal, &prep.truth, &prep.targets).map_err(|e| e.to_string())?,
+        calib: None,
+        param_error_mm: max_param_error_mm(&exp.nominal, &prep.truth),
+    })
+}
+
+/// Formats rows as a Markdown table: max |error| per axis, RMS, residual, time.
+pub fn format_rows(rows: &[Row]) -> String {
+    let mut s = String::new();
+    s.push_str("| solver | max x um | max y um | max z um | max alpha \" | max beta \" | max gamma \" | RMS xyz um | RMS rot \" | fit RMS um | max param err mm | time ms |\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for r in rows {
+        let m = &r.acc.max_abs;
+        let rms_t = (r.acc.rms[..3].iter().map(|v| v * v).sum::<f64>() / 3.0).sqrt();
+        let rms_r = (r.acc.rms[3..].iter().map(|v| v * v).sum::<f64>() / 3.0).sqrt();
+        let (fit, time) = match &r.calib {
+            Some(c) => (
+                format!("{:.4}", c.rms_after_mm * 1e3),
+                format!("{:.1}", c.elapsed.as_secs_f64() * 1e3),
+            ),
+            None => ("-".into(), "-".into()),
+        };
+        let _ = writeln!(
+            s,
+            "| {} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} | {} | {:.4} | {} |",
+            r.label, m[0], m[1], m[2], m[3], m[4], m[5], rms_t, rms_r, fit, r.param_error_mm, time
+        );
+    }
+    s
+}
+
+/// Settings of the table command.
+#[derive(Clone, Debug)]
+pub struct TableConfig {
+    /// The experiment.
+    pub exp: Experiment,
+    /// Base calibration settings (solver replaced per row).
+    pub calib: CalibConfig,
+    /// Where to write the per-pose error plot (SVG), if anywhere.
+    pub plot: Option<std::path::PathBuf>,
+}
+
+impl Default for TableConfig {
+    fn default() -> Self {
+        Self {
+            exp: Experiment::default(),
+            calib: CalibConfig {
+                seed: DEFAULT_SOLVER_SEED,
+                ..CalibConfig::default()
+            },
+            plot: None,
+        }
+    }
+}
+
+fn with_solver(base: &CalibConfig, solver: SolverKind) -> CalibConfig {
+    CalibConfig {
+        solver,
+        ..base.clone()
+    }
+}
+
+/// Runs the whole comparison and returns the report text (Markdown).
+pub fn table3(cfg: &TableConfig) -> Result<String, String> {
+    let exp = &cfg.exp;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "Campaign: {} plan poses, manufacturing sigma {} mm (seed {}), held-out {} poses within +-{} mm / +-{}\" (seed {}), Omega +-{} mm, solver seed {}, cuckoo: {} nests x {} generations, NM {} iterations on the worst {:.0} %.\n",
+        plan_poses(&exp.plan).len(),
+        exp.sigma_mm,
+        exp.geometry_seed,
+        exp.eval_poses,
+        DEFAULT_EVAL_TRANSLATION_MM,
+        DEFAULT_EVAL_ROTATION_ARCSEC,
+        exp.eval_seed,
+        cfg.calib.omega_half_width_mm,
+        cfg.calib.seed,
+        cfg.calib.cuckoo.nests,
+        cfg.calib.cuckoo.max_generations,
+        cfg.calib.cuckoo.nm_iterations,
+        cfg.calib.cuckoo.nm_fraction * 100.0
+    );
+    // Part 1: the paper's noise.
+    let prep = exp.prepare(&Tracker::PAPER).map_err(|e| e.to_string())?;
+    let mut rows = vec![before_row(exp, &prep)?];
+    for solver in [
+        SolverKind::Smcs,
+        SolverKind::Improved,
+        SolverKind::Lm,
+        SolverKind::ImprovedLm,
+    ] {
+        rows.push(run_solver(exp, &prep, &with_solver(&cfg.calib, solver))?);
+    }
+    let _ = writeln!(
+        out,
+        "### Tracker noise {} um / {} arcsec (the paper's Table 3)\n",
+        Tracker::PAPER.noise_um,
+        Tracker::PAPER.noise_arcsec
+    );
+    out.push_str(&format_rows(&rows));
+    if let Some(path) = &cfg.plot {
+        let series: Vec<(&str, &Accuracy)> = rows
+            .iter()
+            .filter(|r| r.label != "improved+lm")
+            .map(|r| (r.label.as_str(), &r.acc))
+            .collect();
+        plot_per_pose(path, &series)?;
+        let _ = writeln!(out, "\nPer-pose error plot: {}", path.display());
+    }
+    // Part 2: realistic noise, bounded vs unbounded.
+    let prep = exp
+        .prepare(&Tracker::REALISTIC)
+        .map_err(|e| e.to_string())?;
+    let mut rows = vec![before_row(exp, &prep)?];
+    for solver in [
+        SolverKind::LmUnbounded,
+        SolverKind::Lm,
+        SolverKind::Improved,
+    ] {
+        rows.push(run_solver(exp, &prep, &with_solver(&cfg.calib, solver))?);
+    }
+    let _ = writeln!(
+        out,
+        "\n### Tracker noise {} um / {} arcsec: bounded vs unbounded\n",
+        Tracker::REALISTIC.noise_um,
+        Tracker::REALISTIC.noise_arcsec
+    );
+    out.push_str(&format_rows(&rows));
+    for r in rows.iter().filter_map(|r| r.calib.as_ref()) {
+        let _ = writeln!(
+            out,
+            "- {}: condition {:.3e}, {} parameters on a bound, {}",
+            r.note.split(':').next().unwrap_or(""),
+            r.condition(),
+            r.active_bounds,
+            r.note
+        );
+    }
+    Ok(out)
+}
+
+/// Wall time of each solver on the paper-noise campaign, `repeats` runs each (the
+/// minimum and mean are reported).
+pub fn bench(cfg: &TableConfig, repeats: usize) -> Result<String, String> {
+    let exp = &cfg.exp;
+    let prep = exp.prepare(&Tracker::PAPER).map_err(|e| e.to_string())?;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "| solver | poses | runs | min ms | mean ms | iterations | evaluations | held-out max um | held-out max arcsec |\n|---|---|---|---|---|---|---|---|---|"
+    );
+    for solver in [
+        SolverKind::Lm,
+        SolverKind::LmUnbounded,
+        SolverKind::Smcs,
+        SolverKind::Improved,
+        SolverKind::ImprovedLm,
+    ] {
+        let c = with_solver(&cfg.calib, solver);
+        let mut times = Vec::new();
+        let mut last = None;
+        for _ in 0..repeats.max(1) {
+            let row = run_solver(exp, &prep, &c)?;
+            if let Some(r) = &row.calib {
+                times.push(r.elapsed.as_secs_f64() * 1e3);
+            }
+            last = Some(row);
+        }
+        let Some(row) = last else { continue };
+        let Some(r) = &row.calib else { continue };
+        let min = times.iter().fold(f64::INFINITY, |m, v| m.min(*v));
+        let mean = times.iter().sum::<f64>() / times.len().max(1) as f64;
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {:.1} | {:.1} | {} | {} | {:.4} | {:.4} |",
+            solver,
+            prep.meas.len(),
+            times.len(),
+            min,
+            mean,
+            r.iterations,
+            r.evaluations,
+            row.acc.max_um(),
+            row.acc.max_arcsec()
+        );
+    }
+    Ok(out)
+}
+
+/// Plot colours (RGB) of the series, in order.
+const PLOT_COLOURS: [(u8, u8, u8); 6] = [
+    (200, 30, 30),
+    (230, 150, 0),
+    (30, 120, 200),
+    (20, 150, 60),
+    (120, 60, 160),
+    (0, 0, 0),
+];
+/// Plot size (px).
+const PLOT_SIZE_PX: (u32, u32) = (1000, 800);
+/// Smallest error drawn on the log axes (um or arcsec): zero errors are drawn here.
+const PLOT_FLOOR: f64 = 1.0e-4;
+
+/// Writes an SVG with two panels (max translation error um, max rotation error arcsec,
+/// per held-out pose, log scale), one line per series.
+pub fn plot_per_pose(path: &Path, series: &[(&str, &Accuracy)]) -> Result<(), String> {
+    use plotters::prelude::*;
+    let e = |e: &dyn std::fmt::Display| format!("{}: plot: {e}", path.display());
+    let root = SVGBackend::new(path, PLOT_SIZE_PX).into_drawing_area();
+    root.fill(&WHITE).map_err(|x| e(&x))?;
+    let panels = root.split_evenly((2, 1));
+    for (panel, (what, unit)) in panels
+        .iter()
+        .zip([("translation", "um"), ("rotation", "arcsec")])
+    {
+        let per: Vec<Vec<f64>> = series
+            .iter()
+            .map(|(_, a)| {
+                a.per_pose_max()
+                    .iter()
+                    .map(|(t, r)| if unit == "um" { *t } else { *r })
+                    .map(|v| v.max(PLOT_FLOOR))
+                    .collect()
+            })
+            .collect();
+        let n = per.iter().map(Vec::len).max().unwrap_or(1).max(2);
+        let top = per
+            .iter()
+            .flatten()
+            .fold(PLOT_FLOOR * 10.0, |m, v| m.max(*v))
+            * 2.0;
+        let mut chart = ChartBuilder::on(panel)
+            .caption(
+                format!("max |{what} error| per held-out pose ({unit})"),
+                ("sans-serif", 20),
+            )
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0f64..(n - 1) as f64, (PLOT_FLOOR..top).log_scale())
+            .map_err(|x| e(&x))?;
+        chart
+            .configure_mesh()
+            .x_desc("held-out pose")
+            .y_desc(unit)
+            .draw()
+            .map_err(|x| e(&x))?;
+        for (k, ((label, _), ys)) in series.iter().zip(per.iter()).enumerate() {
+            let (r, g, b) = PLOT_COLOURS[k % PLOT_COLOURS.len()];
+            let colour = RGBColor(r, g, b);
+            chart
+                .draw_series(LineSeries::new(
+                    ys.iter().enumerate().map(|(i, v)| (i as f64, *v)),
+                    colour,
+                ))
+                .map_err(|x| e(&x))?
+                .label(*label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|x| e(&x))?;
+    }
+    root.present().map_err(|x| e(&x))?;
+    Ok(())
+}
