@@ -1,70 +1,368 @@
-use m2ctl::kinematics::*;
-use m2ctl::nominal::PROTOTYPE;
-use m2ctl::selftest;
+//! Kinematics against independent references: the golden vectors of an independent
+//! implementation, the paper's equation evaluated naively in f64, f32 vs f64, finite
+//! differences, FK(IK) round trips, and every error path.
 
-#[test]
-fn quick() {
-    let g32 = Geometry::<f32>::new(&PROTOTYPE).unwrap();
-    let s = selftest::run_all(&g32, |i, o| {
-        println!(
-            "{i} {:?}",
-            (
-                o.ik_err_mm * 1e6,
-                o.fk_err_mm * 1e6,
-                o.fk_err_arcsec,
-                o.fk_iterations,
-                o.pass
-            )
-        )
-    });
-    println!("{s:?}");
+mod common;
+
+use common::*;
+use m2ctl::kinematics::fk::strokes_and_jacobian;
+use m2ctl::kinematics::*;
+use m2ctl::nominal::{prototype_with_flight_limits, PROTOTYPE};
+
+fn g64() -> Geometry<f64> {
+    Geometry::new(&PROTOTYPE).unwrap()
+}
+fn g32() -> Geometry<f32> {
+    Geometry::new(&PROTOTYPE).unwrap()
+}
+
+/// The paper's equation, verbatim, in f64: b' = R b + p0 + t,
+/// dl = b'_z - a_z - sqrt(l0^2 - (b'_x - a_x)^2 - (b'_y - a_y)^2), R = Rz Ry Rx.
+fn paper_ik(g: &GeometryParams, p: &Pose<f64>) -> [f64; 6] {
+    let [a, b, c] = p.rotation_rad;
+    let (sa, ca, sb, cb, sg, cg) = (a.sin(), a.cos(), b.sin(), b.cos(), c.sin(), c.cos());
+    let r = [
+        [cg * cb, cg * sb * sa - sg * ca, cg * sb * ca + sg * sa],
+        [sg * cb, sg * sb * sa + cg * ca, sg * sb * ca - cg * sa],
+        [-sb, cb * sa, cb * ca],
+    ];
+    let rods = g.rod_lengths_mm();
+    let mut out = [0.0; 6];
+    for (i, leg) in g.legs.iter().enumerate() {
+        let bb = leg.b_mm;
+        let bp: Vec<f64> = (0..3)
+            .map(|k| {
+                r[k][0] * bb[0]
+                    + r[k][1] * bb[1]
+                    + r[k][2] * bb[2]
+                    + g.p0_mm[k]
+                    + p.translation_mm[k]
+            })
+            .collect();
+        let a = leg.a_mm;
+        out[i] = bp[2]
+            - a[2]
+            - (rods[i] * rods[i] - (bp[0] - a[0]).powi(2) - (bp[1] - a[1]).powi(2)).sqrt();
+    }
+    out
 }
 
 #[test]
-fn sweep() {
-    let g32 = Geometry::<f32>::new(&PROTOTYPE).unwrap();
-    let g64 = Geometry::<f64>::new(&PROTOTYPE).unwrap();
-    let mut st = 12345u64;
-    let mut rnd = || {
-        st ^= st << 13;
-        st ^= st >> 7;
-        st ^= st << 17;
-        (st >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    };
-    let mut worst = 0.0f64;
-    let mut worst_fk = 0.0f64;
-    let mut worst_as = 0.0f64;
-    for n in 0..200000 {
-        let corner = n % 4 == 0;
-        let mut v = [0.0; 6];
-        for k in 0..6 {
-            let r = if corner { rnd().signum() } else { rnd() };
-            v[k] = if k < 3 {
-                2.0 * r
-            } else {
-                600.0 * r / ARCSEC_PER_RAD
-            };
-        }
-        let p32 = Pose::<f32>::from_array(v.map(|x| x as f32));
-        let p64: Pose<f64> = p32.cast();
-        let s32 = ik(&g32, &p32).unwrap();
-        let s64 = ik(&g64, &p64).unwrap();
+fn golden_vectors_f64_and_f32_within_1nm() {
+    let (g64, g32) = (g64(), g32());
+    let rows = golden();
+    assert_eq!(rows.len(), 40, "golden file rows");
+    let (mut e64, mut e32) = (0.0f64, 0.0f64);
+    for (p, s) in &rows {
+        let pose64 = Pose::<f64>::from_mm_arcsec([p[0], p[1], p[2]], [p[3], p[4], p[5]]);
+        let pose32 = Pose::<f32>::from_mm_arcsec([p[0], p[1], p[2]], [p[3], p[4], p[5]]);
+        let s64 = ik(&g64, &pose64).unwrap();
+        let s32 = ik(&g32, &pose32).unwrap();
         for i in 0..6 {
-            worst = worst.max((s32[i] as f64 - s64[i]).abs());
-        }
-        if n % 50 == 0 {
-            let sol = fk(&g32, &s32, &Pose::home(), &FkConfig::default()).unwrap();
-            let a = sol.pose.to_array();
-            for k in 0..3 {
-                worst_fk = worst_fk.max((a[k] as f64 - v[k]).abs());
-                worst_as = worst_as.max((a[k + 3] as f64 - v[k + 3]).abs() * ARCSEC_PER_RAD);
-            }
+            e64 = e64.max((s64[i] - s[i]).abs());
+            e32 = e32.max((f64::from(s32[i]) - s[i]).abs());
         }
     }
     println!(
-        "worst f32 vs f64 {} nm ; fk {} nm {} as",
-        worst * 1e6,
-        worst_fk * 1e6,
-        worst_as
+        "golden: max |f64 - ref| = {:.3e} mm, max |f32 - ref| = {:.3e} mm",
+        e64, e32
     );
+    // The reference differs from the exact f64 evaluation of the paper's equation by
+    // up to 0.75 nm on the rotated rows (its own rounding); the budget is 1 nm.
+    assert!(e64 <= 1e-6, "f64 vs golden {e64:e} mm");
+    assert!(e32 <= 1e-6, "f32 vs golden {e32:e} mm (1 nm)");
+}
+
+#[test]
+fn reformulated_ik_equals_paper_equation_in_f64() {
+    let g = g64();
+    let mut worst = 0.0f64;
+    for p in workspace_poses(2000, 7) {
+        let ours = ik(&g, &p).unwrap();
+        let paper = paper_ik(&PROTOTYPE, &p);
+        for i in 0..6 {
+            worst = worst.max((ours[i] - paper[i]).abs());
+        }
+    }
+    println!("|reformulated - paper| max = {worst:.3e} mm");
+    // The naive f64 evaluation itself carries ~1e-13 mm of rounding.
+    assert!(worst < 1e-11, "{worst:e}");
+}
+
+#[test]
+fn f32_strokes_agree_with_f64_within_1nm_over_workspace() {
+    let (g64, g32) = (g64(), g32());
+    let mut worst = 0.0f64;
+    let poses = workspace_poses(100_000, 11);
+    for p in &poses {
+        let s64 = ik(&g64, p).unwrap();
+        let s32 = ik(&g32, &p.cast::<f32>()).unwrap();
+        for i in 0..6 {
+            worst = worst.max((f64::from(s32[i]) - s64[i]).abs());
+        }
+    }
+    println!(
+        "f32 vs f64 over {} poses (64 corners): max {:.3} nm",
+        poses.len(),
+        worst * 1e6
+    );
+    assert!(worst <= 1e-6, "{} nm", worst * 1e6);
+}
+
+#[test]
+fn naive_f32_evaluation_is_what_the_reformulation_avoids() {
+    // The paper's equation evaluated naively in f32 errs by tens of nm: proves that the
+    // previous test is a real constraint, not one any formulation meets.
+    let g = g64();
+    let mut worst = 0.0f64;
+    for p in workspace_poses(2000, 3) {
+        let exact = ik(&g, &p).unwrap();
+        let (t, r) = (
+            p.translation_mm.map(|v| v as f32),
+            p.rotation_rad.map(|v| v as f32),
+        );
+        let (sa, ca, sb, cb, sg, cg) = (
+            r[0].sin(),
+            r[0].cos(),
+            r[1].sin(),
+            r[1].cos(),
+            r[2].sin(),
+            r[2].cos(),
+        );
+        let rm = [
+            [cg * cb, cg * sb * sa - sg * ca, cg * sb * ca + sg * sa],
+            [sg * cb, sg * sb * sa + cg * ca, sg * sb * ca - cg * sa],
+            [-sb, cb * sa, cb * ca],
+        ];
+        for (i, leg) in PROTOTYPE.legs.iter().enumerate() {
+            let b = leg.b_mm.map(|v| v as f32);
+            let a = leg.a_mm.map(|v| v as f32);
+            let p0 = PROTOTYPE.p0_mm.map(|v| v as f32);
+            let l = PROTOTYPE.rod_lengths_mm()[i] as f32;
+            let bp: Vec<f32> = (0..3)
+                .map(|k| rm[k][0] * b[0] + rm[k][1] * b[1] + rm[k][2] * b[2] + p0[k] + t[k])
+                .collect();
+            let s = bp[2] - a[2] - (l * l - (bp[0] - a[0]).powi(2) - (bp[1] - a[1]).powi(2)).sqrt();
+            worst = worst.max((f64::from(s) - exact[i]).abs());
+        }
+    }
+    println!("naive f32: max {:.1} nm", worst * 1e6);
+    assert!(worst > 5e-6, "naive f32 unexpectedly accurate: {worst:e}");
+}
+
+#[test]
+fn fk_of_ik_returns_the_pose_f32_within_5nm_and_1marcsec() {
+    let g = g32();
+    let (mut e_mm, mut e_as, mut max_it) = (0.0f64, 0.0f64, 0u8);
+    let poses = workspace_poses(5000, 5);
+    for p in &poses {
+        let p32 = p.cast::<f32>();
+        let s = ik(&g, &p32).unwrap();
+        let sol = fk(&g, &s, &Pose::home(), &FkConfig::default()).unwrap();
+        max_it = max_it.max(sol.iterations);
+        let (a, b) = (sol.pose.to_array(), p.to_array());
+        for k in 0..3 {
+            e_mm = e_mm.max((f64::from(a[k]) - b[k]).abs());
+            e_as = e_as.max((f64::from(a[k + 3]) - b[k + 3]).abs() * ARCSEC_PER_RAD);
+        }
+    }
+    println!(
+        "FK(IK) f32 from home over {} poses: {:.3} nm, {:.5} arcsec, <= {} iterations",
+        poses.len(),
+        e_mm * 1e6,
+        e_as,
+        max_it
+    );
+    assert!(e_mm <= 5e-6 && e_as <= 1e-3, "{e_mm:e} mm {e_as:e} arcsec");
+}
+
+#[test]
+fn fk_of_ik_f64_is_exact_to_rounding_and_warm_start_is_cheap() {
+    let g = g64();
+    for p in workspace_poses(500, 9) {
+        let s = ik(&g, &p).unwrap();
+        let sol = fk(&g, &s, &Pose::home(), &FkConfig::default()).unwrap();
+        for (a, b) in sol.pose.to_array().iter().zip(p.to_array()) {
+            assert!((a - b).abs() < 1e-11, "{a} vs {b}");
+        }
+        // Warm start within 10 um / 2 arcsec: at most 3 Newton steps.
+        let mut start = p;
+        start.translation_mm.iter_mut().for_each(|v| *v += 0.0057);
+        start
+            .rotation_rad
+            .iter_mut()
+            .for_each(|v| *v += 2.0 / ARCSEC_PER_RAD);
+        let warm = fk(&g, &s, &start, &FkConfig::default()).unwrap();
+        assert!(warm.iterations <= 3, "{} iterations", warm.iterations);
+    }
+}
+
+#[test]
+fn jacobian_matches_central_finite_differences() {
+    let g = g64();
+    let mut worst_rel = 0.0f64;
+    for p in workspace_poses(200, 13) {
+        let (_, jac) = strokes_and_jacobian(&g, &p).unwrap();
+        for k in 0..6 {
+            let h = if k < 3 { 1e-5 } else { 1e-7 };
+            let (mut pp, mut pm) = (p.to_array(), p.to_array());
+            pp[k] += h;
+            pm[k] -= h;
+            let sp = ik(&g, &Pose::from_array(pp)).unwrap();
+            let sm = ik(&g, &Pose::from_array(pm)).unwrap();
+            for i in 0..6 {
+                let fd = (sp[i] - sm[i]) / (2.0 * h);
+                let scale = if k < 3 { 1.0 } else { 100.0 };
+                worst_rel = worst_rel.max((fd - jac[i][k]).abs() / scale);
+            }
+        }
+    }
+    println!("Jacobian vs finite differences: max error {worst_rel:.2e} (relative to 1 mm/mm, 100 mm/rad)");
+    assert!(worst_rel < 1e-7, "{worst_rel:e}");
+}
+
+#[test]
+fn ik_errors_are_typed_and_workspace_check_lists_every_reason() {
+    let g = Geometry::<f32>::new(&prototype_with_flight_limits()).unwrap();
+    let nan = Pose::<f32>::from_array([f32::NAN, 0.0, 0.0, 0.0, 0.0, 0.0]);
+    assert_eq!(ik(&g, &nan), Err(IkError::NonFinite));
+    let inf = Pose::<f32>::from_array([0.0, 0.0, 0.0, 0.0, f32::INFINITY, 0.0]);
+    assert_eq!(ik(&g, &inf), Err(IkError::NonFinite));
+    assert!(check(&g, &inf).non_finite);
+
+    // Outside the +-2 mm workspace on x and gamma.
+    let out = Pose::<f32>::from_mm_arcsec([2.5, 0.0, 0.0], [0.0, 0.0, -700.0]);
+    assert_eq!(
+        ik(&g, &out),
+        Err(IkError::OutsideWorkspace { axes: 0b10_0001 })
+    );
+
+    // Far beyond reach: 100 mm sideways is more than any rod's horizontal reach.
+    let far = Pose::<f32>::from_mm_arcsec([100.0, 0.0, 0.0], [0.0; 3]);
+    let r = check(&g, &far);
+    assert_eq!(r.axes_outside, 0b1);
+    assert_ne!(r.legs_unreachable, 0);
+    // Unlimited geometry: the same pose is refused as unreachable.
+    let gu = Geometry::<f32>::new(&PROTOTYPE).unwrap();
+    let Err(IkError::Unreachable { legs }) = ik(&gu, &far) else {
+        panic!("expected unreachable")
+    };
+    assert_ne!(legs, 0);
+
+    // Stroke limits only: a tight +-0.5 mm slider range with a 1 mm z move.
+    let mut tight = PROTOTYPE;
+    tight.stroke_limits = Some(StrokeLimits {
+        min_mm: [-0.5; 6],
+        max_mm: [0.5; 6],
+    });
+    let gt = Geometry::<f32>::new(&tight).unwrap();
+    let up = Pose::<f32>::from_mm_arcsec([0.0, 0.0, 1.0], [0.0; 3]);
+    assert_eq!(ik(&gt, &up), Err(IkError::StrokeLimit { legs: 0b11_1111 }));
+    let r = check(
+        &gt,
+        &Pose::<f32>::from_mm_arcsec([0.0, 0.0, -1.0], [0.0; 3]),
+    );
+    assert_eq!((r.legs_below_min, r.legs_above_max), (0b11_1111, 0));
+
+    // Several reasons at once: outside workspace AND beyond stroke limits.
+    let mut both = prototype_with_flight_limits();
+    both.stroke_limits = Some(StrokeLimits {
+        min_mm: [-0.5; 6],
+        max_mm: [0.5; 6],
+    });
+    let gb = Geometry::<f32>::new(&both).unwrap();
+    let r = check(&gb, &Pose::<f32>::from_mm_arcsec([0.0, 0.0, 3.0], [0.0; 3]));
+    assert_eq!(r.axes_outside, 0b100);
+    assert_eq!(r.legs_above_max, 0b11_1111);
+    assert!(!r.is_empty());
+    assert!(check(&gb, &Pose::home()).is_empty());
+}
+
+#[test]
+fn fk_failures_are_reported_never_a_half_converged_pose() {
+    let g = g64();
+    let p = Pose::<f64>::from_mm_arcsec([1.5, -1.0, 0.7], [300.0, -200.0, 100.0]);
+    let s = ik(&g, &p).unwrap();
+    // One step from home cannot converge: NotConverged, not a pose.
+    let one = FkConfig::<f64> {
+        max_iterations: 1,
+        ..FkConfig::default()
+    };
+    assert_eq!(
+        fk(&g, &s, &Pose::home(), &one),
+        Err(FkError::NotConverged { iterations: 1 })
+    );
+    assert_eq!(
+        fk(&g, &[f64::NAN; 6], &Pose::home(), &FkConfig::default()),
+        Err(FkError::NonFinite)
+    );
+    // Arbitrary stroke sets, many far from any pose: whenever FK answers Ok, the pose
+    // reproduces the strokes; otherwise it is a typed error.
+    let mut rng = TestRng(99);
+    let (mut ok, mut err) = (0, 0);
+    for _ in 0..2000 {
+        let scale = 40.0 * rng.sym().abs();
+        let s: [f64; 6] = std::array::from_fn(|_| scale * rng.sym());
+        match fk(&g, &s, &Pose::home(), &FkConfig::default()) {
+            Ok(sol) => {
+                ok += 1;
+                let back = m2ctl::kinematics::workspace::evaluate(&g, &sol.pose).0;
+                for i in 0..6 {
+                    assert!((back[i] - s[i]).abs() <= 1e-12, "{s:?} -> {sol:?}");
+                }
+            }
+            Err(_) => err += 1,
+        }
+    }
+    println!("random stroke sets: {ok} solved, {err} refused");
+    assert!(ok > 0 && err > 0);
+    // A degenerate mechanism (all six legs identical) has a singular Jacobian.
+    let mut degenerate = PROTOTYPE;
+    degenerate.legs = [PROTOTYPE.legs[0]; 6];
+    let gd = Geometry::<f64>::new(&degenerate).unwrap();
+    assert_eq!(
+        fk(&gd, &[0.1; 6], &Pose::home(), &FkConfig::default()),
+        Err(FkError::SingularJacobian { iterations: 0 })
+    );
+}
+
+#[test]
+fn geometry_validation_rejects_bad_parameters() {
+    let mut g = PROTOTYPE;
+    g.legs[2].b_mm[1] = f64::NAN;
+    assert_eq!(Geometry::<f32>::new(&g), Err(GeometryError::NonFinite));
+    let mut g = PROTOTYPE;
+    g.legs[4].a_mm[2] = 0.0; // lower joint above the upper one
+    assert_eq!(
+        Geometry::<f32>::new(&g),
+        Err(GeometryError::UpperNotAboveLower { leg: 4 })
+    );
+    let mut g = PROTOTYPE;
+    g.stroke_limits = Some(StrokeLimits {
+        min_mm: [1.0; 6],
+        max_mm: [2.0; 6],
+    });
+    assert_eq!(
+        Geometry::<f32>::new(&g),
+        Err(GeometryError::BadStrokeLimits { leg: 0 })
+    );
+}
+
+#[test]
+fn compiled_in_nominal_matches_the_reference_geometry_file() {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/testdata/geometry.toml"
+    ))
+    .unwrap();
+    let file = m2ctl::ground::files::parse_geometry(&text).unwrap();
+    assert_eq!(file.params, PROTOTYPE);
+}
+
+#[test]
+fn selftest_passes_on_host_and_reports_its_figures() {
+    let s = m2ctl::selftest::run_all(&g32(), |_, _| {});
+    println!("{s:?}");
+    assert_eq!((s.rows, s.failures), (40, 0));
+    assert!(s.max_ik_err_mm <= 1e-6 && s.max_fk_err_mm <= 5e-6 && s.max_fk_err_arcsec <= 1e-3);
 }

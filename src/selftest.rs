@@ -5,9 +5,6 @@
 
 use crate::kinematics::{fk, ik, FkConfig, Geometry, Pose, ARCSEC_PER_RAD, LEGS};
 
-/// The golden CSV, compiled into the image.
-pub const GOLDEN_CSV: &str = include_str!("../testdata/ik_golden.csv");
-
 /// IK acceptance: every stroke within this of the reference (mm; 1 nm).
 pub const IK_TOL_MM: f64 = 1.0e-6;
 /// FK(IK(p)) acceptance in translation (mm; 5 nm).
@@ -24,31 +21,11 @@ pub struct GoldenRow {
     pub strokes_mm: [f64; LEGS],
 }
 
-/// Parses a data line of the golden CSV (12 comma-separated numbers). `None` for
-/// comments, the header, and anything malformed.
-pub fn parse_golden_line(line: &str) -> Option<GoldenRow> {
-    let line = line.trim();
-    if line.is_empty() || line.starts_with('#') {
-        return None;
-    }
-    let mut v = [0.0f64; 12];
-    let mut fields = line.split(',');
-    for slot in v.iter_mut() {
-        *slot = fields.next()?.trim().parse().ok()?;
-    }
-    if fields.next().is_some() {
-        return None;
-    }
-    let [x, y, z, a, b, c, s1, s2, s3, s4, s5, s6] = v;
-    Some(GoldenRow {
-        pose: [x, y, z, a, b, c],
-        strokes_mm: [s1, s2, s3, s4, s5, s6],
-    })
-}
+include!(concat!(env!("OUT_DIR"), "/golden.rs"));
 
-/// Iterates over the golden rows.
+/// Iterates over the golden rows (`testdata/ik_golden.csv`, compiled in by build.rs).
 pub fn golden_rows() -> impl Iterator<Item = GoldenRow> {
-    GOLDEN_CSV.lines().filter_map(parse_golden_line)
+    GOLDEN_ROWS.iter().copied()
 }
 
 /// The outcome of one golden row, with the raw `f32` bits for the bit-identity check.

@@ -7,6 +7,10 @@
 //! * [`fk`]: strokes -> pose, Newton-Raphson with the analytic Jacobian.
 //! * [`workspace`]: every reason a pose is refused, without motion.
 
+// Negated comparisons such as `!(x > 0.0)` are deliberate throughout: unlike `x <= 0.0`
+// they are also true for NaN, so a NaN is refused instead of passing a check.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod fk;
 pub mod geometry;
 pub mod ik;

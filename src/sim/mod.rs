@@ -1,1 +1,11 @@
-//! Simulated plant (host only).
+//! The simulated plant (host only): the "true" mechanism the controller drives.
+//!
+//! * [`manufacturing`]: a true geometry = nominal + manufacturing errors from a seed.
+//! * [`plant`]: six sliders with finite speed and encoders with 0.1 um quantisation and
+//!   noise, implementing the same [`crate::hw`] traits the board glue implements on the
+//!   target; everything is deterministic from a seed.
+
+pub mod manufacturing;
+pub mod plant;
+
+pub use plant::{Plant, PlantConfig};
