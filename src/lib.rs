@@ -18,6 +18,7 @@ pub mod hw;
 pub mod kinematics;
 pub mod nominal;
 pub mod selftest;
+pub mod table;
 
 #[cfg(feature = "host")]
 pub mod ground;

@@ -1,0 +1,469 @@
+//! The parameter table's content and its versioned binary layout.
+//!
+//! Every field is encoded explicitly, little-endian, at a fixed offset; no `transmute`,
+//! no `unsafe`, no dependence on the in-memory layout of the Rust structs. The decoder is
+//! a checked parse in the smoltcp style: any byte string gives `Ok` or a [`TableError`],
+//! never a panic.
+//!
+//! # Layout, format version 1 ([`TABLE_FORMAT_VERSION`]), [`TABLE_LEN`] = 516 bytes
+//!
+//! | offset | size | type       | field                                                        |
+//! |-------:|-----:|------------|--------------------------------------------------------------|
+//! |      0 |    4 | bytes      | magic `"M2TB"` ([`TABLE_MAGIC`])                             |
+//! |      4 |    2 | u16 LE     | format version (1)                                           |
+//! |      6 |    2 | u16 LE     | total length in bytes, CRC included (516)                    |
+//! |      8 |    4 | u32 LE     | table ID ([`Table::table_id`])                               |
+//! |     12 |    4 | u32 LE     | calibration ID ([`Provenance::calibration_id`])              |
+//! |     16 |   16 | ASCII      | provenance tag ([`Provenance::tag`]), NUL/space padded       |
+//! |     32 |  288 | 36 x f64 LE| joint centres, leg 1..6: `a.x a.y a.z` (mm, frame B at zero stroke) then `b.x b.y b.z` (mm, frame M) |
+//! |    320 |   24 | 3 x f64 LE | p0 (mm, frame B)                                             |
+//! |    344 |   48 | 6 x f64 LE | slider stroke lower limits, leg 1..6 (mm)                    |
+//! |    392 |   48 | 6 x f64 LE | slider stroke upper limits, leg 1..6 (mm)                    |
+//! |    440 |   24 | 3 x f64 LE | workspace half-range x, y, z (mm, base axes)                 |
+//! |    464 |   24 | 3 x f64 LE | workspace half-range alpha, beta, gamma (rad)                |
+//! |    488 |    4 | f32 LE     | following-error warning threshold (mm)                       |
+//! |    492 |    4 | f32 LE     | following-error fault threshold (mm)                         |
+//! |    496 |    4 | f32 LE     | encoder jump threshold (mm per control cycle)                |
+//! |    500 |    4 | f32 LE     | stuck detection: least progress counted as motion (mm)       |
+//! |    504 |    2 | u16 LE     | stuck detection window (control cycles)                      |
+//! |    506 |    2 | u16 LE     | warning debounce (consecutive control cycles)                |
+//! |    508 |    2 | u16 LE     | fault debounce (consecutive control cycles)                  |
+//! |    510 |    2 | u16 LE     | reserved, must be 0                                          |
+//! |    512 |    4 | u32 LE     | CRC-32 ([`crc::CRC_32_ISO_HDLC`]) of bytes 0..512            |
+//!
+//! A new format version gets a new number; a decoder of version 1 rejects every other.
+
+use crc::{Crc, CRC_32_ISO_HDLC};
+
+use crate::kinematics::{GeometryParams, LegParams, StrokeLimits, WorkspaceLimits, LEGS};
+use crate::nominal;
+
+/// Magic at the start of every encoded table.
+pub const TABLE_MAGIC: [u8; 4] = *b"M2TB";
+/// Binary layout version this code writes and reads.
+pub const TABLE_FORMAT_VERSION: u16 = 1;
+/// Length of the provenance tag (bytes, ASCII).
+pub const PROVENANCE_TAG_LEN: usize = 16;
+/// Number of joint coordinates in the table: 6 legs x (a, b) x (x, y, z).
+pub const JOINT_COORDS: usize = LEGS * 6;
+
+/// Bytes of the header: magic, version, length, table ID, calibration ID, tag.
+const HEADER_LEN: usize = 4 + 2 + 2 + 4 + 4 + PROVENANCE_TAG_LEN;
+/// Size of one `f64` field (bytes).
+const F64_LEN: usize = 8;
+/// Bytes of the geometry block: joints, p0, stroke limits, workspace limits.
+const GEOMETRY_LEN: usize = F64_LEN * (JOINT_COORDS + 3 + 2 * LEGS + 3 + 3);
+/// Bytes of the supervision block: four f32, three u16, one reserved u16.
+const SUPERVISION_LEN: usize = 4 * 4 + 4 * 2;
+/// Bytes of the trailing CRC-32.
+pub const TABLE_CRC_LEN: usize = 4;
+/// Length of an encoded table (bytes, CRC included).
+pub const TABLE_LEN: usize = HEADER_LEN + GEOMETRY_LEN + SUPERVISION_LEN + TABLE_CRC_LEN;
+/// Offset of the CRC-32 (it covers `0..TABLE_CRC_OFFSET`).
+pub const TABLE_CRC_OFFSET: usize = TABLE_LEN - TABLE_CRC_LEN;
+
+// The length field is a u16 and the documented layout is 516 bytes.
+const _: () = assert!(TABLE_LEN == 516 && TABLE_LEN <= u16::MAX as usize);
+
+/// The CRC-32 used for the table and the flash record header (ISO-HDLC, as zlib/Ethernet).
+pub const CRC32: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
+
+/// Where a calibrated table came from (written by the ground tool).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Provenance {
+    /// Identifier of the calibration campaign/run that produced the joint coordinates.
+    pub calibration_id: u32,
+    /// Free ASCII tag (e.g. date and tool version), padded with NUL or spaces.
+    pub tag: [u8; PROVENANCE_TAG_LEN],
+}
+
+/// Thresholds of the encoder/following-error supervision, in the working units of the
+/// controller (mm of slider stroke along base z, control cycles).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SupervisionThresholds {
+    /// |commanded - measured stroke| above which a following-error warning is raised (mm).
+    pub following_error_warning_mm: f32,
+    /// |commanded - measured stroke| above which a following-error fault latches (mm);
+    /// must exceed the warning threshold.
+    pub following_error_fault_mm: f32,
+    /// Largest plausible change of one encoder reading between two consecutive control
+    /// cycles (mm per cycle); a larger jump is an encoder fault.
+    pub encoder_jump_mm_per_cycle: f32,
+    /// Least encoder progress (mm) over the stuck window that counts as "moving" while a
+    /// motion is commanded.
+    pub stuck_min_progress_mm: f32,
+    /// Stuck window: a slider commanded to move that progresses less than
+    /// `stuck_min_progress_mm` for this many consecutive control cycles is stuck (cycles).
+    pub stuck_detection_cycles: u16,
+    /// Consecutive control cycles a warning condition must persist before it is reported.
+    pub warning_debounce_cycles: u16,
+    /// Consecutive control cycles a fault condition must persist before it latches.
+    pub fault_debounce_cycles: u16,
+}
+
+/// Default following-error warning threshold (mm): 5 um, 50 encoder counts.
+pub const DEFAULT_FOLLOWING_ERROR_WARNING_MM: f32 = 0.005;
+/// Default following-error fault threshold (mm): 50 um.
+pub const DEFAULT_FOLLOWING_ERROR_FAULT_MM: f32 = 0.05;
+/// Default encoder jump threshold (mm per cycle): 0.1 mm, far above any slider speed
+/// times a control period, far below a lost encoder bit of significance.
+pub const DEFAULT_ENCODER_JUMP_MM_PER_CYCLE: f32 = 0.1;
+/// Default least progress over the stuck window (mm): 1 um, 10 encoder counts.
+pub const DEFAULT_STUCK_MIN_PROGRESS_MM: f32 = 0.001;
+/// Default stuck window (control cycles).
+pub const DEFAULT_STUCK_DETECTION_CYCLES: u16 = 200;
+/// Default warning debounce (control cycles).
+pub const DEFAULT_WARNING_DEBOUNCE_CYCLES: u16 = 5;
+/// Default fault debounce (control cycles).
+pub const DEFAULT_FAULT_DEBOUNCE_CYCLES: u16 = 3;
+
+/// The default supervision thresholds (also those of the nominal table).
+pub const DEFAULT_SUPERVISION: SupervisionThresholds = SupervisionThresholds {
+    following_error_warning_mm: DEFAULT_FOLLOWING_ERROR_WARNING_MM,
+    following_error_fault_mm: DEFAULT_FOLLOWING_ERROR_FAULT_MM,
+    encoder_jump_mm_per_cycle: DEFAULT_ENCODER_JUMP_MM_PER_CYCLE,
+    stuck_min_progress_mm: DEFAULT_STUCK_MIN_PROGRESS_MM,
+    stuck_detection_cycles: DEFAULT_STUCK_DETECTION_CYCLES,
+    warning_debounce_cycles: DEFAULT_WARNING_DEBOUNCE_CYCLES,
+    fault_debounce_cycles: DEFAULT_FAULT_DEBOUNCE_CYCLES,
+};
+
+/// Table ID of the compiled-in nominal table.
+pub const NOMINAL_TABLE_ID: u32 = 0;
+/// Calibration ID of the compiled-in nominal table (no calibration).
+pub const NOMINAL_CALIBRATION_ID: u32 = 0;
+/// Provenance tag of the compiled-in nominal table.
+pub const NOMINAL_TAG: [u8; PROVENANCE_TAG_LEN] = *b"NOMINAL-PROTO-V1";
+
+/// The calibrated parameter table: everything the controller needs that may change on
+/// orbit. Unlike [`GeometryParams`] the limits are always present.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Table {
+    /// Operator-visible table identifier (reported in housekeeping).
+    pub table_id: u32,
+    /// Ground-tool provenance.
+    pub provenance: Provenance,
+    /// Joint centres of legs 1..6 (`a`: frame B at zero stroke, `b`: frame M; mm).
+    pub legs: [LegParams; LEGS],
+    /// Home position of M's origin in B (mm).
+    pub p0_mm: [f64; 3],
+    /// Slider soft stroke limits (mm).
+    pub stroke_limits: StrokeLimits,
+    /// Workspace half-ranges (mm, rad).
+    pub workspace: WorkspaceLimits,
+    /// Supervision thresholds.
+    pub supervision: SupervisionThresholds,
+}
+
+/// Why bytes are not a table. Stable numeric codes for telemetry (family 0x04xx).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TableError {
+    /// Fewer or more bytes than the length field / [`TABLE_LEN`] says.
+    WrongLength {
+        /// Bytes given (saturated at `u16::MAX`).
+        got: u16,
+    },
+    /// The first four bytes are not [`TABLE_MAGIC`].
+    BadMagic,
+    /// A format version this code does not read.
+    UnsupportedVersion {
+        /// Version found.
+        version: u16,
+    },
+    /// The length field disagrees with the format version's length.
+    BadLengthField {
+        /// Length field found.
+        length: u16,
+    },
+    /// The CRC-32 over the table does not match.
+    BadCrc,
+    /// A reserved field is not zero.
+    ReservedNotZero,
+    /// [`GeometryParams`] without stroke or workspace limits cannot become a table.
+    MissingLimits,
+}
+
+impl TableError {
+    /// Stable numeric code for telemetry.
+    pub const fn code(&self) -> u16 {
+        match self {
+            TableError::WrongLength { .. } => 0x0401,
+            TableError::BadMagic => 0x0402,
+            TableError::UnsupportedVersion { .. } => 0x0403,
+            TableError::BadLengthField { .. } => 0x0404,
+            TableError::BadCrc => 0x0405,
+            TableError::ReservedNotZero => 0x0406,
+            TableError::MissingLimits => 0x0407,
+        }
+    }
+}
+
+/// Sequential little-endian writer over a fixed buffer. Writing past the end is ignored
+/// (cannot happen for the fixed layout; the round-trip test checks every field).
+struct Writer<'a> {
+    buf: &'a mut [u8],
+    pos: usize,
+}
+
+impl Writer<'_> {
+    fn put(&mut self, bytes: &[u8]) {
+        let end = self.pos.saturating_add(bytes.len());
+        if let Some(dst) = self.buf.get_mut(self.pos..end) {
+            dst.copy_from_slice(bytes);
+        }
+        self.pos = end;
+    }
+    fn f64s(&mut self, v: &[f64]) {
+        for x in v {
+            self.put(&x.to_le_bytes());
+        }
+    }
+}
+
+/// Sequential little-endian reader; `None` past the end.
+struct Reader<'a> {
+    buf: &'a [u8],
+    pos: usize,
+}
+
+impl Reader<'_> {
+    fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
+        let end = self.pos.checked_add(N)?;
+        let out: [u8; N] = self.buf.get(self.pos..end)?.try_into().ok()?;
+        self.pos = end;
+        Some(out)
+    }
+    fn u16(&mut self) -> Option<u16> {
+        self.take().map(u16::from_le_bytes)
+    }
+    fn u32(&mut self) -> Option<u32> {
+        self.take().map(u32::from_le_bytes)
+    }
+    fn f32(&mut self) -> Option<f32> {
+        self.take().map(f32::from_le_bytes)
+    }
+    fn f64(&mut self) -> Option<f64> {
+        self.take().map(f64::from_le_bytes)
+    }
+    fn f64s<const N: usize>(&mut self) -> Option<[f64; N]> {
+        let mut out = [0.0; N];
+        for o in out.iter_mut() {
+            *o = self.f64()?;
+        }
+        Some(out)
+    }
+}
+
+/// Saturating `usize` -> `u16` for error reports.
+fn sat_u16(v: usize) -> u16 {
+    u16::try_from(v).unwrap_or(u16::MAX)
+}
+
+impl Table {
+    /// The compiled-in nominal table: [`nominal::prototype_with_flight_limits`], the
+    /// default supervision thresholds, table ID [`NOMINAL_TABLE_ID`].
+    pub const fn nominal() -> Table {
+        let g = nominal::prototype_with_flight_limits();
+        // `prototype_with_flight_limits` always sets both limits; the fallbacks are the
+        // same constants, so the nominal table is the same either way.
+        let stroke_limits = match g.stroke_limits {
+            Some(s) => s,
+            None => StrokeLimits {
+                min_mm: [-nominal::STROKE_LIMIT_MM; LEGS],
+                max_mm: [nominal::STROKE_LIMIT_MM; LEGS],
+            },
+        };
+        let workspace = match g.workspace {
+            Some(w) => w,
+            None => WorkspaceLimits {
+                translation_mm: [nominal::WORKSPACE_TRANSLATION_MM; 3],
+                rotation_rad: [nominal::WORKSPACE_ROTATION_ARCSEC
+                    / crate::kinematics::ARCSEC_PER_RAD; 3],
+            },
+        };
+        Table {
+            table_id: NOMINAL_TABLE_ID,
+            provenance: Provenance {
+                calibration_id: NOMINAL_CALIBRATION_ID,
+                tag: NOMINAL_TAG,
+            },
+            legs: g.legs,
+            p0_mm: g.p0_mm,
+            stroke_limits,
+            workspace,
+            supervision: DEFAULT_SUPERVISION,
+        }
+    }
+
+    /// A table from geometry parameters, which must carry both limits.
+    pub fn from_geometry(
+        params: &GeometryParams,
+        table_id: u32,
+        provenance: Provenance,
+        supervision: SupervisionThresholds,
+    ) -> Result<Table, TableError> {
+        let (Some(stroke_limits), Some(workspace)) = (params.stroke_limits, params.workspace)
+        else {
+            return Err(TableError::MissingLimits);
+        };
+        Ok(Table {
+            table_id,
+            provenance,
+            legs: params.legs,
+            p0_mm: params.p0_mm,
+            stroke_limits,
+            workspace,
+            supervision,
+        })
+    }
+
+    /// The geometry for the kinematics (limits always `Some`).
+    pub const fn geometry_params(&self) -> GeometryParams {
+        GeometryParams {
+            legs: self.legs,
+            p0_mm: self.p0_mm,
+            stroke_limits: Some(self.stroke_limits),
+            workspace: Some(self.workspace),
+        }
+    }
+
+    /// Joint coordinate `index` in table order (leg-major; per leg `a.xyz` then `b.xyz`),
+    /// mm. `None` past [`JOINT_COORDS`].
+    pub fn joint_coord_mm(&self, index: usize) -> Option<f64> {
+        let leg = self.legs.get(index / 6)?;
+        let k = index % 6;
+        if k < 3 {
+            leg.a_mm.get(k).copied()
+        } else {
+            leg.b_mm.get(k - 3).copied()
+        }
+    }
+
+    /// Encodes the table into its binary layout, CRC included.
+    pub fn encode(&self, out: &mut [u8; TABLE_LEN]) {
+        let mut w = Writer { buf: out, pos: 0 };
+        w.put(&TABLE_MAGIC);
+        w.put(&TABLE_FORMAT_VERSION.to_le_bytes());
+        w.put(&(TABLE_LEN as u16).to_le_bytes());
+        w.put(&self.table_id.to_le_bytes());
+        w.put(&self.provenance.calibration_id.to_le_bytes());
+        w.put(&self.provenance.tag);
+        for leg in &self.legs {
+            w.f64s(&leg.a_mm);
+            w.f64s(&leg.b_mm);
+        }
+        w.f64s(&self.p0_mm);
+        w.f64s(&self.stroke_limits.min_mm);
+        w.f64s(&self.stroke_limits.max_mm);
+        w.f64s(&self.workspace.translation_mm);
+        w.f64s(&self.workspace.rotation_rad);
+        let s = &self.supervision;
+        w.put(&s.following_error_warning_mm.to_le_bytes());
+        w.put(&s.following_error_fault_mm.to_le_bytes());
+        w.put(&s.encoder_jump_mm_per_cycle.to_le_bytes());
+        w.put(&s.stuck_min_progress_mm.to_le_bytes());
+        w.put(&s.stuck_detection_cycles.to_le_bytes());
+        w.put(&s.warning_debounce_cycles.to_le_bytes());
+        w.put(&s.fault_debounce_cycles.to_le_bytes());
+        w.put(&0u16.to_le_bytes());
+        let crc = out
+            .get(..TABLE_CRC_OFFSET)
+            .map_or(0, |body| CRC32.checksum(body));
+        for (dst, src) in out.iter_mut().skip(TABLE_CRC_OFFSET).zip(crc.to_le_bytes()) {
+            *dst = src;
+        }
+    }
+
+    /// The encoded table (convenience for callers with no buffer at hand).
+    pub fn to_bytes(&self) -> [u8; TABLE_LEN] {
+        let mut out = [0u8; TABLE_LEN];
+        self.encode(&mut out);
+        out
+    }
+
+    /// CRC-32 of the encoded table (the value stored in its last four bytes).
+    pub fn crc32(&self) -> u32 {
+        let bytes = self.to_bytes();
+        stored_crc(&bytes).unwrap_or(0)
+    }
+
+    /// Checked parse of an encoded table: exact length, magic, version, length field,
+    /// CRC, reserved field. Values are not judged here (NaN decodes); see
+    /// [`super::validate()`].
+    pub fn decode(bytes: &[u8]) -> Result<Table, TableError> {
+        if bytes.len() != TABLE_LEN {
+            return Err(TableError::WrongLength {
+                got: sat_u16(bytes.len()),
+            });
+        }
+        let mut r = Reader { buf: bytes, pos: 0 };
+        let short = TableError::WrongLength {
+            got: sat_u16(bytes.len()),
+        };
+        if r.take::<4>() != Some(TABLE_MAGIC) {
+            return Err(TableError::BadMagic);
+        }
+        let version = r.u16().ok_or(short)?;
+        if version != TABLE_FORMAT_VERSION {
+            return Err(TableError::UnsupportedVersion { version });
+        }
+        let length = r.u16().ok_or(short)?;
+        if usize::from(length) != TABLE_LEN {
+            return Err(TableError::BadLengthField { length });
+        }
+        let body = bytes.get(..TABLE_CRC_OFFSET).ok_or(short)?;
+        if Some(CRC32.checksum(body)) != stored_crc(bytes) {
+            return Err(TableError::BadCrc);
+        }
+        let table_id = r.u32().ok_or(short)?;
+        let calibration_id = r.u32().ok_or(short)?;
+        let tag = r.take::<PROVENANCE_TAG_LEN>().ok_or(short)?;
+        let mut legs = [LegParams {
+            a_mm: [0.0; 3],
+            b_mm: [0.0; 3],
+        }; LEGS];
+        for leg in legs.iter_mut() {
+            leg.a_mm = r.f64s().ok_or(short)?;
+            leg.b_mm = r.f64s().ok_or(short)?;
+        }
+        let p0_mm = r.f64s().ok_or(short)?;
+        let stroke_limits = StrokeLimits {
+            min_mm: r.f64s().ok_or(short)?,
+            max_mm: r.f64s().ok_or(short)?,
+        };
+        let workspace = WorkspaceLimits {
+            translation_mm: r.f64s().ok_or(short)?,
+            rotation_rad: r.f64s().ok_or(short)?,
+        };
+        let supervision = SupervisionThresholds {
+            following_error_warning_mm: r.f32().ok_or(short)?,
+            following_error_fault_mm: r.f32().ok_or(short)?,
+            encoder_jump_mm_per_cycle: r.f32().ok_or(short)?,
+            stuck_min_progress_mm: r.f32().ok_or(short)?,
+            stuck_detection_cycles: r.u16().ok_or(short)?,
+            warning_debounce_cycles: r.u16().ok_or(short)?,
+            fault_debounce_cycles: r.u16().ok_or(short)?,
+        };
+        if r.u16().ok_or(short)? != 0 {
+            return Err(TableError::ReservedNotZero);
+        }
+        Ok(Table {
+            table_id,
+            provenance: Provenance {
+                calibration_id,
+                tag,
+            },
+            legs,
+            p0_mm,
+            stroke_limits,
+            workspace,
+            supervision,
+        })
+    }
+}
+
+/// The CRC-32 stored in the last four bytes of an encoded table; `None` if too short.
+pub fn stored_crc(bytes: &[u8]) -> Option<u32> {
+    let tail: [u8; TABLE_CRC_LEN] = bytes.get(TABLE_CRC_OFFSET..TABLE_LEN)?.try_into().ok()?;
+    Some(u32::from_le_bytes(tail))
+}

@@ -1,0 +1,34 @@
+//! The calibrated parameter table: content, binary layout, validation, A/B flash store.
+//!
+//! * [`layout`]: [`Table`] (joint centres, p0, limits, supervision thresholds, ID,
+//!   provenance) and its versioned little-endian encoding with a CRC-32
+//!   ([`Table::encode`], [`Table::decode`]).
+//! * [`validate`](mod@validate): the checks a table passes before it is activated
+//!   (finite, near nominal, plausible rods, whole workspace reachable within the slider
+//!   limits, FK converging at the corners), with stable error codes.
+//! * [`store`]: two banks in NOR flash behind `embedded-storage`'s `NorFlash`, written
+//!   so that a power cut at any byte leaves the old or the new table, never a mixture;
+//!   boot selection with a fallback to the compiled-in nominal table.
+//! * `mock_flash` (feature `host`): a NOR flash model that cuts power after any byte.
+//!
+//! Flow (cFS table services): a candidate is loaded into an inactive RAM buffer, decoded
+//! and [`validate()`]d; [`TableStore::commit`] writes it to the bank not holding the active
+//! table; the controller then switches its geometry to it between motions.
+//!
+//! Error codes for telemetry (family 0x04xx): [`TableError`] 0x0401.., [`ValidationError`]
+//! 0x0410.., [`StoreError`] 0x0430...
+
+pub mod layout;
+#[cfg(feature = "host")]
+pub mod mock_flash;
+pub mod store;
+pub mod validate;
+
+pub use layout::{
+    Provenance, SupervisionThresholds, Table, TableError, DEFAULT_SUPERVISION, TABLE_LEN,
+};
+pub use store::{
+    Bank, BankLayout, BankStatus, BootReport, BootSource, CommitReport, StoreError, TableStore,
+    BANK_A_OFFSET, BANK_B_OFFSET, BANK_SIZE, FLIGHT_LAYOUT,
+};
+pub use validate::{validate, ValidationConfig, ValidationError};
