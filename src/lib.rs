@@ -17,9 +17,12 @@
 pub mod hw;
 pub mod kinematics;
 pub mod nominal;
+pub mod plant_model;
 pub mod selftest;
 pub mod table;
 
+#[cfg(feature = "firmware")]
+pub mod board;
 #[cfg(feature = "host")]
 pub mod ground;
 #[cfg(feature = "host")]

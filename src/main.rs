@@ -9,14 +9,12 @@
 #![no_main]
 #![deny(unsafe_code)]
 
-mod board;
-
 use core::hint::black_box;
 
-use board::active as hw;
 use cortex_m as _; // critical-section implementation (single core) for defmt
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
+use m2ctl::board::active as hw;
 use m2ctl::kinematics::{fk, ik, FkConfig, Geometry, Pose};
 use m2ctl::{nominal, selftest};
 
