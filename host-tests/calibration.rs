@@ -353,3 +353,73 @@ fn bad_measurement_files_are_rejected_with_line_numbers() {
     let meas = campaign(&Tracker::PAPER);
     assert!(calibrate(&PROTOTYPE, &meas[..N_PARAMS - 1], &CalibConfig::default()).is_err());
 }
+
+#[test]
+fn levy_and_adaptive_step_constants() {
+    // Mantegna's sigma_u for beta = 1.5 (Yang & Deb's value 0.6966).
+    assert!((cuckoo::mantegna_sigma(1.5) - 0.696_574_4).abs() < 1e-6);
+    assert!((cuckoo::gamma(5.0) - 24.0).abs() < 1e-12);
+    let cfg = cuckoo::CuckooConfig::default();
+    let t_max = cfg.max_generations;
+    let mut prev = (f64::INFINITY, f64::INFINITY);
+    for t in 0..=t_max {
+        let (lambda, s_min) = cuckoo::adaptive_coefficients(&cfg, t, t_max);
+        assert!(lambda <= prev.0 && s_min <= prev.1, "steps must shrink");
+        assert!(lambda > 0.0 && s_min >= 0.0);
+        prev = (lambda, s_min);
+    }
+    assert_eq!(cuckoo::adaptive_coefficients(&cfg, 0, t_max).0, 1.0);
+    assert_eq!(cuckoo::adaptive_coefficients(&cfg, t_max, t_max).1, 0.0);
+}
+
+#[test]
+fn calibrate_command_writes_a_geometry_file_that_round_trips() {
+    use m2ctl::ground::calib_cmd::{run_calibrate, CalibrateArgs};
+    let dir = std::env::temp_dir().join(format!("m2ctl-calib-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("tmp dir");
+    let data = dir.join("meas.csv");
+    let nominal = dir.join("nominal.toml");
+    std::fs::write(&data, csv_of(&campaign(&Tracker::PAPER))).expect("write");
+    std::fs::write(
+        &nominal,
+        std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/testdata/geometry.toml"
+        ))
+        .expect("testdata"),
+    )
+    .expect("write");
+    let args = CalibrateArgs {
+        data: data.clone(),
+        nominal,
+        cfg: CalibConfig::default(),
+        report: true,
+        truth: None,
+        plot: Some(dir.join("errors.svg")),
+    };
+    let (text, summary) = run_calibrate(&args).expect("calibrate");
+    let back = m2ctl::ground::files::parse_geometry(&text).expect("output parses");
+    let direct = calibrate(
+        &PROTOTYPE,
+        &parse_measurements(&std::fs::read_to_string(&data).expect("read")).expect("csv"),
+        &CalibConfig::default(),
+    )
+    .expect("lm");
+    assert_eq!(back.params, direct.params, "full f64 precision");
+    assert!(back
+        .provenance
+        .iter()
+        .any(|(k, v)| k == "solver" && v == "lm"));
+    assert!(summary.contains("condition"), "{summary}");
+    assert!(
+        std::fs::metadata(dir.join("errors.svg"))
+            .expect("plot")
+            .len()
+            > 1000
+    );
+    // A bad file is refused with its path and line.
+    std::fs::write(&data, "x_mm\n1\n").expect("write");
+    let e = run_calibrate(&args).unwrap_err();
+    assert!(e.contains("meas.csv"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

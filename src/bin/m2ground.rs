@@ -201,10 +201,11 @@ struct BenchCli {
 }
 
 fn table_config(s: &SolverCli, plot: Option<PathBuf>) -> TableConfig {
-    let mut t = TableConfig::default();
-    t.calib = SolverCli::config(s, SolverKind::Lm);
-    t.plot = plot;
-    t
+    TableConfig {
+        calib: SolverCli::config(s, SolverKind::Lm),
+        plot,
+        ..TableConfig::default()
+    }
 }
 
 fn calibrate_cmd(a: &CalibrateCli) -> Result<(), String> {

@@ -9,15 +9,12 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use rand_pcg::Pcg64;
 
-use super::calib::{from_vec, to_vec, Measurement, N_PARAMS};
+use super::calib::Measurement;
 use crate::kinematics::{fk, ik, FkConfig, Geometry, GeometryParams, Pose, ARCSEC_PER_RAD};
 
-/// Default standard deviation of the manufacturing error of each joint coordinate (mm):
-/// gives pose errors of hundreds of um / arcsec before calibration, as in the paper.
-pub const DEFAULT_MANUFACTURING_SIGMA_MM: f64 = 0.1;
-/// Manufacturing errors are truncated at this many sigma (keeps the truth inside the
-/// default Omega of +-0.5 mm for the default sigma).
-pub const MANUFACTURING_TRUNCATION_SIGMAS: f64 = 3.0;
+/// Default standard deviation of the manufacturing error of each joint coordinate (mm),
+/// the simulated plant's default.
+pub const DEFAULT_MANUFACTURING_SIGMA_MM: f64 = crate::sim::manufacturing::DEFAULT_JOINT_SIGMA_MM;
 /// mm per um.
 pub const MM_PER_UM: f64 = 1.0e-3;
 /// The paper's simulation noise on the measured translation (um, per axis).
@@ -29,19 +26,9 @@ pub const REALISTIC_NOISE_UM: f64 = 5.0;
 /// A realistic tracker (4 target balls) noise on the rotation (arcsec, per axis).
 pub const REALISTIC_NOISE_ARCSEC: f64 = 1.0;
 
-/// True geometry = nominal + Gaussian manufacturing errors on the 36 joint coordinates
-/// (sigma `sigma_mm`, truncated at [`MANUFACTURING_TRUNCATION_SIGMAS`]), from `seed`.
-pub fn perturbed(nominal: &GeometryParams, sigma_mm: f64, seed: u64) -> GeometryParams {
-    let mut rng = Pcg64::seed_from_u64(seed);
-    let mut v = to_vec(nominal);
-    let limit = MANUFACTURING_TRUNCATION_SIGMAS * sigma_mm;
-    if let Ok(normal) = Normal::new(0.0, sigma_mm) {
-        for x in v.iter_mut().take(N_PARAMS) {
-            *x += normal.sample(&mut rng).clamp(-limit, limit);
-        }
-    }
-    from_vec(&v, nominal)
-}
+/// True geometry = nominal + truncated Gaussian manufacturing errors on the 36 joint
+/// coordinates, from a seed: the simulated plant's generator.
+pub use crate::sim::manufacturing::perturbed;
 
 /// Laser-tracker model: independent Gaussian noise on each measured pose component.
 #[derive(Clone, Copy, Debug, PartialEq)]
