@@ -743,3 +743,95 @@ fn proptest_case_counts() {
         "proptest cases: decode {DECODE_CASES}, structured decode+validate {STRUCTURED_CASES} x 2, boot {BOOT_CASES}"
     );
 }
+
+#[test]
+fn mock_flash_nor_semantics() {
+    use m2ctl::table::mock_flash::MockFlashError;
+    use m2ctl::table::mock_flash::{TORN_ERASE_SET_MASK, TORN_WRITE_KEEP_MASK};
+    let mut f = flash();
+    // Writing over erased flash works; writing the same word again is refused even if
+    // it only clears bits; a 1 over a 0 is refused.
+    f.write(0, &[0xF0, 0x0F, 0xFF, 0x00]).unwrap();
+    assert_eq!(f.write(0, &[0x00; 4]), Err(MockFlashError::DoubleWrite(0)));
+    assert_eq!(f.write(0, &[0xFF; 4]), Err(MockFlashError::BitRaise(0)));
+    assert_eq!(&f.bytes()[..4], &[0xF0, 0x0F, 0xFF, 0x00]);
+    // Alignment and bounds.
+    assert!(f.write(2, &[0; 4]).is_err());
+    assert!(f.erase(0, 100).is_err());
+    assert!(f.write(2 * TEST_BANK_SIZE, &[0; 4]).is_err());
+    // Erase restores 0xFF and allows writing again.
+    f.erase(0, 4096).unwrap();
+    assert!(f.bytes()[..4096].iter().all(|b| *b == 0xFF));
+    f.write(0, &[0x12, 0x34, 0x56, 0x78]).unwrap();
+    // A clean cut inside a write: bytes before the cut written, the rest untouched, and
+    // nothing works until power is restored.
+    f.cut_power_after(2, TearMode::Clean);
+    assert_eq!(f.write(4, &[0x00; 4]), Err(MockFlashError::PowerLoss));
+    assert_eq!(&f.bytes()[4..8], &[0x00, 0x00, 0xFF, 0xFF]);
+    let mut buf = [0u8; 4];
+    assert_eq!(
+        embedded_storage::nor_flash::ReadNorFlash::read(&mut f, 0, &mut buf),
+        Err(MockFlashError::PowerLoss)
+    );
+    f.power_cycle();
+    embedded_storage::nor_flash::ReadNorFlash::read(&mut f, 0, &mut buf).unwrap();
+    assert_eq!(buf, [0x12, 0x34, 0x56, 0x78]);
+    // A torn cut: the byte at the cut is half-programmed.
+    f.cut_power_after(1, TearMode::TornByte);
+    assert!(f.write(8, &[0x00; 4]).is_err());
+    assert_eq!(&f.bytes()[8..12], &[0x00, TORN_WRITE_KEEP_MASK, 0xFF, 0xFF]);
+    f.power_cycle();
+    // A cut inside an erase: the bytes before the cut erased, the rest old.
+    f.cut_power_after(2, TearMode::Clean);
+    assert!(f.erase(0, 4096).is_err());
+    assert_eq!(&f.bytes()[..4], &[0xFF, 0xFF, 0x56, 0x78]);
+    f.power_cycle();
+    f.cut_power_after(2, TearMode::TornByte);
+    assert!(f.erase(0, 4096).is_err());
+    assert_eq!(
+        &f.bytes()[..4],
+        &[0xFF, 0xFF, 0x56 | TORN_ERASE_SET_MASK, 0x78]
+    );
+}
+
+#[test]
+fn power_cut_during_switch_bank() {
+    // A holds t1 (seq 1), B holds t2 (seq 2, active). "Switch bank" re-commits t1 into
+    // A with seq 3; a cut at every step must boot t2 (from B) or t1 (from A).
+    let t1 = calibrated(1, 0.1);
+    let t2 = calibrated(2, -0.2);
+    let mut base = store(flash());
+    base.commit(&t1, &cfg()).unwrap();
+    base.commit(&t2, &cfg()).unwrap();
+    let f0 = base.into_inner();
+    let mut s = store(f0.clone());
+    s.boot(&cfg());
+    let steps0 = s.flash_mut().stats().steps;
+    let c = s.promote_inactive(&cfg()).unwrap();
+    assert_eq!((c.bank, c.sequence), (Bank::A, 3));
+    let total = s.flash_mut().stats().steps - steps0;
+    let mut switched_from = None;
+    for n in 0..total {
+        let mut s = store(f0.clone());
+        s.boot(&cfg());
+        s.flash_mut().cut_power_after(n, TearMode::TornByte);
+        assert!(s.promote_inactive(&cfg()).is_err());
+        s.flash_mut().power_cycle();
+        let (t, r) = store(s.into_inner()).boot(&cfg());
+        match r.source {
+            BootSource::BankB => {
+                assert_eq!(t, t2);
+                assert!(switched_from.is_none(), "cut {n}: switch lost");
+            }
+            BootSource::BankA => {
+                assert_eq!(t, t1);
+                assert_eq!(r.sequence, 3);
+                switched_from.get_or_insert(n);
+            }
+            BootSource::Nominal => panic!("cut {n}: no table"),
+        }
+    }
+    println!(
+        "power cut during switch bank: {total} cut points, switched from cut {switched_from:?}"
+    );
+}
