@@ -19,6 +19,7 @@ pub mod kinematics;
 pub mod nominal;
 pub mod plant_model;
 pub mod selftest;
+pub mod link;
 pub mod table;
 
 #[cfg(feature = "firmware")]

@@ -1,0 +1,489 @@
+//! The decoded telecommand, the contract between the link and the controller, and the
+//! byte layout of each telecommand's application data (parse and emit, big-endian).
+
+use super::error::{sat_u16, LinkError};
+use super::{service, subtype};
+use crate::kinematics::{Pose, Real, ARCSEC_PER_RAD, LEGS};
+use crate::table::TABLE_LEN;
+
+/// Nanometres per millimetre.
+pub const NM_PER_MM: f64 = 1.0e6;
+/// Micro-arcseconds per arcsecond.
+pub const UAS_PER_ARCSEC: f64 = 1.0e6;
+/// Largest table chunk in one TC[6,2] or TM[6,6] (bytes).
+pub const TABLE_CHUNK_MAX_LEN: usize = 128;
+/// Bytes of a pose on the wire: six i32.
+pub const WIRE_POSE_LEN: usize = 24;
+/// Bytes of a function ID (TC[8,1]).
+pub const FUNCTION_ID_LEN: usize = 2;
+/// Bytes of the TC[6,2] header before the data: memory ID u8, offset u16, length u16.
+pub const MEMORY_LOAD_HEADER_LEN: usize = 5;
+/// Largest application data of any telecommand (bytes).
+pub const MAX_TC_APP_DATA_LEN: usize = MEMORY_LOAD_HEADER_LEN + TABLE_CHUNK_MAX_LEN;
+
+/// A pose on the wire: exact integers, big-endian i32 each, in the order
+/// `x_nm, y_nm, z_nm, alpha_uas, beta_uas, gamma_uas` (translation of M's origin from p0
+/// along B's axes in nanometres; rotation `R = Rz(gamma) Ry(beta) Rx(alpha)` in
+/// micro-arcseconds). Range: +-2.1 m, +-2147 arcsec.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct WirePose {
+    /// Translation x, y, z (nm).
+    pub translation_nm: [i32; 3],
+    /// Rotation alpha, beta, gamma (micro-arcseconds).
+    pub rotation_uas: [i32; 3],
+}
+
+/// Rounds to the nearest i32, saturating; NaN gives 0.
+fn round_sat_i32(v: f64) -> i32 {
+    let r = libm::round(v);
+    if r.is_nan() {
+        0
+    } else if r >= f64::from(i32::MAX) {
+        i32::MAX
+    } else if r <= f64::from(i32::MIN) {
+        i32::MIN
+    } else {
+        r as i32
+    }
+}
+
+impl WirePose {
+    /// The pose in working units (mm, rad), converted once to `T`.
+    pub fn to_pose<T: Real>(&self) -> Pose<T> {
+        Pose::from_mm_arcsec(
+            self.translation_nm.map(|v| f64::from(v) / NM_PER_MM),
+            self.rotation_uas.map(|v| f64::from(v) / UAS_PER_ARCSEC),
+        )
+    }
+
+    /// The nearest wire pose of a working pose (mm, rad); saturates at the i32 range,
+    /// NaN gives 0 (telemetry never fails on a bad pose).
+    pub fn from_pose<T: Real>(pose: &Pose<T>) -> WirePose {
+        WirePose {
+            translation_nm: pose
+                .translation_mm
+                .map(|v| round_sat_i32(v.to_f64() * NM_PER_MM)),
+            rotation_uas: pose
+                .rotation_rad
+                .map(|v| round_sat_i32(v.to_f64() * ARCSEC_PER_RAD * UAS_PER_ARCSEC)),
+        }
+    }
+
+    /// The six components in wire order.
+    pub const fn to_array(&self) -> [i32; 6] {
+        let t = self.translation_nm;
+        let r = self.rotation_uas;
+        [t[0], t[1], t[2], r[0], r[1], r[2]]
+    }
+
+    /// From six components in wire order.
+    pub const fn from_array(v: [i32; 6]) -> WirePose {
+        WirePose {
+            translation_nm: [v[0], v[1], v[2]],
+            rotation_uas: [v[3], v[4], v[5]],
+        }
+    }
+
+    /// Writes the 24 bytes (big-endian i32 x6).
+    pub fn emit(&self, out: &mut [u8; WIRE_POSE_LEN]) {
+        for (dst, v) in out.chunks_exact_mut(4).zip(self.to_array()) {
+            dst.copy_from_slice(&v.to_be_bytes());
+        }
+    }
+
+    /// Reads the 24 bytes (big-endian i32 x6).
+    pub fn parse(bytes: &[u8; WIRE_POSE_LEN]) -> WirePose {
+        let mut v = [0i32; 6];
+        for (dst, src) in v.iter_mut().zip(bytes.chunks_exact(4)) {
+            let mut b = [0u8; 4];
+            b.copy_from_slice(src);
+            *dst = i32::from_be_bytes(b);
+        }
+        WirePose::from_array(v)
+    }
+}
+
+/// Memory areas of service 6.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MemoryId {
+    /// The inactive table buffer in RAM that uploads fill (load and dump).
+    UploadBuffer,
+    /// The active parameter table (dump only).
+    ActiveTable,
+}
+
+impl MemoryId {
+    /// Wire value.
+    pub const fn code(self) -> u8 {
+        match self {
+            MemoryId::UploadBuffer => 1,
+            MemoryId::ActiveTable => 2,
+        }
+    }
+
+    /// From the wire value.
+    pub const fn from_code(code: u8) -> Option<MemoryId> {
+        match code {
+            1 => Some(MemoryId::UploadBuffer),
+            2 => Some(MemoryId::ActiveTable),
+            _ => None,
+        }
+    }
+}
+
+/// One chunk of a table upload: `len` bytes for offsets `offset..offset + len` of the
+/// encoded table ([`TABLE_LEN`] bytes). Always `1 <= len <= TABLE_CHUNK_MAX_LEN` and
+/// `offset + len <= TABLE_LEN` (checked when built or parsed).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TableChunk {
+    offset: u16,
+    len: u8,
+    data: [u8; TABLE_CHUNK_MAX_LEN],
+}
+
+impl TableChunk {
+    /// A chunk of `bytes` at table offset `offset_bytes`; refused if empty, longer than
+    /// [`TABLE_CHUNK_MAX_LEN`] or reaching past the table.
+    pub fn new(offset_bytes: u16, bytes: &[u8]) -> Result<TableChunk, LinkError> {
+        let refused = LinkError::ChunkOutOfRange {
+            offset: offset_bytes,
+            length: sat_u16(bytes.len()),
+        };
+        let end = usize::from(offset_bytes).saturating_add(bytes.len());
+        if bytes.is_empty() || bytes.len() > TABLE_CHUNK_MAX_LEN || end > TABLE_LEN {
+            return Err(refused);
+        }
+        let mut data = [0u8; TABLE_CHUNK_MAX_LEN];
+        data.get_mut(..bytes.len())
+            .ok_or(refused)?
+            .copy_from_slice(bytes);
+        Ok(TableChunk {
+            offset: offset_bytes,
+            len: u8::try_from(bytes.len()).map_err(|_| refused)?,
+            data,
+        })
+    }
+
+    /// Offset of the chunk in the encoded table (bytes).
+    pub const fn offset_bytes(&self) -> u16 {
+        self.offset
+    }
+
+    /// The chunk's bytes.
+    pub fn bytes(&self) -> &[u8] {
+        self.data.get(..usize::from(self.len)).unwrap_or(&[])
+    }
+
+    /// The table offsets the chunk covers.
+    pub fn range(&self) -> core::ops::Range<usize> {
+        let start = usize::from(self.offset);
+        start..start + usize::from(self.len)
+    }
+}
+
+/// Function IDs of TC[8,1] (u16, big-endian, first two bytes of the application data).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u16)]
+pub enum FunctionId {
+    /// Move to an absolute pose. Args: [`WirePose`].
+    MoveAbsolute = 0x0001,
+    /// Move by a pose increment relative to the commanded pose. Args: [`WirePose`].
+    MoveRelative = 0x0002,
+    /// Stop any motion (ramp down). No args.
+    Stop = 0x0003,
+    /// Clear latched faults. No args.
+    ClearFault = 0x0004,
+    /// Move one slider by a stroke increment (recovery). Args: leg u8 (1..6), delta i32 nm.
+    DirectStroke = 0x0005,
+    /// Commit the uploaded table. Args: CRC-32 u32 of the whole encoded table.
+    CommitTable = 0x0010,
+    /// Activate the committed (validated, inactive) table. No args.
+    ActivateTable = 0x0011,
+    /// Switch to the table of the other flash bank (validated first). No args.
+    SwitchBank = 0x0012,
+    /// Revert to the compiled-in nominal table. No args.
+    RevertToNominal = 0x0013,
+}
+
+impl FunctionId {
+    /// Every function ID.
+    pub const ALL: [FunctionId; 9] = [
+        FunctionId::MoveAbsolute,
+        FunctionId::MoveRelative,
+        FunctionId::Stop,
+        FunctionId::ClearFault,
+        FunctionId::DirectStroke,
+        FunctionId::CommitTable,
+        FunctionId::ActivateTable,
+        FunctionId::SwitchBank,
+        FunctionId::RevertToNominal,
+    ];
+
+    /// Wire value.
+    pub const fn code(self) -> u16 {
+        self as u16
+    }
+
+    /// From the wire value.
+    pub fn from_code(code: u16) -> Option<FunctionId> {
+        FunctionId::ALL.iter().copied().find(|f| f.code() == code)
+    }
+
+    /// Bytes of arguments after the function ID.
+    pub const fn args_len(self) -> usize {
+        match self {
+            FunctionId::MoveAbsolute | FunctionId::MoveRelative => WIRE_POSE_LEN,
+            FunctionId::DirectStroke => 1 + 4,
+            FunctionId::CommitTable => 4,
+            FunctionId::Stop
+            | FunctionId::ClearFault
+            | FunctionId::ActivateTable
+            | FunctionId::SwitchBank
+            | FunctionId::RevertToNominal => 0,
+        }
+    }
+}
+
+/// A telecommand the controller executes (decoded and checked for format and ranges; the
+/// controller judges it against its state, e.g. the workspace check of a move).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Command {
+    /// TC[17,1]: answer with TM[17,2].
+    Ping,
+    /// TC[3,27]: send one housekeeping report TM[3,25] now.
+    HousekeepingOneShot,
+    /// TC[8,1] fn 0x0001: move to this absolute pose (all-or-nothing workspace check).
+    MoveAbsolute(WirePose),
+    /// TC[8,1] fn 0x0002: move by this increment from the commanded pose.
+    MoveRelative(WirePose),
+    /// TC[8,1] fn 0x0003: stop any motion.
+    Stop,
+    /// TC[8,1] fn 0x0004: clear latched faults.
+    ClearFault,
+    /// TC[8,1] fn 0x0005: move one slider by a stroke increment (recovery).
+    DirectStroke {
+        /// Leg number, 1..=6.
+        leg: u8,
+        /// Stroke increment (nm, along base z).
+        delta_nm: i32,
+    },
+    /// TC[8,1] fn 0x0010: commit the upload buffer; the controller checks the CRC-32 over
+    /// the whole encoded table, decodes, validates and stores it in the inactive bank.
+    CommitTable {
+        /// Expected CRC-32 (ISO-HDLC) of the first `TABLE_LEN - 4` bytes, which is also
+        /// the value in the table's last four bytes.
+        crc32: u32,
+    },
+    /// TC[8,1] fn 0x0011: activate the committed table (between motions only).
+    ActivateTable,
+    /// TC[8,1] fn 0x0012: switch to the other bank's table.
+    SwitchBank,
+    /// TC[8,1] fn 0x0013: revert to the compiled-in nominal table.
+    RevertToNominal,
+    /// TC[6,2]: one chunk into the upload buffer.
+    LoadTableChunk(TableChunk),
+    /// TC[6,5]: dump a memory area as TM[6,6] chunks.
+    DumpTable(MemoryId),
+}
+
+/// Big-endian reads from an exact slice.
+fn be_u16(b: &[u8], at: usize) -> Option<u16> {
+    let s: [u8; 2] = b.get(at..at.checked_add(2)?)?.try_into().ok()?;
+    Some(u16::from_be_bytes(s))
+}
+fn be_u32(b: &[u8], at: usize) -> Option<u32> {
+    let s: [u8; 4] = b.get(at..at.checked_add(4)?)?.try_into().ok()?;
+    Some(u32::from_be_bytes(s))
+}
+
+/// Exact application-data length check.
+fn expect_len(app_data: &[u8], expected: usize) -> Result<(), LinkError> {
+    if app_data.len() == expected {
+        Ok(())
+    } else {
+        Err(LinkError::AppDataLength {
+            got: sat_u16(app_data.len()),
+            expected: sat_u16(expected),
+        })
+    }
+}
+
+impl Command {
+    /// PUS service and subtype of the telecommand carrying this command.
+    pub const fn message_type(&self) -> (u8, u8) {
+        match self {
+            Command::Ping => (service::TEST, subtype::PING),
+            Command::HousekeepingOneShot => (service::HOUSEKEEPING, subtype::HK_ONE_SHOT),
+            Command::LoadTableChunk(_) => (service::MEMORY, subtype::MEMORY_LOAD),
+            Command::DumpTable(_) => (service::MEMORY, subtype::MEMORY_DUMP),
+            _ => (service::FUNCTION, subtype::PERFORM_FUNCTION),
+        }
+    }
+
+    /// The function ID of a TC[8,1] command.
+    pub const fn function_id(&self) -> Option<FunctionId> {
+        match self {
+            Command::MoveAbsolute(_) => Some(FunctionId::MoveAbsolute),
+            Command::MoveRelative(_) => Some(FunctionId::MoveRelative),
+            Command::Stop => Some(FunctionId::Stop),
+            Command::ClearFault => Some(FunctionId::ClearFault),
+            Command::DirectStroke { .. } => Some(FunctionId::DirectStroke),
+            Command::CommitTable { .. } => Some(FunctionId::CommitTable),
+            Command::ActivateTable => Some(FunctionId::ActivateTable),
+            Command::SwitchBank => Some(FunctionId::SwitchBank),
+            Command::RevertToNominal => Some(FunctionId::RevertToNominal),
+            Command::Ping
+            | Command::HousekeepingOneShot
+            | Command::LoadTableChunk(_)
+            | Command::DumpTable(_) => None,
+        }
+    }
+
+    /// Checked parse of the application data of telecommand `[service, subtype]`.
+    pub fn parse(service: u8, subtype: u8, app_data: &[u8]) -> Result<Command, LinkError> {
+        let unknown_subtype = LinkError::UnknownSubtype { service, subtype };
+        match service {
+            service::TEST => {
+                if subtype != subtype::PING {
+                    return Err(unknown_subtype);
+                }
+                expect_len(app_data, 0)?;
+                Ok(Command::Ping)
+            }
+            service::HOUSEKEEPING => {
+                if subtype != subtype::HK_ONE_SHOT {
+                    return Err(unknown_subtype);
+                }
+                expect_len(app_data, 0)?;
+                Ok(Command::HousekeepingOneShot)
+            }
+            service::MEMORY => match subtype {
+                subtype::MEMORY_LOAD => parse_memory_load(app_data),
+                subtype::MEMORY_DUMP => {
+                    expect_len(app_data, 1)?;
+                    let code = app_data.first().copied().unwrap_or(0);
+                    MemoryId::from_code(code)
+                        .map(Command::DumpTable)
+                        .ok_or(LinkError::InvalidArgument { index: 0 })
+                }
+                _ => Err(unknown_subtype),
+            },
+            service::FUNCTION => {
+                if subtype != subtype::PERFORM_FUNCTION {
+                    return Err(unknown_subtype);
+                }
+                parse_function(app_data)
+            }
+            _ => Err(LinkError::UnknownService { service }),
+        }
+    }
+
+    /// Writes the application data into `out`; returns its length, or `None` if `out` is
+    /// shorter than [`MAX_TC_APP_DATA_LEN`] needs for this command.
+    pub fn emit_app_data(&self, out: &mut [u8]) -> Option<usize> {
+        let mut w = Writer { buf: out, pos: 0 };
+        match self {
+            Command::Ping | Command::HousekeepingOneShot => {}
+            Command::LoadTableChunk(chunk) => {
+                w.put(&[MemoryId::UploadBuffer.code()])?;
+                w.put(&chunk.offset_bytes().to_be_bytes())?;
+                w.put(&sat_u16(chunk.bytes().len()).to_be_bytes())?;
+                w.put(chunk.bytes())?;
+            }
+            Command::DumpTable(memory) => w.put(&[memory.code()])?,
+            _ => {
+                let f = self.function_id()?;
+                w.put(&f.code().to_be_bytes())?;
+                match self {
+                    Command::MoveAbsolute(p) | Command::MoveRelative(p) => {
+                        let mut b = [0u8; WIRE_POSE_LEN];
+                        p.emit(&mut b);
+                        w.put(&b)?;
+                    }
+                    Command::DirectStroke { leg, delta_nm } => {
+                        w.put(&[*leg])?;
+                        w.put(&delta_nm.to_be_bytes())?;
+                    }
+                    Command::CommitTable { crc32 } => w.put(&crc32.to_be_bytes())?,
+                    _ => {}
+                }
+            }
+        }
+        Some(w.pos)
+    }
+}
+
+/// Sequential writer; `None` when the buffer is full.
+struct Writer<'a> {
+    buf: &'a mut [u8],
+    pos: usize,
+}
+
+impl Writer<'_> {
+    fn put(&mut self, bytes: &[u8]) -> Option<()> {
+        let end = self.pos.checked_add(bytes.len())?;
+        self.buf.get_mut(self.pos..end)?.copy_from_slice(bytes);
+        self.pos = end;
+        Some(())
+    }
+}
+
+/// TC[6,2]: memory ID u8 (1), offset u16, length u16, `length` bytes.
+fn parse_memory_load(app_data: &[u8]) -> Result<Command, LinkError> {
+    let short = LinkError::AppDataLength {
+        got: sat_u16(app_data.len()),
+        expected: sat_u16(MEMORY_LOAD_HEADER_LEN),
+    };
+    let memory = app_data.first().copied().ok_or(short)?;
+    let offset = be_u16(app_data, 1).ok_or(short)?;
+    let length = be_u16(app_data, 3).ok_or(short)?;
+    expect_len(
+        app_data,
+        MEMORY_LOAD_HEADER_LEN.saturating_add(usize::from(length)),
+    )?;
+    if MemoryId::from_code(memory) != Some(MemoryId::UploadBuffer) {
+        return Err(LinkError::InvalidArgument { index: 0 });
+    }
+    let data = app_data.get(MEMORY_LOAD_HEADER_LEN..).ok_or(short)?;
+    TableChunk::new(offset, data).map(Command::LoadTableChunk)
+}
+
+/// TC[8,1]: function ID u16, then the function's arguments.
+fn parse_function(app_data: &[u8]) -> Result<Command, LinkError> {
+    let id = be_u16(app_data, 0).ok_or(LinkError::AppDataLength {
+        got: sat_u16(app_data.len()),
+        expected: sat_u16(FUNCTION_ID_LEN),
+    })?;
+    let f = FunctionId::from_code(id).ok_or(LinkError::UnknownFunction { function_id: id })?;
+    expect_len(app_data, FUNCTION_ID_LEN + f.args_len())?;
+    let args = app_data.get(FUNCTION_ID_LEN..).unwrap_or(&[]);
+    let pose = || -> Result<WirePose, LinkError> {
+        let b: &[u8; WIRE_POSE_LEN] = args
+            .try_into()
+            .map_err(|_| LinkError::InvalidArgument { index: 0 })?;
+        Ok(WirePose::parse(b))
+    };
+    Ok(match f {
+        FunctionId::MoveAbsolute => Command::MoveAbsolute(pose()?),
+        FunctionId::MoveRelative => Command::MoveRelative(pose()?),
+        FunctionId::Stop => Command::Stop,
+        FunctionId::ClearFault => Command::ClearFault,
+        FunctionId::DirectStroke => {
+            let leg = args.first().copied().unwrap_or(0);
+            if leg == 0 || usize::from(leg) > LEGS {
+                return Err(LinkError::InvalidArgument { index: 0 });
+            }
+            let delta = be_u32(args, 1).ok_or(LinkError::InvalidArgument { index: 1 })?;
+            Command::DirectStroke {
+                leg,
+                delta_nm: i32::from_be_bytes(delta.to_be_bytes()),
+            }
+        }
+        FunctionId::CommitTable => Command::CommitTable {
+            crc32: be_u32(args, 0).ok_or(LinkError::InvalidArgument { index: 0 })?,
+        },
+        FunctionId::ActivateTable => Command::ActivateTable,
+        FunctionId::SwitchBank => Command::SwitchBank,
+        FunctionId::RevertToNominal => Command::RevertToNominal,
+    })
+}

@@ -1,0 +1,295 @@
+//! Telecommands: checked decoding of a PUS-C TC packet into a [`Telecommand`], and the
+//! encoder (ground tool, tests).
+//!
+//! Checks, in this order (the first failing one is reported):
+//! 1. length: at least a primary header + TC secondary header + CRC
+//!    ([`LinkError::Truncated`]), at most [`MAX_TC_PACKET_LEN`] ([`LinkError::Oversized`]);
+//! 2. primary header: version 0, type TC, secondary-header flag set, unsegmented
+//!    ([`LinkError::BadPrimaryHeader`]);
+//! 3. packet length field against the frame ([`LinkError::Truncated`],
+//!    [`LinkError::LengthMismatch`]);
+//! 4. CRC-16/CCITT-FALSE over the whole packet ([`LinkError::BadCrc`]);
+//! 5. APID == [`M2_APID`] ([`LinkError::WrongApid`]);
+//! 6. PUS version 2 ([`LinkError::UnsupportedPusVersion`]);
+//! 7. service, subtype, application data ([`Command::parse`]).
+
+use arbitrary_int::{u11, u14};
+use spacepackets::ecss::tc::{PusTcCreator, PusTcReader, PusTcSecondaryHeader};
+use spacepackets::ecss::{CreatorConfig, MessageTypeId, PusError};
+use spacepackets::{PacketId, PacketSequenceControl, SequenceFlags, SpHeader};
+
+use super::command::{Command, MAX_TC_APP_DATA_LEN};
+use super::error::{sat_u16, LinkError};
+use super::{
+    CCSDS_PRIMARY_HEADER_LEN, CRC16_LEN, M2_APID, MAX_TC_PACKET_LEN, PUS_C_VERSION,
+    PUS_TC_SEC_HEADER_LEN,
+};
+
+/// Smallest telecommand: primary header, secondary header, CRC (bytes).
+pub const MIN_TC_PACKET_LEN: usize = CCSDS_PRIMARY_HEADER_LEN + PUS_TC_SEC_HEADER_LEN + CRC16_LEN;
+/// Mask of the 14-bit packet sequence count.
+pub const SEQ_COUNT_MASK: u16 = 0x3fff;
+/// Mask of the 11-bit APID.
+pub const APID_MASK: u16 = 0x07ff;
+/// Bytes of a request ID (PUS-C: the first four bytes of the TC).
+pub const REQUEST_ID_LEN: usize = 4;
+
+/// The PUS-C request ID of a telecommand: its packet ID (version, type, secondary header
+/// flag, APID) and packet sequence control (sequence flags, count), i.e. the first four
+/// bytes of the TC, big-endian. Verification reports name the TC by it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RequestId {
+    /// Bytes 0..2 of the TC.
+    pub packet_id: u16,
+    /// Bytes 2..4 of the TC.
+    pub sequence_control: u16,
+}
+
+impl RequestId {
+    /// From the first four bytes of a packet; `None` if shorter.
+    pub fn from_packet(packet: &[u8]) -> Option<RequestId> {
+        let b: [u8; REQUEST_ID_LEN] = packet.get(..REQUEST_ID_LEN)?.try_into().ok()?;
+        Some(RequestId::from_bytes(b))
+    }
+
+    /// From its four wire bytes.
+    pub const fn from_bytes(b: [u8; REQUEST_ID_LEN]) -> RequestId {
+        RequestId {
+            packet_id: u16::from_be_bytes([b[0], b[1]]),
+            sequence_control: u16::from_be_bytes([b[2], b[3]]),
+        }
+    }
+
+    /// Its four wire bytes.
+    pub const fn to_bytes(self) -> [u8; REQUEST_ID_LEN] {
+        let p = self.packet_id.to_be_bytes();
+        let s = self.sequence_control.to_be_bytes();
+        [p[0], p[1], s[0], s[1]]
+    }
+
+    /// APID of the telecommand.
+    pub const fn apid(self) -> u16 {
+        self.packet_id & APID_MASK
+    }
+
+    /// Sequence count of the telecommand.
+    pub const fn seq_count(self) -> u16 {
+        self.sequence_control & SEQ_COUNT_MASK
+    }
+}
+
+/// PUS-C acknowledgement flags of a TC (which successful steps the sender wants reported
+/// by service 1; failures are always reported).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AckFlags(pub u8);
+
+impl AckFlags {
+    /// All four steps.
+    pub const ALL: AckFlags = AckFlags(0b1111);
+    /// None (failures only).
+    pub const NONE: AckFlags = AckFlags(0);
+    /// Report successful acceptance (TM[1,1]).
+    pub const fn acceptance(self) -> bool {
+        self.0 & 0b1000 != 0
+    }
+    /// Report successful start (TM[1,3]).
+    pub const fn start(self) -> bool {
+        self.0 & 0b0100 != 0
+    }
+    /// Report progress (not used by the controller).
+    pub const fn progress(self) -> bool {
+        self.0 & 0b0010 != 0
+    }
+    /// Report successful completion (TM[1,7]).
+    pub const fn completion(self) -> bool {
+        self.0 & 0b0001 != 0
+    }
+}
+
+/// A telecommand accepted by the link: who asked, what to report, what to do.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Telecommand {
+    /// Request ID for the verification reports.
+    pub request_id: RequestId,
+    /// Acknowledgement flags.
+    pub ack: AckFlags,
+    /// Source ID of the secondary header (the ground application that sent it).
+    pub source_id: u16,
+    /// The command.
+    pub command: Command,
+}
+
+/// A refused telecommand: report TM[1,2] with `error.code()` for `request_id` (if the
+/// packet had at least four bytes to name it), change nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Rejection {
+    /// The first four bytes of the packet, if there were four.
+    pub request_id: Option<RequestId>,
+    /// Why.
+    pub error: LinkError,
+}
+
+/// Checked decoding of one packet (the bytes of one frame). Never panics.
+pub fn decode_telecommand(packet: &[u8]) -> Result<Telecommand, Rejection> {
+    let request_id = RequestId::from_packet(packet);
+    decode_full(packet).map_err(|error| Rejection { request_id, error })
+}
+
+/// Primary header field positions (first two bytes = packet ID, next two = sequence
+/// control), as masks over the 16-bit words.
+const VERSION_MASK: u16 = 0xe000;
+const TYPE_TC_BIT: u16 = 0x1000;
+const SEC_HEADER_BIT: u16 = 0x0800;
+const SEQ_FLAGS_MASK: u16 = 0xc000;
+const SEQ_FLAGS_UNSEGMENTED: u16 = 0xc000;
+/// The data length field holds the packet length minus the primary header minus one.
+const DATA_LEN_OFFSET: usize = CCSDS_PRIMARY_HEADER_LEN + 1;
+/// Shift of the PUS version in the first secondary-header byte.
+const PUS_VERSION_SHIFT: u8 = 4;
+/// Mask of the ack flags in the first secondary-header byte.
+const ACK_MASK: u8 = 0x0f;
+
+fn decode_full(packet: &[u8]) -> Result<Telecommand, LinkError> {
+    let got = sat_u16(packet.len());
+    if packet.len() > MAX_TC_PACKET_LEN {
+        return Err(LinkError::Oversized);
+    }
+    let truncated = LinkError::Truncated {
+        got,
+        needed: sat_u16(MIN_TC_PACKET_LEN),
+    };
+    if packet.len() < MIN_TC_PACKET_LEN {
+        return Err(truncated);
+    }
+    let word = |at: usize| -> Result<u16, LinkError> {
+        let b: [u8; 2] = packet
+            .get(at..at + 2)
+            .and_then(|s| s.try_into().ok())
+            .ok_or(truncated)?;
+        Ok(u16::from_be_bytes(b))
+    };
+    let packet_id = word(0)?;
+    let seq_ctrl = word(2)?;
+    let data_len = word(4)?;
+    if packet_id & VERSION_MASK != 0
+        || packet_id & TYPE_TC_BIT == 0
+        || packet_id & SEC_HEADER_BIT == 0
+        || seq_ctrl & SEQ_FLAGS_MASK != SEQ_FLAGS_UNSEGMENTED
+    {
+        return Err(LinkError::BadPrimaryHeader);
+    }
+    let declared = usize::from(data_len) + DATA_LEN_OFFSET;
+    if declared > MAX_TC_PACKET_LEN {
+        return Err(LinkError::Oversized);
+    }
+    if packet.len() < declared || declared < MIN_TC_PACKET_LEN {
+        return Err(LinkError::Truncated {
+            got,
+            needed: sat_u16(declared.max(MIN_TC_PACKET_LEN)),
+        });
+    }
+    if packet.len() > declared {
+        return Err(LinkError::LengthMismatch {
+            got,
+            declared: sat_u16(declared),
+        });
+    }
+    let reader = PusTcReader::new_checksum_no_table(packet).map_err(|e| match e {
+        PusError::ChecksumFailure(found) => LinkError::BadCrc { found },
+        PusError::VersionNotSupported(v) => LinkError::UnsupportedPusVersion { version: v.value() },
+        PusError::CrcCalculationMissing | PusError::ByteConversion(_) => truncated,
+    })?;
+    let apid = packet_id & APID_MASK;
+    if apid != M2_APID {
+        return Err(LinkError::WrongApid { apid });
+    }
+    let version_ack = packet
+        .get(CCSDS_PRIMARY_HEADER_LEN)
+        .copied()
+        .ok_or(truncated)?;
+    let version = version_ack >> PUS_VERSION_SHIFT;
+    if version != PUS_C_VERSION {
+        return Err(LinkError::UnsupportedPusVersion { version });
+    }
+    let service = packet
+        .get(CCSDS_PRIMARY_HEADER_LEN + 1)
+        .copied()
+        .ok_or(truncated)?;
+    let subtype = packet
+        .get(CCSDS_PRIMARY_HEADER_LEN + 2)
+        .copied()
+        .ok_or(truncated)?;
+    let source_id = word(CCSDS_PRIMARY_HEADER_LEN + 3)?;
+    let command = Command::parse(service, subtype, reader.app_data())?;
+    Ok(Telecommand {
+        request_id: RequestId {
+            packet_id,
+            sequence_control: seq_ctrl,
+        },
+        ack: AckFlags(version_ack & ACK_MASK),
+        source_id,
+        command,
+    })
+}
+
+/// Header fields the sender chooses for a telecommand.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TcHeader {
+    /// Packet sequence count (14 bits; higher bits are ignored).
+    pub seq_count: u16,
+    /// Source ID of the secondary header.
+    pub source_id: u16,
+    /// Acknowledgement flags.
+    pub ack: AckFlags,
+}
+
+impl TcHeader {
+    /// Sequence count `seq_count`, source ID 0, all acknowledgements.
+    pub const fn new(seq_count: u16) -> TcHeader {
+        TcHeader {
+            seq_count,
+            source_id: 0,
+            ack: AckFlags::ALL,
+        }
+    }
+}
+
+/// Why a telecommand could not be encoded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EncodeError {
+    /// The output buffer is too small.
+    BufferTooSmall,
+}
+
+/// Encodes `command` as a PUS-C TC (APID [`M2_APID`], unsegmented, with CRC-16) into
+/// `out`; returns the packet length. Unframed: see [`super::encode_frame`].
+pub fn encode_telecommand(
+    command: &Command,
+    header: TcHeader,
+    out: &mut [u8],
+) -> Result<usize, EncodeError> {
+    let mut app_data = [0u8; MAX_TC_APP_DATA_LEN];
+    let n = command
+        .emit_app_data(&mut app_data)
+        .ok_or(EncodeError::BufferTooSmall)?;
+    let app = app_data.get(..n).ok_or(EncodeError::BufferTooSmall)?;
+    let (service, subtype) = command.message_type();
+    let sp = SpHeader::new(
+        PacketId::new_for_tc(true, u11::new(M2_APID & APID_MASK)),
+        PacketSequenceControl::new(
+            SequenceFlags::Unsegmented,
+            u14::new(header.seq_count & SEQ_COUNT_MASK),
+        ),
+        0,
+    );
+    let sec = PusTcSecondaryHeader::new(
+        MessageTypeId::new(service, subtype),
+        spacepackets::ecss::tc::AckFlags::new_with_raw_value(arbitrary_int::u4::new(
+            header.ack.0 & ACK_MASK,
+        )),
+        header.source_id,
+    );
+    let tc = PusTcCreator::new(sp, sec, app, CreatorConfig::default());
+    tc.write_to_slice(out)
+        .map_err(|_| EncodeError::BufferTooSmall)
+}

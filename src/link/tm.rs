@@ -1,0 +1,576 @@
+//! Telemetry: [`TmWriter`] emits whole framed PUS-C TM packets (verification, events,
+//! housekeeping, ping reply, table dump) into caller buffers, counting packet sequence
+//! and per-service message type counters; [`parse_tm`] is the checked inverse for the
+//! ground and the tests.
+//!
+//! Every TM packet: CCSDS primary header (APID [`M2_APID`], type TM, secondary header
+//! flag, unsegmented, sequence count incremented per emitted packet, wrapping at 2^14),
+//! PUS-C TM secondary header (version 2, time reference status 0, service, subtype,
+//! message type counter per service (u16, wrapping), destination ID 0, timestamp
+//! [`TmTime`]), source data, CRC-16/CCITT-FALSE.
+
+use arbitrary_int::{u11, u14};
+use spacepackets::ecss::tm::{
+    GenericPusTmSecondaryHeader, PusTmCreator, PusTmReader, PusTmSecondaryHeader,
+};
+use spacepackets::ecss::{CreatorConfig, MessageTypeId};
+use spacepackets::{CcsdsPacket, PacketId, PacketSequenceControl, SequenceFlags, SpHeader};
+
+use super::command::{MemoryId, TABLE_CHUNK_MAX_LEN};
+use super::error::{sat_u16, LinkError};
+use super::framing::{encode_frame, FrameError};
+use super::hk::{Housekeeping, HK_REPORT_LEN};
+use super::tc::{RequestId, APID_MASK, REQUEST_ID_LEN, SEQ_COUNT_MASK};
+use super::{service, subtype, M2_APID, MAX_TM_PACKET_LEN, TM_TIMESTAMP_LEN};
+
+/// Largest source data of any TM packet the controller emits (bytes).
+pub const MAX_TM_SOURCE_DATA_LEN: usize = 160;
+/// Bytes of the TM[6,6] header before the data: memory ID u8, offset u16, length u16.
+pub const DUMP_HEADER_LEN: usize = 5;
+/// Bytes of a failure notice: code u16, data u32.
+pub const FAILURE_NOTICE_LEN: usize = 6;
+/// Bytes of an event report: event ID u16, two u32 auxiliary words.
+pub const EVENT_REPORT_LEN: usize = 10;
+/// Sub-second resolution of the timestamp: 2^16 fractions per second.
+pub const TIME_FRACTIONS_PER_SECOND: u64 = 1 << 16;
+/// Milliseconds per second.
+const MS_PER_S: u64 = 1000;
+
+/// The TM timestamp: CCSDS unsegmented time code (CUC) with implicit P-field, 4 bytes of
+/// seconds and 2 bytes of 1/65536 s, big-endian, counted from controller boot (the
+/// controller has no absolute time; the ground correlates).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TmTime {
+    /// Whole seconds since boot.
+    pub seconds: u32,
+    /// Fraction of a second (units of 1/65536 s).
+    pub fraction: u16,
+}
+
+impl TmTime {
+    /// From milliseconds since boot (seconds wrap after 2^32 s).
+    pub const fn from_millis(ms: u64) -> TmTime {
+        TmTime {
+            seconds: (ms / MS_PER_S) as u32,
+            fraction: ((ms % MS_PER_S) * TIME_FRACTIONS_PER_SECOND / MS_PER_S) as u16,
+        }
+    }
+
+    /// The six wire bytes.
+    pub const fn to_bytes(self) -> [u8; TM_TIMESTAMP_LEN] {
+        let s = self.seconds.to_be_bytes();
+        let f = self.fraction.to_be_bytes();
+        [s[0], s[1], s[2], s[3], f[0], f[1]]
+    }
+
+    /// From the six wire bytes.
+    pub const fn from_bytes(b: [u8; TM_TIMESTAMP_LEN]) -> TmTime {
+        TmTime {
+            seconds: u32::from_be_bytes([b[0], b[1], b[2], b[3]]),
+            fraction: u16::from_be_bytes([b[4], b[5]]),
+        }
+    }
+}
+
+/// A service-1 verification report for one telecommand.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Verification {
+    /// TM[1,1].
+    AcceptanceSuccess,
+    /// TM[1,2]: `code` is a [`LinkError::code`] (or a controller code), `data` its datum.
+    AcceptanceFailure {
+        /// Failure code.
+        code: u16,
+        /// Failure datum.
+        data: u32,
+    },
+    /// TM[1,3].
+    StartSuccess,
+    /// TM[1,4]: the controller refused to start (e.g. faulted, moving).
+    StartFailure {
+        /// Failure code.
+        code: u16,
+        /// Failure datum (e.g. refusal bits).
+        data: u32,
+    },
+    /// TM[1,7].
+    CompletionSuccess,
+    /// TM[1,8]: execution failed (kinematics/table/store error codes pass through).
+    CompletionFailure {
+        /// Failure code.
+        code: u16,
+        /// Failure datum.
+        data: u32,
+    },
+}
+
+impl Verification {
+    /// The acceptance failure for a link error.
+    pub const fn acceptance_failure(error: &LinkError) -> Verification {
+        Verification::AcceptanceFailure {
+            code: error.code(),
+            data: error.data(),
+        }
+    }
+
+    /// PUS subtype of the report.
+    pub const fn subtype(&self) -> u8 {
+        match self {
+            Verification::AcceptanceSuccess => subtype::ACCEPTANCE_SUCCESS,
+            Verification::AcceptanceFailure { .. } => subtype::ACCEPTANCE_FAILURE,
+            Verification::StartSuccess => subtype::START_SUCCESS,
+            Verification::StartFailure { .. } => subtype::START_FAILURE,
+            Verification::CompletionSuccess => subtype::COMPLETION_SUCCESS,
+            Verification::CompletionFailure { .. } => subtype::COMPLETION_FAILURE,
+        }
+    }
+
+    /// The failure notice, if a failure.
+    pub const fn failure(&self) -> Option<(u16, u32)> {
+        match *self {
+            Verification::AcceptanceFailure { code, data }
+            | Verification::StartFailure { code, data }
+            | Verification::CompletionFailure { code, data } => Some((code, data)),
+            _ => None,
+        }
+    }
+
+    /// From a subtype and failure notice (ground side).
+    pub const fn from_parts(subtype: u8, code: u16, data: u32) -> Option<Verification> {
+        Some(match subtype {
+            subtype::ACCEPTANCE_SUCCESS => Verification::AcceptanceSuccess,
+            subtype::ACCEPTANCE_FAILURE => Verification::AcceptanceFailure { code, data },
+            subtype::START_SUCCESS => Verification::StartSuccess,
+            subtype::START_FAILURE => Verification::StartFailure { code, data },
+            subtype::COMPLETION_SUCCESS => Verification::CompletionSuccess,
+            subtype::COMPLETION_FAILURE => Verification::CompletionFailure { code, data },
+            _ => return None,
+        })
+    }
+}
+
+/// Severity of a service-5 event (= its TM subtype).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EventSeverity {
+    /// TM[5,1] informative (state changes, table activated).
+    Info,
+    /// TM[5,2] low-severity anomaly (warnings).
+    Low,
+    /// TM[5,3] medium-severity anomaly (refused commands, table rejected).
+    Medium,
+    /// TM[5,4] high-severity anomaly (faults latched).
+    High,
+}
+
+impl EventSeverity {
+    /// PUS subtype.
+    pub const fn subtype(self) -> u8 {
+        match self {
+            EventSeverity::Info => subtype::EVENT_INFO,
+            EventSeverity::Low => subtype::EVENT_LOW,
+            EventSeverity::Medium => subtype::EVENT_MEDIUM,
+            EventSeverity::High => subtype::EVENT_HIGH,
+        }
+    }
+
+    /// From the PUS subtype.
+    pub const fn from_subtype(subtype: u8) -> Option<EventSeverity> {
+        match subtype {
+            subtype::EVENT_INFO => Some(EventSeverity::Info),
+            subtype::EVENT_LOW => Some(EventSeverity::Low),
+            subtype::EVENT_MEDIUM => Some(EventSeverity::Medium),
+            subtype::EVENT_HIGH => Some(EventSeverity::High),
+            _ => None,
+        }
+    }
+}
+
+/// Event IDs of service 5 (u16). Auxiliary words per event in the ICD.
+pub mod event_id {
+    /// Controller state changed. aux0: old state, aux1: new state.
+    pub const STATE_CHANGED: u16 = 0x0001;
+    /// A fault latched. aux0: all latched fault flags, aux1: the newly latched ones.
+    pub const FAULT_LATCHED: u16 = 0x0002;
+    /// Faults cleared. aux0: flags cleared, aux1: 0.
+    pub const FAULTS_CLEARED: u16 = 0x0003;
+    /// Warning flags changed. aux0: warning flags, aux1: 0.
+    pub const WARNING_CHANGED: u16 = 0x0004;
+    /// A move was refused. aux0: refusal bits, aux1: failure code.
+    pub const MOVE_REFUSED: u16 = 0x0005;
+    /// A table was activated. aux0: table ID, aux1: CRC-32.
+    pub const TABLE_ACTIVATED: u16 = 0x0010;
+    /// A table was rejected (commit/activation). aux0: failure code, aux1: table ID.
+    pub const TABLE_REJECTED: u16 = 0x0011;
+    /// A table was committed to flash. aux0: table ID, aux1: bank (1 A, 2 B).
+    pub const TABLE_COMMITTED: u16 = 0x0012;
+    /// Boot finished. aux0: boot source (0 nominal, 1 A, 2 B), aux1: active table ID.
+    pub const BOOT: u16 = 0x0020;
+}
+
+/// Why telemetry could not be emitted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EmitError {
+    /// The output buffer cannot hold the framed packet ([`super::MAX_TM_FRAME_LEN`] always can).
+    BufferTooSmall,
+    /// A dump chunk is empty, too long or lies outside the table.
+    BadChunk,
+}
+
+impl From<FrameError> for EmitError {
+    fn from(_: FrameError) -> Self {
+        EmitError::BufferTooSmall
+    }
+}
+
+/// Message-type counters are kept per service; index in [`TmWriter`].
+const COUNTED_SERVICES: [u8; 5] = [
+    service::VERIFICATION,
+    service::HOUSEKEEPING,
+    service::EVENT,
+    service::MEMORY,
+    service::TEST,
+];
+
+/// Emits framed TM packets and counts them. One per link.
+#[derive(Clone, Debug, Default)]
+pub struct TmWriter {
+    /// Sequence count of the next packet (14 bits).
+    seq_count: u16,
+    /// Message type counter of the next packet, per service of [`COUNTED_SERVICES`].
+    msg_counters: [u16; COUNTED_SERVICES.len()],
+}
+
+impl TmWriter {
+    /// Counters at zero.
+    pub const fn new() -> TmWriter {
+        TmWriter {
+            seq_count: 0,
+            msg_counters: [0; COUNTED_SERVICES.len()],
+        }
+    }
+
+    /// Sequence count the next packet will carry.
+    pub const fn next_seq_count(&self) -> u16 {
+        self.seq_count
+    }
+
+    /// Builds, frames and counts one packet; counters move only on success.
+    fn emit(
+        &mut self,
+        time: TmTime,
+        message: (u8, u8),
+        source_data: &[u8],
+        out: &mut [u8],
+    ) -> Result<usize, EmitError> {
+        let (svc, sub) = message;
+        let slot = COUNTED_SERVICES.iter().position(|s| *s == svc);
+        let msg_counter = slot
+            .and_then(|i| self.msg_counters.get(i).copied())
+            .unwrap_or(0);
+        let stamp = time.to_bytes();
+        let sp = SpHeader::new(
+            PacketId::new_for_tm(true, u11::new(M2_APID & APID_MASK)),
+            PacketSequenceControl::new(
+                SequenceFlags::Unsegmented,
+                u14::new(self.seq_count & SEQ_COUNT_MASK),
+            ),
+            0,
+        );
+        let sec = PusTmSecondaryHeader::new(MessageTypeId::new(svc, sub), msg_counter, 0, &stamp);
+        let tm = PusTmCreator::new(sp, sec, source_data, CreatorConfig::default());
+        let mut packet = [0u8; MAX_TM_PACKET_LEN];
+        let n = tm
+            .write_to_slice(&mut packet)
+            .map_err(|_| EmitError::BufferTooSmall)?;
+        let bytes = packet.get(..n).ok_or(EmitError::BufferTooSmall)?;
+        let framed = encode_frame(bytes, out)?;
+        self.seq_count = self.seq_count.wrapping_add(1) & SEQ_COUNT_MASK;
+        if let Some(c) = slot.and_then(|i| self.msg_counters.get_mut(i)) {
+            *c = c.wrapping_add(1);
+        }
+        Ok(framed)
+    }
+
+    /// TM[1,x] verification report for `request_id`: source data = request ID (4 bytes),
+    /// then for failures code u16 and data u32. Returns the frame length.
+    pub fn emit_verification(
+        &mut self,
+        time: TmTime,
+        request_id: RequestId,
+        report: Verification,
+        out: &mut [u8],
+    ) -> Result<usize, EmitError> {
+        let mut data = [0u8; REQUEST_ID_LEN + FAILURE_NOTICE_LEN];
+        let mut len = REQUEST_ID_LEN;
+        for (d, s) in data.iter_mut().zip(request_id.to_bytes()) {
+            *d = s;
+        }
+        if let Some((code, datum)) = report.failure() {
+            let notice = code.to_be_bytes().into_iter().chain(datum.to_be_bytes());
+            for (d, s) in data.iter_mut().skip(REQUEST_ID_LEN).zip(notice) {
+                *d = s;
+            }
+            len += FAILURE_NOTICE_LEN;
+        }
+        let src = data.get(..len).ok_or(EmitError::BufferTooSmall)?;
+        self.emit(time, (service::VERIFICATION, report.subtype()), src, out)
+    }
+
+    /// TM[5,x] event report: event ID u16, aux words u32 x2. Returns the frame length.
+    pub fn emit_event(
+        &mut self,
+        time: TmTime,
+        severity: EventSeverity,
+        event_id: u16,
+        aux: [u32; 2],
+        out: &mut [u8],
+    ) -> Result<usize, EmitError> {
+        let mut data = [0u8; EVENT_REPORT_LEN];
+        let bytes = event_id
+            .to_be_bytes()
+            .into_iter()
+            .chain(aux[0].to_be_bytes())
+            .chain(aux[1].to_be_bytes());
+        for (d, s) in data.iter_mut().zip(bytes) {
+            *d = s;
+        }
+        self.emit(time, (service::EVENT, severity.subtype()), &data, out)
+    }
+
+    /// TM[3,25] housekeeping report. Returns the frame length.
+    pub fn emit_housekeeping(
+        &mut self,
+        time: TmTime,
+        hk: &Housekeeping,
+        out: &mut [u8],
+    ) -> Result<usize, EmitError> {
+        let mut data = [0u8; HK_REPORT_LEN];
+        hk.emit(&mut data);
+        self.emit(
+            time,
+            (service::HOUSEKEEPING, subtype::HK_REPORT),
+            &data,
+            out,
+        )
+    }
+
+    /// TM[17,2] ping reply (no source data). Returns the frame length.
+    pub fn emit_ping_reply(&mut self, time: TmTime, out: &mut [u8]) -> Result<usize, EmitError> {
+        self.emit(time, (service::TEST, subtype::PING_REPLY), &[], out)
+    }
+
+    /// TM[6,6] one dump chunk: memory ID u8, offset u16, length u16, bytes (1..=128).
+    /// Returns the frame length. Use [`dump_chunks`] to split a table.
+    pub fn emit_table_dump_chunk(
+        &mut self,
+        time: TmTime,
+        memory: MemoryId,
+        offset_bytes: u16,
+        bytes: &[u8],
+        out: &mut [u8],
+    ) -> Result<usize, EmitError> {
+        if bytes.is_empty() || bytes.len() > TABLE_CHUNK_MAX_LEN {
+            return Err(EmitError::BadChunk);
+        }
+        let mut data = [0u8; DUMP_HEADER_LEN + TABLE_CHUNK_MAX_LEN];
+        let len = DUMP_HEADER_LEN + bytes.len();
+        let head = [memory.code()]
+            .into_iter()
+            .chain(offset_bytes.to_be_bytes())
+            .chain(sat_u16(bytes.len()).to_be_bytes());
+        for (d, s) in data.iter_mut().zip(head.chain(bytes.iter().copied())) {
+            *d = s;
+        }
+        let src = data.get(..len).ok_or(EmitError::BadChunk)?;
+        self.emit(
+            time,
+            (service::MEMORY, subtype::MEMORY_DUMP_REPORT),
+            src,
+            out,
+        )
+    }
+}
+
+/// Splits a table image into dump/upload chunks of at most [`TABLE_CHUNK_MAX_LEN`] bytes:
+/// `(offset_bytes, bytes)` in increasing offset order.
+pub fn dump_chunks(table: &[u8]) -> impl Iterator<Item = (u16, &[u8])> {
+    table
+        .chunks(TABLE_CHUNK_MAX_LEN)
+        .enumerate()
+        .map(|(i, c)| (sat_u16(i.saturating_mul(TABLE_CHUNK_MAX_LEN)), c))
+}
+
+/// A decoded TM packet (ground side and tests).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TmPacket<'a> {
+    /// APID.
+    pub apid: u16,
+    /// Packet sequence count.
+    pub seq_count: u16,
+    /// Message type counter.
+    pub msg_counter: u16,
+    /// Timestamp.
+    pub time: TmTime,
+    /// Service.
+    pub service: u8,
+    /// Subtype.
+    pub subtype: u8,
+    /// The report.
+    pub report: TmReport<'a>,
+}
+
+/// The content of a TM packet.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TmReport<'a> {
+    /// TM[1,x].
+    Verification {
+        /// The telecommand it reports on.
+        request_id: RequestId,
+        /// The report.
+        report: Verification,
+    },
+    /// TM[3,25].
+    Housekeeping(Housekeeping),
+    /// TM[5,x].
+    Event {
+        /// Severity.
+        severity: EventSeverity,
+        /// Event ID.
+        event_id: u16,
+        /// Auxiliary words.
+        aux: [u32; 2],
+    },
+    /// TM[6,6].
+    DumpChunk {
+        /// Memory area.
+        memory: MemoryId,
+        /// Offset (bytes).
+        offset_bytes: u16,
+        /// Data.
+        bytes: &'a [u8],
+    },
+    /// TM[17,2].
+    PingReply,
+}
+
+fn be_u16(b: &[u8], at: usize) -> Option<u16> {
+    Some(u16::from_be_bytes(
+        b.get(at..at.checked_add(2)?)?.try_into().ok()?,
+    ))
+}
+fn be_u32(b: &[u8], at: usize) -> Option<u32> {
+    Some(u32::from_be_bytes(
+        b.get(at..at.checked_add(4)?)?.try_into().ok()?,
+    ))
+}
+
+/// Checked parse of one TM packet (unframed) from the controller. Never panics.
+pub fn parse_tm(packet: &[u8]) -> Result<TmPacket<'_>, LinkError> {
+    let tm = PusTmReader::new(packet, TM_TIMESTAMP_LEN).map_err(|e| match e {
+        spacepackets::ecss::PusError::ChecksumFailure(found) => LinkError::BadCrc { found },
+        _ => LinkError::Truncated {
+            got: sat_u16(packet.len()),
+            needed: 0,
+        },
+    })?;
+    if tm.packet_len() != packet.len() {
+        return Err(LinkError::LengthMismatch {
+            got: sat_u16(packet.len()),
+            declared: sat_u16(tm.packet_len()),
+        });
+    }
+    if !tm.is_tm() {
+        return Err(LinkError::BadPrimaryHeader);
+    }
+    let apid = tm.apid().value();
+    let (svc, sub) = (tm.service_type_id(), tm.message_subtype_id());
+    let d = tm.source_data();
+    let wrong_len = |expected: usize| LinkError::AppDataLength {
+        got: sat_u16(d.len()),
+        expected: sat_u16(expected),
+    };
+    let stamp: [u8; TM_TIMESTAMP_LEN] = tm
+        .timestamp()
+        .try_into()
+        .map_err(|_| LinkError::BadPrimaryHeader)?;
+    let report = match svc {
+        service::VERIFICATION => {
+            let failure = matches!(
+                sub,
+                subtype::ACCEPTANCE_FAILURE | subtype::START_FAILURE | subtype::COMPLETION_FAILURE
+            );
+            let expected = REQUEST_ID_LEN + if failure { FAILURE_NOTICE_LEN } else { 0 };
+            if d.len() != expected {
+                return Err(wrong_len(expected));
+            }
+            let rid = RequestId::from_packet(d).ok_or(wrong_len(expected))?;
+            let code = be_u16(d, REQUEST_ID_LEN).unwrap_or(0);
+            let data = be_u32(d, REQUEST_ID_LEN + 2).unwrap_or(0);
+            TmReport::Verification {
+                request_id: rid,
+                report: Verification::from_parts(sub, code, data).ok_or(
+                    LinkError::UnknownSubtype {
+                        service: svc,
+                        subtype: sub,
+                    },
+                )?,
+            }
+        }
+        service::HOUSEKEEPING if sub == subtype::HK_REPORT => {
+            TmReport::Housekeeping(Housekeeping::parse(d).ok_or(wrong_len(HK_REPORT_LEN))?)
+        }
+        service::EVENT => {
+            if d.len() != EVENT_REPORT_LEN {
+                return Err(wrong_len(EVENT_REPORT_LEN));
+            }
+            TmReport::Event {
+                severity: EventSeverity::from_subtype(sub).ok_or(LinkError::UnknownSubtype {
+                    service: svc,
+                    subtype: sub,
+                })?,
+                event_id: be_u16(d, 0).unwrap_or(0),
+                aux: [be_u32(d, 2).unwrap_or(0), be_u32(d, 6).unwrap_or(0)],
+            }
+        }
+        service::MEMORY if sub == subtype::MEMORY_DUMP_REPORT => {
+            let memory = d
+                .first()
+                .copied()
+                .and_then(MemoryId::from_code)
+                .ok_or(LinkError::InvalidArgument { index: 0 })?;
+            let offset = be_u16(d, 1).ok_or(wrong_len(DUMP_HEADER_LEN))?;
+            let len = be_u16(d, 3).ok_or(wrong_len(DUMP_HEADER_LEN))?;
+            let bytes = d.get(DUMP_HEADER_LEN..).unwrap_or(&[]);
+            if bytes.len() != usize::from(len) {
+                return Err(wrong_len(DUMP_HEADER_LEN + usize::from(len)));
+            }
+            TmReport::DumpChunk {
+                memory,
+                offset_bytes: offset,
+                bytes,
+            }
+        }
+        service::TEST if sub == subtype::PING_REPLY => {
+            if !d.is_empty() {
+                return Err(wrong_len(0));
+            }
+            TmReport::PingReply
+        }
+        service::HOUSEKEEPING | service::MEMORY | service::TEST => {
+            return Err(LinkError::UnknownSubtype {
+                service: svc,
+                subtype: sub,
+            })
+        }
+        _ => return Err(LinkError::UnknownService { service: svc }),
+    };
+    Ok(TmPacket {
+        apid,
+        seq_count: tm.seq_count().value(),
+        msg_counter: tm.msg_type_counter(),
+        time: TmTime::from_bytes(stamp),
+        service: svc,
+        subtype: sub,
+        report,
+    })
+}
