@@ -13,7 +13,7 @@ use m2ctl::ground::ikfk::{run_file, IkFk};
 use m2ctl::ground::plan::{
     PlanConfig, DEFAULT_AXIS_MM, DEFAULT_CUBE_HALF_MM, DEFAULT_ROTATION_ARCSEC,
 };
-use m2ctl::ground::report::{bench, table3, TableConfig};
+use m2ctl::ground::report::{bench, compare_cuckoo, table3, TableConfig};
 
 #[derive(Parser)]
 #[command(
@@ -42,6 +42,17 @@ enum Cmd {
     Table3(TableCli),
     /// Print the wall time of each solver on the simulated campaign.
     Bench(BenchCli),
+    /// Compare SMCS and the improved algorithm over several solver seeds.
+    CompareCuckoo(CompareCli),
+}
+
+#[derive(clap::Args)]
+struct CompareCli {
+    #[command(flatten)]
+    solver_cli: SolverCli,
+    /// Solver seeds 1..=N.
+    #[arg(long, default_value_t = 5)]
+    seeds: u64,
 }
 
 #[derive(clap::Args)]
@@ -288,6 +299,9 @@ fn main() -> ExitCode {
             Cmd::SimulateCampaign(a) => campaign_cmd(a),
             Cmd::Table3(a) => {
                 table3(&table_config(&a.solver_cli, a.plot.clone())).map(|t| print!("{t}"))
+            }
+            Cmd::CompareCuckoo(a) => {
+                compare_cuckoo(&table_config(&a.solver_cli, None), a.seeds).map(|t| print!("{t}"))
             }
             Cmd::Bench(a) => {
                 bench(&table_config(&a.solver_cli, None), a.repeats).map(|t| print!("{t}"))
