@@ -76,7 +76,7 @@ fn lm_recovers_noise_free_to_nanometres() {
         before.max_um() > 1.0 && before.max_arcsec() > 1.0,
         "campaign must need calibration"
     );
-    assert!(after.max_um() < 1e-3, "max {} um", after.max_um());
+    assert!(after.max_um() < 1e-4, "max {} um", after.max_um());
     assert!(
         after.max_arcsec() < 1e-3,
         "max {} arcsec",
