@@ -260,7 +260,7 @@ pub fn table3(cfg: &TableConfig) -> Result<String, String> {
     for r in rows.iter().filter_map(|r| r.calib.as_ref()) {
         let _ = writeln!(
             out,
-            "- {}: condition {:.3e}, {} parameters on a bound, {}",
+            "- {}: condition {:.3e}, {} parameters on or outside a bound, {}",
             r.note.split(':').next().unwrap_or(""),
             r.condition(),
             r.active_bounds,

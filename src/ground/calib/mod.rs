@@ -444,7 +444,7 @@ pub struct CalibResult {
     pub iterations: usize,
     /// Objective evaluations.
     pub evaluations: usize,
-    /// Number of parameters on a bound of Omega.
+    /// Number of parameters on or outside a bound of Omega.
     pub active_bounds: usize,
     /// Whether the solution is inside Omega.
     pub inside_omega: bool,
@@ -470,7 +470,7 @@ impl CalibResult {
             "residual RMS {:.4} um -> {:.4} um (max {:.4} um)\n\
              Jacobian singular values {:.3e} .. {:.3e}, condition {:.3e}\n\
              iterations {}, objective evaluations {}, time {:.1} ms\n\
-             parameters on a bound of Omega: {}, inside Omega: {}\n\
+             parameters on or outside a bound of Omega: {}, inside Omega: {}\n\
              solver: {}",
             self.rms_before_mm * 1e3,
             self.rms_after_mm * 1e3,
