@@ -1,0 +1,34 @@
+//! Motion: trajectories between poses and direct-stroke moves, hardware-free
+//! (in the spirit of `ramp-maker`: the profile, not the drive).
+//!
+//! * [`ramp`]: the trapezoidal profile of a path parameter over whole control cycles
+//!   ([`CYCLE_S`]), closed form in the cycle count, with a stop to rest at the
+//!   acceleration limit.
+//! * [`trajectory`]: coordinated moves on the straight line between two poses; the
+//!   profile's rate and acceleration are derived from per-slider speed and acceleration
+//!   limits through the strokes sampled along the path.
+//! * [`stroke`]: one slider by a stroke, no kinematics (recovery).
+//!
+//! Per cycle the controller calls `setpoint(cycle)` with the cycle count since the move
+//! began (a few tens of instructions), turns the pose into strokes by IK and commands
+//! the drives. Nothing here allocates or panics.
+//!
+//! Error codes (family 0x05xx): [`MotionError`] 0x0501.., [`StrokeMoveError`] 0x0511...
+
+#![deny(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::unreachable,
+    clippy::indexing_slicing
+)]
+// `!(x > 0.0)` also refuses NaN, deliberately.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+pub mod ramp;
+pub mod stroke;
+pub mod trajectory;
+
+pub use ramp::{Ramp, RampError, RampSample, CYCLE_S, MAX_MOVE_CYCLES};
+pub use stroke::{DirectStrokeLimits, StrokeMove, StrokeMoveError, StrokeSetpoint};
+pub use trajectory::{MotionError, MotionLimits, PathBounds, Setpoint, Trajectory};

@@ -1,0 +1,143 @@
+//! Fault and warning flags: one `u32` word with a stable bit layout for telemetry.
+//!
+//! | bit | flag | kind |
+//! |---|---|---|
+//! | 0 | [`FaultFlags::FOLLOWING_ERROR`] | fault (latched) |
+//! | 1 | [`FaultFlags::ENCODER_STUCK`] | fault |
+//! | 2 | [`FaultFlags::ENCODER_JUMP`] | fault |
+//! | 3 | [`FaultFlags::ENCODER_READ_FAILURE`] | fault |
+//! | 4 | [`FaultFlags::SOFT_LIMIT`] | fault |
+//! | 5 | [`FaultFlags::FK_NOT_CONVERGED`] | fault |
+//! | 6 | [`FaultFlags::POSE_OUTSIDE_WORKSPACE`] | fault |
+//! | 7 | [`FaultFlags::DRIVE_FAULT`] | fault |
+//! | 8..15 | reserved for faults | |
+//! | 16 | [`FaultFlags::FOLLOWING_WARNING`] | warning (not latched) |
+//! | 17..31 | reserved for warnings | |
+//!
+//! Bits are never renumbered; new checks take reserved bits.
+
+use core::ops::{BitAnd, BitOr, BitOrAssign, Not};
+
+/// A set of fault and warning flags (see the module documentation for the layout).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct FaultFlags(u32);
+
+impl FaultFlags {
+    /// Bit 0: |measured - commanded stroke| above the fault threshold.
+    pub const FOLLOWING_ERROR: Self = Self(1 << 0);
+    /// Bit 1: encoder makes no progress while its slider is commanded to move.
+    pub const ENCODER_STUCK: Self = Self(1 << 1);
+    /// Bit 2: encoder reading changed more than physically possible in one cycle.
+    pub const ENCODER_JUMP: Self = Self(1 << 2);
+    /// Bit 3: encoder did not answer, answered corrupted, or gave a non-finite value.
+    pub const ENCODER_READ_FAILURE: Self = Self(1 << 3);
+    /// Bit 4: measured stroke beyond the slider's soft limit.
+    pub const SOFT_LIMIT: Self = Self(1 << 4);
+    /// Bit 5: forward kinematics of the measured strokes failed.
+    pub const FK_NOT_CONVERGED: Self = Self(1 << 5);
+    /// Bit 6: measured pose outside the workspace.
+    pub const POSE_OUTSIDE_WORKSPACE: Self = Self(1 << 6);
+    /// Bit 7: a drive reported a fault.
+    pub const DRIVE_FAULT: Self = Self(1 << 7);
+    /// Bit 16 (warning): following error above the warning threshold.
+    pub const FOLLOWING_WARNING: Self = Self(1 << 16);
+
+    /// Every fault bit in use (bits 0..7).
+    pub const ALL_FAULTS: Self = Self(0x0000_00FF);
+    /// Every warning bit in use (bit 16).
+    pub const ALL_WARNINGS: Self = Self(1 << 16);
+    /// Bit positions of the faults, in bit order (index = bit).
+    pub const FAULT_BITS: usize = 8;
+
+    /// No flag.
+    pub const fn empty() -> Self {
+        Self(0)
+    }
+
+    /// The telemetry word.
+    pub const fn bits(self) -> u32 {
+        self.0
+    }
+
+    /// From a telemetry word, dropping bits no flag uses.
+    pub const fn from_bits_truncate(bits: u32) -> Self {
+        Self(bits & (Self::ALL_FAULTS.0 | Self::ALL_WARNINGS.0))
+    }
+
+    /// No flag set.
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+
+    /// Every flag of `other` is set.
+    pub const fn contains(self, other: Self) -> bool {
+        self.0 & other.0 == other.0
+    }
+
+    /// Some flag of `other` is set.
+    pub const fn intersects(self, other: Self) -> bool {
+        self.0 & other.0 != 0
+    }
+
+    /// Flags in either.
+    pub const fn union(self, other: Self) -> Self {
+        Self(self.0 | other.0)
+    }
+
+    /// Flags in both.
+    pub const fn intersection(self, other: Self) -> Self {
+        Self(self.0 & other.0)
+    }
+
+    /// Flags of `self` not in `other`.
+    pub const fn difference(self, other: Self) -> Self {
+        Self(self.0 & !other.0)
+    }
+
+    /// Sets the flags of `other`.
+    pub fn insert(&mut self, other: Self) {
+        self.0 |= other.0;
+    }
+
+    /// Clears the flags of `other`.
+    pub fn remove(&mut self, other: Self) {
+        self.0 &= !other.0;
+    }
+
+    /// Sets or clears the flags of `other`.
+    pub fn set(&mut self, other: Self, on: bool) {
+        if on {
+            self.insert(other);
+        } else {
+            self.remove(other);
+        }
+    }
+}
+
+impl BitOr for FaultFlags {
+    type Output = Self;
+    fn bitor(self, rhs: Self) -> Self {
+        self.union(rhs)
+    }
+}
+
+impl BitOrAssign for FaultFlags {
+    fn bitor_assign(&mut self, rhs: Self) {
+        self.insert(rhs);
+    }
+}
+
+impl BitAnd for FaultFlags {
+    type Output = Self;
+    fn bitand(self, rhs: Self) -> Self {
+        self.intersection(rhs)
+    }
+}
+
+impl Not for FaultFlags {
+    type Output = Self;
+    /// The complement within the flags in use.
+    fn not(self) -> Self {
+        Self::from_bits_truncate(!self.0)
+    }
+}
