@@ -4,10 +4,10 @@
 # A benchmark, not a test: it prints figures. Run after scripts/qemu-selftest.sh or alone.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-ELF=target/thumbv7em-none-eabihf/release/m2fw
+ELF=target/thumbv7em-none-eabihf/release/m2selftest
 TOOL=${QEMU_INSNCOUNT:-../shared/tools/qemu-insncount}
 export DEFMT_LOG=${DEFMT_LOG:-info}
-cargo build --release --target thumbv7em-none-eabihf --features firmware --bin m2fw
+cargo build --release --target thumbv7em-none-eabihf --features firmware --bin m2selftest
 # The tool's directory may be read-only: build the plugin in a scratch copy.
 work=$(mktemp -d)
 cp "$TOOL"/* "$work"/ && chmod -R u+w "$work"

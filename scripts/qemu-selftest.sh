@@ -5,16 +5,16 @@
 # Exit status: non-zero if the build, the self-test or the comparison fails.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-ELF=target/thumbv7em-none-eabihf/release/m2fw
-LOG=target/m2fw-selftest.log
+ELF=target/thumbv7em-none-eabihf/release/m2selftest
+LOG=target/m2selftest.log
 export DEFMT_LOG=${DEFMT_LOG:-info}
-cargo build --release --target thumbv7em-none-eabihf --features firmware --bin m2fw
+cargo build --release --target thumbv7em-none-eabihf --features firmware --bin m2selftest
 set +e
 timeout 120 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none -serial none \
-  -semihosting-config enable=on,target=native -kernel "$ELF" > target/m2fw-selftest.bin
+  -semihosting-config enable=on,target=native -kernel "$ELF" > target/m2selftest.bin
 rc=$?
 set -e
-defmt-print -e "$ELF" < target/m2fw-selftest.bin > "$LOG"
+defmt-print -e "$ELF" < target/m2selftest.bin > "$LOG"
 grep -E "SUMMARY|STACK|SELFTEST" "$LOG"
 if [ "$rc" -ne 0 ]; then
   echo "qemu-selftest: firmware exited with $rc" >&2

@@ -1,35 +1,39 @@
-//! Firmware entry (target only, `--features firmware`): boot self-test of the flight
-//! kinematics on the golden vectors, then the instruction-count benchmark sections, then
-//! exit through semihosting with 0 only if every check passed.
+//! Flight image (target only, `--features firmware`): the M2 mechanism controller.
 //!
-//! The log goes out as defmt frames over semihosting; decode with
-//! `defmt-print -e <this ELF>`. Lines tagged `BITS` carry the raw f32 results that
-//! the host test `firmware_bits_match_host` compares with the host's.
+//! Boot: kinematics self-test on the golden vectors (a failure ends the QEMU run with
+//! exit code 1: on a real board this is where safe mode would be entered), table boot
+//! selection from the two flash banks, then the 1 kHz cyclic executive
+//! ([`Controller::tick`]) forever. Telecommands arrive as COBS frames on UART0 and
+//! telemetry leaves the same way (docs/icd.md). QEMU has no sliders: the board drives
+//! a `no_std` slider/encoder model ([`SliderModel`]) behind the same traits.
 #![no_std]
 #![no_main]
 #![deny(unsafe_code)]
 
-use core::hint::black_box;
-
 use cortex_m as _; // critical-section implementation (single core) for defmt
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
-use m2ctl::board::active as hw;
-use m2ctl::kinematics::{fk, ik, FkConfig, Geometry, Pose};
-use m2ctl::{nominal, selftest};
+use embedded_hal_nb::serial::{Read, Write};
+use m2ctl::board::active::{self as hw, CycleTimer, TableFlash, Uart};
+use m2ctl::controller::{Controller, ControllerConfig};
+use m2ctl::kinematics::Geometry;
+use m2ctl::link::framing::Deframer;
+use m2ctl::link::MAX_TC_PACKET_LEN;
+use m2ctl::motion::CYCLE_S;
+use m2ctl::nominal;
+use m2ctl::plant_model::SliderModel;
+use m2ctl::selftest;
+use m2ctl::table::{TableStore, FLIGHT_LAYOUT};
 
-/// Exit code: every self-test row passed.
-const EXIT_PASS: i32 = 0;
-/// Exit code: a self-test check failed.
-const EXIT_FAIL: i32 = 1;
+/// Exit code: the boot self-test failed.
+const EXIT_SELFTEST_FAIL: i32 = 1;
 /// Exit code: the firmware panicked (a defect: flight code must not panic).
 const EXIT_PANIC: i32 = 101;
-
-/// Warm-start offset for the FK benchmark, per translation axis (mm): 5.7 um on each
-/// axis is 9.9 um in all, "within 10 um" of the true pose.
-const FK_BENCH_OFFSET_MM: f32 = 0.0057;
-/// Warm-start offset for the FK benchmark, per rotation axis (rad; 2 arcsec).
-const FK_BENCH_OFFSET_RAD: f32 = 2.0 / 206_264.8;
+/// Speed of the QEMU slider model (mm/s): faster than the motion limits, so the model
+/// follows the setpoints like a good drive.
+const MODEL_SLIDER_SPEED_MM_PER_S: f32 = 1.0;
+/// Most UART bytes taken per cycle (bounds the cycle time; the rest waits in the UART).
+const MAX_RX_BYTES_PER_CYCLE: usize = 64;
 
 #[panic_handler]
 fn panic(_info: &core::panic::PanicInfo) -> ! {
@@ -37,88 +41,79 @@ fn panic(_info: &core::panic::PanicInfo) -> ! {
     hw::exit(EXIT_PANIC)
 }
 
-#[entry]
-fn main() -> ! {
-    defmt::info!("m2fw: M2 mechanism controller, kinematics self-test");
-    let Ok(geom) = Geometry::<f32>::new(&nominal::prototype_with_flight_limits()) else {
-        defmt::error!("nominal geometry invalid");
-        hw::exit(EXIT_FAIL)
-    };
-    let summary = selftest::run_all(&geom, |i, o| {
-        defmt::info!(
-            "BITS row={=u32} pass={=bool} it={=u8} ik={} fk={}",
-            i,
-            o.pass,
-            o.fk_iterations,
-            o.ik_bits,
-            o.fk_bits
-        );
-    });
-    defmt::info!(
-        "SUMMARY rows={=u32} failures={=u32} max_ik_err_nm={=f64} max_fk_err_nm={=f64} max_fk_err_arcsec={=f64} max_fk_iter={=u8} digest={=u32:#010x}",
-        summary.rows,
-        summary.failures,
-        summary.max_ik_err_mm * 1e6,
-        summary.max_fk_err_mm * 1e6,
-        summary.max_fk_err_arcsec,
-        summary.max_fk_iterations,
-        summary.digest
-    );
+/// UART transmitter as a telemetry sink (blocking per byte; the UART is faster than
+/// the telemetry rate).
+struct UartSink<'a>(&'a mut Uart);
 
-    bench(&geom);
-
-    let peak = hw::stack_peak_bytes();
-    defmt::info!(
-        "STACK peak_bytes={=u32} region_bytes={=u32}",
-        peak,
-        hw::stack_region_bytes()
-    );
-    if summary.failures == 0 {
-        defmt::info!("SELFTEST PASS");
-        hw::exit(EXIT_PASS)
-    } else {
-        defmt::error!("SELFTEST FAIL");
-        hw::exit(EXIT_FAIL)
+impl m2ctl::controller::TmSink for UartSink<'_> {
+    fn send(&mut self, frame: &[u8]) {
+        for b in frame {
+            let _ = nb::block!(self.0.write(*b));
+        }
     }
 }
 
-/// Instruction-count sections for `qemu-insncount` (BENCH n=1: empty, n=2: IK,
-/// n=3: FK warm-started within 10 um). Results are checked so a failure is visible.
-fn bench(geom: &Geometry<f32>) {
-    // A workspace pose away from home (mm, arcsec).
-    let target = Pose::<f32>::from_mm_arcsec([0.8, -0.6, 0.4], [45.0, -30.0, 20.0]);
-
-    hw::bench_start();
-    hw::bench_end();
-
-    let g = black_box(geom);
-    let p = black_box(target);
-    hw::bench_start();
-    let strokes = ik(g, &p);
-    hw::bench_end();
-    let Ok(strokes) = black_box(strokes) else {
-        defmt::error!("bench: IK failed");
-        return;
+#[entry]
+fn main() -> ! {
+    defmt::info!("m2fw: M2 mechanism controller");
+    let Ok(geom) = Geometry::<f32>::new(&nominal::prototype_with_flight_limits()) else {
+        defmt::error!("nominal geometry invalid");
+        hw::exit(EXIT_SELFTEST_FAIL)
     };
+    let summary = selftest::run_all(&geom, |_, _| {});
+    if summary.failures != 0 {
+        defmt::error!(
+            "SELFTEST FAIL: {=u32} of {=u32} rows",
+            summary.failures,
+            summary.rows
+        );
+        hw::exit(EXIT_SELFTEST_FAIL)
+    }
+    defmt::info!(
+        "SELFTEST PASS rows={=u32} digest={=u32:#010x}",
+        summary.rows,
+        summary.digest
+    );
 
-    let mut start = target;
-    for v in start.translation_mm.iter_mut() {
-        *v += FK_BENCH_OFFSET_MM;
-    }
-    for v in start.rotation_rad.iter_mut() {
-        *v += FK_BENCH_OFFSET_RAD;
-    }
-    let cfg = FkConfig::default();
-    let s = black_box(strokes);
-    let st = black_box(start);
-    hw::bench_start();
-    let sol = fk(g, &s, &st, &cfg);
-    hw::bench_end();
-    match black_box(sol) {
-        Ok(sol) => defmt::info!(
-            "bench: FK warm start converged in {=u8} steps",
-            sol.iterations
-        ),
-        Err(_) => defmt::error!("bench: FK failed"),
+    let store = match TableStore::new(TableFlash::take(), FLIGHT_LAYOUT) {
+        Ok(s) => s,
+        Err(_) => {
+            defmt::error!("table store layout invalid");
+            hw::exit(EXIT_SELFTEST_FAIL)
+        }
+    };
+    let mech = SliderModel::new(MODEL_SLIDER_SPEED_MM_PER_S, CYCLE_S);
+    let mut ctl = Controller::new(mech, store, ControllerConfig::default());
+    defmt::info!(
+        "table: source={=u8} id={=u32}",
+        ctl.boot_report().source.code(),
+        ctl.active_table().table_id
+    );
+
+    let Some(peripherals) = cortex_m::Peripherals::take() else {
+        defmt::error!("peripherals taken twice");
+        hw::exit(EXIT_SELFTEST_FAIL)
+    };
+    let mut timer = CycleTimer::start(peripherals.SYST);
+    let mut uart = Uart::uart0();
+    let mut deframer: Deframer = Deframer::new();
+    let mut packet = [0u8; MAX_TC_PACKET_LEN];
+    loop {
+        // Take received bytes; at most one complete telecommand per cycle.
+        let mut tc_len: Option<usize> = None;
+        for _ in 0..MAX_RX_BYTES_PER_CYCLE {
+            let Ok(byte) = uart.read() else { break };
+            if let Some(Ok(frame)) = deframer.push_byte(byte) {
+                if let Some(dst) = packet.get_mut(..frame.len()) {
+                    dst.copy_from_slice(frame);
+                    tc_len = Some(frame.len());
+                }
+                break;
+            }
+        }
+        let tc = tc_len.and_then(|n| packet.get(..n));
+        ctl.mechanism_mut().step();
+        ctl.tick(tc, &mut UartSink(&mut uart));
+        timer.wait();
     }
 }

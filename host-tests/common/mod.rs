@@ -1,6 +1,9 @@
 //! Shared helpers of the host tests.
 #![allow(dead_code)]
 
+pub mod ground;
+pub mod qemu;
+
 use m2ctl::kinematics::{Pose, ARCSEC_PER_RAD};
 
 /// Deterministic xorshift64* generator: the tests' own, independent of the crate's RNGs.

@@ -11,8 +11,13 @@ use std::time::{Duration, Instant};
 /// The flight image built by `cargo build --release --target thumbv7em-none-eabihf
 /// --features firmware --bin m2fw` (scripts/qemu-link-test.sh builds it).
 pub fn firmware_elf() -> PathBuf {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/thumbv7em-none-eabihf/release/m2fw");
-    assert!(p.exists(), "{} missing: build the firmware first (scripts/qemu-link-test.sh)", p.display());
+    let p =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/thumbv7em-none-eabihf/release/m2fw");
+    assert!(
+        p.exists(),
+        "{} missing: build the firmware first (scripts/qemu-link-test.sh)",
+        p.display()
+    );
     p
 }
 
@@ -28,13 +33,28 @@ impl Qemu {
     /// Starts QEMU and connects to UART0.
     pub fn start() -> Qemu {
         let elf = firmware_elf();
-        let sock = std::env::temp_dir().join(format!("m2fw-uart-{}-{}.sock", std::process::id(), rand_suffix()));
+        let sock = std::env::temp_dir().join(format!(
+            "m2fw-uart-{}-{}.sock",
+            std::process::id(),
+            rand_suffix()
+        ));
         let _ = std::fs::remove_file(&sock);
         let child = Command::new("qemu-system-arm")
-            .args(["-cpu", "cortex-m4", "-machine", "mps2-an386", "-nographic", "-monitor", "none"])
+            .args([
+                "-cpu",
+                "cortex-m4",
+                "-machine",
+                "mps2-an386",
+                "-nographic",
+                "-monitor",
+                "none",
+            ])
             .args(["-semihosting-config", "enable=on,target=native"])
             .arg("-chardev")
-            .arg(format!("socket,id=tc,path={},server=on,wait=off", sock.display()))
+            .arg(format!(
+                "socket,id=tc,path={},server=on,wait=off",
+                sock.display()
+            ))
             .args(["-serial", "chardev:tc", "-kernel"])
             .arg(&elf)
             .stdin(Stdio::null())
@@ -46,11 +66,14 @@ impl Qemu {
         let uart = loop {
             match UnixStream::connect(&sock) {
                 Ok(s) => break s,
-                Err(_) if t0.elapsed() < Duration::from_secs(20) => std::thread::sleep(Duration::from_millis(50)),
+                Err(_) if t0.elapsed() < Duration::from_secs(20) => {
+                    std::thread::sleep(Duration::from_millis(50))
+                }
                 Err(e) => panic!("cannot connect to QEMU's UART socket: {e}"),
             }
         };
-        uart.set_read_timeout(Some(Duration::from_millis(100))).unwrap();
+        uart.set_read_timeout(Some(Duration::from_millis(100)))
+            .unwrap();
         Qemu { child, uart, sock }
     }
 
@@ -68,7 +91,9 @@ impl Qemu {
             match self.uart.read(&mut buf) {
                 Ok(0) => break,
                 Ok(n) => out.extend_from_slice(&buf[..n]),
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock || e.kind() == std::io::ErrorKind::TimedOut => {}
+                Err(e)
+                    if e.kind() == std::io::ErrorKind::WouldBlock
+                        || e.kind() == std::io::ErrorKind::TimedOut => {}
                 Err(e) => panic!("UART read: {e}"),
             }
         }
@@ -77,7 +102,10 @@ impl Qemu {
 }
 
 fn rand_suffix() -> u64 {
-    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos() as u64).unwrap_or(0)
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_nanos() as u64)
+        .unwrap_or(0)
 }
 
 impl Drop for Qemu {

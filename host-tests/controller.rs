@@ -1,0 +1,424 @@
+//! End to end on the host: encoded telecommands in, telemetry out, the real controller
+//! (the code the firmware runs) driving the simulated plant, the table store on a mock
+//! NOR flash.
+
+mod common;
+
+use common::ground::{Station, Tm};
+use m2ctl::controller::{event, Controller, ControllerConfig, State};
+use m2ctl::kinematics::{Pose, ARCSEC_PER_RAD};
+use m2ctl::link::command::{WirePose, TABLE_CHUNK_MAX_LEN};
+use m2ctl::link::tm::{dump_chunks, Verification};
+use m2ctl::link::{Command, MemoryId, RequestId, TableChunk};
+use m2ctl::motion::CYCLE_S;
+use m2ctl::nominal::PROTOTYPE;
+use m2ctl::sim::{Plant, PlantConfig};
+use m2ctl::table::mock_flash::MockFlash;
+use m2ctl::table::{Table, TableStore, FLIGHT_LAYOUT, TABLE_LEN};
+
+const FLASH_BYTES: usize = 0x40_0000;
+
+pub struct Rig {
+    pub ctl: Controller<Plant, MockFlash>,
+    pub st: Station,
+}
+
+impl Rig {
+    pub fn new() -> Rig {
+        Self::with_flash(MockFlash::new(FLASH_BYTES))
+    }
+
+    pub fn with_flash(flash: MockFlash) -> Rig {
+        let plant = Plant::new(
+            &PROTOTYPE,
+            PlantConfig {
+                seed: 11,
+                ..PlantConfig::default()
+            },
+        )
+        .unwrap();
+        let store = TableStore::new(flash, FLIGHT_LAYOUT)
+            .map_err(|(_, e)| e)
+            .unwrap();
+        let ctl = Controller::new(plant, store, ControllerConfig::default());
+        Rig {
+            ctl,
+            st: Station::new(),
+        }
+    }
+
+    /// One cycle: the plant moves for one period, then the controller ticks.
+    pub fn tick(&mut self, packet: Option<&[u8]>) {
+        self.ctl.mechanism_mut().step(f64::from(CYCLE_S));
+        let st = &mut self.st;
+        self.ctl.tick(packet, &mut |f: &[u8]| st.receive(f));
+    }
+
+    pub fn run(&mut self, cycles: u32) {
+        for _ in 0..cycles {
+            self.tick(None);
+        }
+    }
+
+    /// Sends one telecommand (goes through the framing both ways) and runs one cycle.
+    pub fn send(&mut self, cmd: &Command) -> RequestId {
+        let (pkt, rid) = self.st.packet(cmd);
+        self.tick(Some(&pkt));
+        rid
+    }
+
+    /// Runs until idle (or faulted) with nothing moving, at most `max` cycles.
+    pub fn settle(&mut self, max: u32) -> u32 {
+        for n in 0..max {
+            self.tick(None);
+            if matches!(self.ctl.state(), State::Idle | State::Faulted)
+                && self.ctl.mechanism_mut().settled()
+            {
+                return n;
+            }
+        }
+        panic!(
+            "not settled after {max} cycles, state {:?}",
+            self.ctl.state()
+        );
+    }
+
+    pub fn hk(&mut self) -> m2ctl::link::Housekeeping {
+        self.send(&Command::HousekeepingOneShot);
+        self.st.last_hk().unwrap()
+    }
+}
+
+fn wire(x_um: f64, y_um: f64, z_um: f64, a_as: f64, b_as: f64, c_as: f64) -> WirePose {
+    WirePose {
+        translation_nm: [x_um, y_um, z_um].map(|v| (v * 1e3).round() as i32),
+        rotation_uas: [a_as, b_as, c_as].map(|v| (v * 1e6).round() as i32),
+    }
+}
+
+fn all_ok(v: &[Verification]) -> bool {
+    v == [
+        Verification::AcceptanceSuccess,
+        Verification::StartSuccess,
+        Verification::CompletionSuccess,
+    ]
+}
+
+#[test]
+fn boots_on_nominal_from_blank_flash_and_answers_ping() {
+    let mut r = Rig::new();
+    r.run(2);
+    assert!(!r.st.events(event::BOOT).is_empty());
+    let rid = r.send(&Command::Ping);
+    assert!(all_ok(&r.st.reports(rid)), "{:?}", r.st.reports(rid));
+    assert!(r.st.log.contains(&Tm::Ping));
+    let hk = r.hk();
+    assert_eq!(hk.boot_source, 0);
+    assert_eq!(hk.active_table_crc32, Table::nominal().crc32());
+    assert_eq!(hk.state, State::Idle.code());
+    assert_eq!(r.st.bad_frames, 0);
+}
+
+#[test]
+fn move_absolute_reaches_the_target_and_reports_completion_on_arrival() {
+    let mut r = Rig::new();
+    r.run(1);
+    let target = wire(800.0, -600.0, 400.0, 45.0, -30.0, 20.0);
+    let rid = r.send(&Command::MoveAbsolute(target));
+    // Accepted and started at once; completion only on arrival.
+    assert_eq!(
+        r.st.reports(rid),
+        [Verification::AcceptanceSuccess, Verification::StartSuccess]
+    );
+    assert_eq!(r.ctl.state(), State::Moving);
+    let n = r.settle(60_000);
+    assert_eq!(
+        *r.st.reports(rid).last().unwrap(),
+        Verification::CompletionSuccess
+    );
+    // The plant's true pose (nominal geometry here) is the target to encoder resolution.
+    let truth = r.ctl.mechanism_mut().true_pose().unwrap();
+    let t: Pose<f64> = target.to_pose();
+    for k in 0..3 {
+        assert!(
+            (truth.translation_mm[k] - t.translation_mm[k]).abs() < 1e-4,
+            "axis {k}: {truth:?}"
+        );
+        assert!((truth.rotation_rad[k] - t.rotation_rad[k]).abs() * ARCSEC_PER_RAD < 0.01);
+    }
+    let hk = r.hk();
+    // The commanded pose is the target (f32 mm/rad on board: within 1 nm / 1 uas).
+    for k in 0..6 {
+        assert!(
+            (hk.pose_commanded.to_array()[k] - target.to_array()[k]).abs() <= 1,
+            "{hk:?}"
+        );
+    }
+    // The FK pose from 0.1 um encoders: tens of nm, a fraction of an arcsec (lever ~100 mm).
+    for k in 0..6 {
+        let tol = if k < 3 { 100 } else { 500_000 };
+        assert!(
+            (hk.pose_fk.to_array()[k] - target.to_array()[k]).abs() < tol,
+            "{hk:?}"
+        );
+    }
+    println!("move took {n} cycles ({:.2} s)", n as f32 * CYCLE_S);
+}
+
+#[test]
+fn refused_moves_change_nothing_and_report_every_reason() {
+    let mut r = Rig::new();
+    r.run(1);
+    let before = r.ctl.mechanism_mut().strokes_mm();
+    // 2.5 mm on x and 700 arcsec on gamma: outside the +-2 mm / +-600 arcsec workspace.
+    let rid = r.send(&Command::MoveAbsolute(wire(
+        2500.0, 0.0, 0.0, 0.0, 0.0, -700.0,
+    )));
+    let reps = r.st.reports(rid);
+    let Verification::StartFailure { code, data } = reps[1] else {
+        panic!("{reps:?}")
+    };
+    assert_eq!(code, 0x0504, "target refused");
+    assert_eq!(
+        (data >> 8) & 0x3f,
+        0b10_0001,
+        "axes x and gamma in the refusal bits"
+    );
+    r.run(100);
+    assert_eq!(r.ctl.mechanism_mut().strokes_mm(), before);
+    assert_eq!(r.ctl.state(), State::Idle);
+    assert_eq!(r.hk().refusal_bits, data);
+}
+
+#[test]
+fn malformed_packets_are_rejected_with_codes_and_change_nothing() {
+    let mut r = Rig::new();
+    r.run(1);
+    let hk0 = r.hk();
+    let (mut pkt, rid) =
+        r.st.packet(&Command::MoveAbsolute(wire(100.0, 0.0, 0.0, 0.0, 0.0, 0.0)));
+    let last = pkt.len() - 1;
+    pkt[last] ^= 0x5a; // CRC
+    r.tick(Some(&pkt));
+    let reps = r.st.reports(rid);
+    assert!(
+        matches!(
+            reps[..],
+            [Verification::AcceptanceFailure { code: 0x0505, .. }]
+        ),
+        "{reps:?}"
+    );
+    let (pkt, rid) = r.st.packet(&Command::Ping);
+    r.tick(Some(&pkt[..pkt.len() - 3])); // truncated
+    assert!(matches!(
+        r.st.reports(rid)[..],
+        [Verification::AcceptanceFailure { .. }]
+    ));
+    r.tick(Some(&[1, 2])); // too short to even name a request
+    r.run(50);
+    let hk = r.hk();
+    assert_eq!(hk.state, State::Idle.code());
+    assert_eq!(hk.pose_commanded, hk0.pose_commanded);
+    assert_eq!(hk.tc_rejected, hk0.tc_rejected + 3);
+}
+
+/// Uploads a table image in chunks (in the given chunk order).
+fn upload(r: &mut Rig, bytes: &[u8; TABLE_LEN], order: &[usize]) {
+    let chunks: Vec<(u16, Vec<u8>)> = dump_chunks(bytes).map(|(o, b)| (o, b.to_vec())).collect();
+    for &i in order {
+        let (off, data) = &chunks[i];
+        let rid = r.send(&Command::LoadTableChunk(
+            TableChunk::new(*off, data).unwrap(),
+        ));
+        assert!(
+            all_ok(&r.st.reports(rid)),
+            "chunk {i}: {:?}",
+            r.st.reports(rid)
+        );
+    }
+}
+
+fn calibrated_table(id: u32) -> Table {
+    let mut t = Table::nominal();
+    t.table_id = id;
+    // A plausible calibration: joints moved by tens of micrometres.
+    for (i, leg) in t.legs.iter_mut().enumerate() {
+        leg.a_mm[0] += 0.01 * i as f64;
+        leg.b_mm[1] -= 0.02;
+    }
+    t
+}
+
+#[test]
+fn upload_out_of_order_with_duplicates_commit_activate_and_dump() {
+    let mut r = Rig::new();
+    r.run(1);
+    let t = calibrated_table(42);
+    let bytes = t.to_bytes();
+    let n = TABLE_LEN.div_ceil(TABLE_CHUNK_MAX_LEN);
+    let mut order: Vec<usize> = (0..n).rev().collect();
+    order.push(1); // duplicate
+    upload(&mut r, &bytes, &order);
+    let rid = r.send(&Command::CommitTable { crc32: t.crc32() });
+    assert!(all_ok(&r.st.reports(rid)), "{:?}", r.st.reports(rid));
+    // Stored, not yet active.
+    assert_eq!(r.hk().active_table_id, 0);
+    let rid = r.send(&Command::ActivateTable);
+    assert!(all_ok(&r.st.reports(rid)), "{:?}", r.st.reports(rid));
+    let hk = r.hk();
+    assert_eq!((hk.active_table_id, hk.active_table_crc32), (42, t.crc32()));
+    assert_eq!(
+        r.st.events(event::TABLE_ACTIVATED).last().unwrap(),
+        &[42, t.crc32()]
+    );
+    // Dump returns the same bytes.
+    let before = r.st.log.len();
+    r.send(&Command::DumpTable(MemoryId::ActiveTable));
+    let mut image = Vec::new();
+    for tm in &r.st.log[before..] {
+        if let Tm::Dump(MemoryId::ActiveTable, off, b) = tm {
+            assert_eq!(*off as usize, image.len());
+            image.extend_from_slice(b);
+        }
+    }
+    assert_eq!(image, bytes.to_vec());
+    // A move works with the new table.
+    let rid = r.send(&Command::MoveRelative(wire(100.0, 0.0, 0.0, 0.0, 0.0, 0.0)));
+    r.settle(20_000);
+    assert!(all_ok(&r.st.reports(rid)));
+}
+
+#[test]
+fn bad_uploads_are_refused_and_the_active_table_stays() {
+    let mut r = Rig::new();
+    r.run(1);
+    let nominal_crc = Table::nominal().crc32();
+    let t = calibrated_table(7);
+    let bytes = t.to_bytes();
+    let n = TABLE_LEN.div_ceil(TABLE_CHUNK_MAX_LEN);
+
+    // Missing chunk.
+    upload(&mut r, &bytes, &(0..n - 1).collect::<Vec<_>>());
+    let rid = r.send(&Command::CommitTable { crc32: t.crc32() });
+    assert!(
+        matches!(
+            r.st.reports(rid)[..],
+            [_, Verification::StartFailure { code: 0x0705, .. }]
+        ),
+        "{:?}",
+        r.st.reports(rid)
+    );
+    // Wrong CRC in the commit.
+    upload(&mut r, &bytes, &[n - 1]);
+    let rid = r.send(&Command::CommitTable {
+        crc32: t.crc32() ^ 1,
+    });
+    assert!(matches!(
+        r.st.reports(rid)[..],
+        [_, Verification::StartFailure { code: 0x0706, .. }]
+    ));
+    // Activation with nothing committed.
+    let rid = r.send(&Command::ActivateTable);
+    assert!(matches!(
+        r.st.reports(rid)[..],
+        [_, Verification::StartFailure { code: 0x0707, .. }]
+    ));
+
+    // A table with NaN, with a consistent CRC: decodes, fails validation.
+    let mut bad = t;
+    bad.legs[2].b_mm[0] = f64::NAN;
+    let bb = bad.to_bytes();
+    upload(&mut r, &bb, &(0..n).collect::<Vec<_>>());
+    let rid = r.send(&Command::CommitTable { crc32: bad.crc32() });
+    let reps = r.st.reports(rid);
+    let Verification::StartFailure { code, .. } = reps[1] else {
+        panic!("{reps:?}")
+    };
+    assert_eq!(
+        code & 0xff00,
+        0x0400,
+        "a table/validation code: {code:#06x}"
+    );
+
+    // A table whose workspace cannot be reached within its slider limits.
+    let mut unreachable = t;
+    unreachable.stroke_limits.min_mm = [-0.5; 6];
+    unreachable.stroke_limits.max_mm = [0.5; 6];
+    let ub = unreachable.to_bytes();
+    upload(&mut r, &ub, &(0..n).collect::<Vec<_>>());
+    let rid = r.send(&Command::CommitTable {
+        crc32: unreachable.crc32(),
+    });
+    let reps = r.st.reports(rid);
+    assert!(
+        matches!(reps[1], Verification::StartFailure { .. }),
+        "{reps:?}"
+    );
+
+    let hk = r.hk();
+    assert_eq!(hk.active_table_crc32, nominal_crc);
+    assert_eq!(hk.active_table_id, 0);
+}
+
+#[test]
+fn activation_while_moving_is_refused_and_happens_between_motions() {
+    let mut r = Rig::new();
+    r.run(1);
+    let t = calibrated_table(9);
+    let n = TABLE_LEN.div_ceil(TABLE_CHUNK_MAX_LEN);
+    upload(&mut r, &t.to_bytes(), &(0..n).collect::<Vec<_>>());
+    let rid = r.send(&Command::CommitTable { crc32: t.crc32() });
+    assert!(all_ok(&r.st.reports(rid)));
+    let mv = r.send(&Command::MoveAbsolute(wire(
+        1000.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+    )));
+    r.run(100);
+    let rid = r.send(&Command::ActivateTable);
+    assert!(
+        matches!(
+            r.st.reports(rid)[..],
+            [_, Verification::StartFailure { code: 0x0702, .. }]
+        ),
+        "{:?}",
+        r.st.reports(rid)
+    );
+    assert_eq!(r.hk().active_table_id, 0);
+    // A second move while moving is refused too.
+    let rid = r.send(&Command::MoveAbsolute(wire(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)));
+    assert!(matches!(
+        r.st.reports(rid)[..],
+        [_, Verification::StartFailure { code: 0x0702, .. }]
+    ));
+    r.settle(30_000);
+    assert!(all_ok(&r.st.reports(mv)));
+    let rid = r.send(&Command::ActivateTable);
+    assert!(all_ok(&r.st.reports(rid)));
+    assert_eq!(r.hk().active_table_id, 9);
+}
+
+#[test]
+fn stop_decelerates_and_reports_the_move_as_stopped() {
+    let mut r = Rig::new();
+    r.run(1);
+    let mv = r.send(&Command::MoveAbsolute(wire(
+        1500.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+    )));
+    r.run(2000);
+    let stop = r.send(&Command::Stop);
+    assert!(all_ok(&r.st.reports(stop)));
+    r.settle(20_000);
+    let reps = r.st.reports(mv);
+    assert!(
+        matches!(
+            reps.last(),
+            Some(Verification::CompletionFailure { code: 0x0708, .. })
+        ),
+        "{reps:?}"
+    );
+    let x = r.hk().pose_commanded.translation_nm[0];
+    assert!(
+        x > 0 && x < 1_500_000,
+        "stopped short of the target: {x} nm"
+    );
+    assert_eq!(r.ctl.state(), State::Idle);
+}

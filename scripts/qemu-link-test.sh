@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# Builds the flight image and drives it in QEMU over its UART (host-tests/qemu_link.rs):
+# ping, housekeeping, a bad packet, a table upload/commit/activate, a move.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+export DEFMT_LOG=${DEFMT_LOG:-info}
+cargo build --release --target thumbv7em-none-eabihf --features firmware --bin m2fw
+cargo test --features host --test qemu_link -- --ignored --nocapture
