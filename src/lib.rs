@@ -16,12 +16,12 @@
 
 pub mod hw;
 pub mod kinematics;
+pub mod link;
 pub mod motion;
 pub mod nominal;
 pub mod plant_model;
 pub mod selftest;
 pub mod supervision;
-pub mod link;
 pub mod table;
 
 #[cfg(feature = "firmware")]

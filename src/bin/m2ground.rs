@@ -14,6 +14,8 @@ use m2ctl::ground::plan::{
     PlanConfig, DEFAULT_AXIS_MM, DEFAULT_CUBE_HALF_MM, DEFAULT_ROTATION_ARCSEC,
 };
 use m2ctl::ground::report::{bench, compare_cuckoo, table3, TableConfig};
+use m2ctl::ground::tc::{run_tc, TcOutput, TcRequest, TcSequencer};
+use m2ctl::link::AckFlags;
 
 #[derive(Parser)]
 #[command(
@@ -44,6 +46,155 @@ enum Cmd {
     Bench(BenchCli),
     /// Compare SMCS and the improved algorithm over several solver seeds.
     CompareCuckoo(CompareCli),
+    /// Encode telecommands (framed PUS-C packets, docs/icd.md) as hex lines or binary.
+    Tc(TcCli),
+}
+
+#[derive(clap::Args)]
+struct TcCli {
+    /// Sequence count of the first telecommand (14 bits); later ones count up.
+    #[arg(long, default_value_t = 0, global = true)]
+    seq: u16,
+    /// Source ID in the PUS secondary header.
+    #[arg(long, default_value_t = 0, global = true)]
+    source_id: u16,
+    /// Acknowledgement flags (4 bits: acceptance, start, progress, completion).
+    #[arg(long, default_value_t = 0b1111, global = true)]
+    ack: u8,
+    /// Write raw frames back to back to this file instead of hex lines on stdout.
+    #[arg(long, global = true)]
+    out: Option<PathBuf>,
+    /// Hex lines into --out instead of binary.
+    #[arg(long, global = true)]
+    hex: bool,
+    /// Bare PUS packets, without the COBS framing.
+    #[arg(long, global = true)]
+    unframed: bool,
+    #[command(subcommand)]
+    what: TcWhat,
+}
+
+#[derive(Subcommand)]
+enum TcWhat {
+    /// TC[17,1] are-you-alive.
+    Ping,
+    /// TC[3,27] one-shot housekeeping report.
+    Hk,
+    /// TC[8,1] move to a pose (absolute unless --relative).
+    Move {
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        x_um: f64,
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        y_um: f64,
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        z_um: f64,
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        rx_arcsec: f64,
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        ry_arcsec: f64,
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        rz_arcsec: f64,
+        /// Increment from the commanded pose.
+        #[arg(long)]
+        relative: bool,
+    },
+    /// TC[8,1] move one slider by an increment (recovery).
+    DirectStroke {
+        /// Leg 1..6.
+        #[arg(long)]
+        leg: u8,
+        /// Stroke increment (um).
+        #[arg(long, allow_negative_numbers = true)]
+        delta_um: f64,
+    },
+    /// TC[8,1] stop.
+    Stop,
+    /// TC[8,1] clear latched faults.
+    ClearFault,
+    /// TC[8,1] activate the committed table.
+    Activate,
+    /// TC[8,1] switch to the other bank's table.
+    SwitchBank,
+    /// TC[8,1] revert to the nominal table.
+    RevertNominal,
+    /// TC[6,2] chunks of the table built from a geometry file, then TC[8,1] commit.
+    Upload {
+        /// Calibrated geometry file (with [limits]).
+        geometry: PathBuf,
+        /// Table ID.
+        #[arg(long, default_value_t = 1)]
+        table_id: u32,
+        /// Calibration ID (default: CRC-32 of [provenance] calibration_id).
+        #[arg(long)]
+        calibration_id: Option<u32>,
+    },
+    /// TC[6,5] dump of the active table (or --upload-buffer).
+    Dump {
+        #[arg(long)]
+        upload_buffer: bool,
+    },
+}
+
+impl TcWhat {
+    fn request(&self) -> TcRequest {
+        match self {
+            TcWhat::Ping => TcRequest::Ping,
+            TcWhat::Hk => TcRequest::Housekeeping,
+            TcWhat::Move {
+                x_um,
+                y_um,
+                z_um,
+                rx_arcsec,
+                ry_arcsec,
+                rz_arcsec,
+                relative,
+            } => TcRequest::Move {
+                translation_um: [*x_um, *y_um, *z_um],
+                rotation_arcsec: [*rx_arcsec, *ry_arcsec, *rz_arcsec],
+                relative: *relative,
+            },
+            TcWhat::DirectStroke { leg, delta_um } => TcRequest::DirectStroke {
+                leg: *leg,
+                delta_um: *delta_um,
+            },
+            TcWhat::Stop => TcRequest::Stop,
+            TcWhat::ClearFault => TcRequest::ClearFault,
+            TcWhat::Activate => TcRequest::Activate,
+            TcWhat::SwitchBank => TcRequest::SwitchBank,
+            TcWhat::RevertNominal => TcRequest::RevertToNominal,
+            TcWhat::Upload {
+                geometry,
+                table_id,
+                calibration_id,
+            } => TcRequest::Upload {
+                geometry: geometry.clone(),
+                table_id: *table_id,
+                calibration_id: *calibration_id,
+            },
+            TcWhat::Dump { upload_buffer } => TcRequest::Dump {
+                upload_buffer: *upload_buffer,
+            },
+        }
+    }
+}
+
+fn tc_cmd(a: &TcCli) -> Result<(), String> {
+    let mut seq = TcSequencer::new(a.seq);
+    seq.source_id = a.source_id;
+    seq.ack = AckFlags(a.ack & 0b1111);
+    let output = if a.out.is_some() && !a.hex {
+        TcOutput::Binary
+    } else {
+        TcOutput::HexLines
+    };
+    let bytes = run_tc(&a.what.request(), &mut seq, output, a.unframed)?;
+    match &a.out {
+        Some(p) => std::fs::write(p, bytes).map_err(|e| format!("{}: {e}", p.display())),
+        None => {
+            print!("{}", String::from_utf8_lossy(&bytes));
+            Ok(())
+        }
+    }
 }
 
 #[derive(clap::Args)]
@@ -303,6 +454,7 @@ fn main() -> ExitCode {
             Cmd::CompareCuckoo(a) => {
                 compare_cuckoo(&table_config(&a.solver_cli, None), a.seeds).map(|t| print!("{t}"))
             }
+            Cmd::Tc(a) => tc_cmd(a),
             Cmd::Bench(a) => {
                 bench(&table_config(&a.solver_cli, None), a.repeats).map(|t| print!("{t}"))
             }

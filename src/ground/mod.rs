@@ -8,3 +8,4 @@ pub mod files;
 pub mod ikfk;
 pub mod plan;
 pub mod report;
+pub mod tc;

@@ -21,7 +21,13 @@ use super::error::{sat_u16, LinkError};
 use super::framing::{encode_frame, FrameError};
 use super::hk::{Housekeeping, HK_REPORT_LEN};
 use super::tc::{RequestId, APID_MASK, REQUEST_ID_LEN, SEQ_COUNT_MASK};
-use super::{service, subtype, M2_APID, MAX_TM_PACKET_LEN, TM_TIMESTAMP_LEN};
+use super::{
+    service, subtype, CCSDS_PRIMARY_HEADER_LEN, CRC16_LEN, M2_APID, MAX_TM_PACKET_LEN,
+    PUS_TM_SEC_HEADER_LEN_NO_TIME, TM_TIMESTAMP_LEN,
+};
+
+/// Offset of the CCSDS data length field in the primary header (bytes).
+const DATA_LEN_FIELD_OFFSET: usize = 4;
 
 /// Largest source data of any TM packet the controller emits (bytes).
 pub const MAX_TM_SOURCE_DATA_LEN: usize = 160;
@@ -466,6 +472,28 @@ fn be_u32(b: &[u8], at: usize) -> Option<u32> {
 
 /// Checked parse of one TM packet (unframed) from the controller. Never panics.
 pub fn parse_tm(packet: &[u8]) -> Result<TmPacket<'_>, LinkError> {
+    // spacepackets 0.19's reader slices past the end of a packet whose length field is
+    // shorter than its headers: check the lengths before handing it over.
+    let min_len =
+        CCSDS_PRIMARY_HEADER_LEN + PUS_TM_SEC_HEADER_LEN_NO_TIME + TM_TIMESTAMP_LEN + CRC16_LEN;
+    let got = sat_u16(packet.len());
+    let data_len = be_u16(packet, DATA_LEN_FIELD_OFFSET).ok_or(LinkError::Truncated {
+        got,
+        needed: sat_u16(min_len),
+    })?;
+    let declared = usize::from(data_len) + CCSDS_PRIMARY_HEADER_LEN + 1;
+    if packet.len() < min_len || declared < min_len || packet.len() < declared {
+        return Err(LinkError::Truncated {
+            got,
+            needed: sat_u16(declared.max(min_len)),
+        });
+    }
+    if packet.len() > declared {
+        return Err(LinkError::LengthMismatch {
+            got,
+            declared: sat_u16(declared),
+        });
+    }
     let tm = PusTmReader::new(packet, TM_TIMESTAMP_LEN).map_err(|e| match e {
         spacepackets::ecss::PusError::ChecksumFailure(found) => LinkError::BadCrc { found },
         _ => LinkError::Truncated {

@@ -1,0 +1,828 @@
+//! Link layer: TC encode -> frame -> deframe -> decode round trips, every rejection with
+//! its failure code, deframer recovery, TM emit/parse, fuzzing with arbitrary bytes, an
+//! independent encoder (Python `spacepackets`), and the `m2ground tc` output.
+//!
+//! `cargo test --features host --test link -- --nocapture` prints the fuzz case counts.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use m2ctl::ground::tc::{
+    hex_lines, parse_hex_lines, run_tc, upload_commands, TcOutput, TcRequest, TcSequencer,
+};
+use m2ctl::link::command::{TABLE_CHUNK_MAX_LEN, WIRE_POSE_LEN};
+use m2ctl::link::framing::{max_frame_len, DEFRAMER_BUFFER_LEN};
+use m2ctl::link::hk::HK_REPORT_LEN;
+use m2ctl::link::tc::{TcHeader, MIN_TC_PACKET_LEN};
+use m2ctl::link::tm::{dump_chunks, event_id, parse_tm, EmitError};
+use m2ctl::link::*;
+use m2ctl::table::{Table, TABLE_LEN};
+use proptest::prelude::*;
+
+fn all_commands() -> Vec<Command> {
+    let pose = WirePose {
+        translation_nm: [1500, -2000, 30000],
+        rotation_uas: [-2_000_000, 1_000_000, 7],
+    };
+    let extreme = WirePose::from_array([i32::MIN, i32::MAX, 0, -1, 1, i32::MAX]);
+    vec![
+        Command::Ping,
+        Command::HousekeepingOneShot,
+        Command::MoveAbsolute(pose),
+        Command::MoveAbsolute(extreme),
+        Command::MoveRelative(pose),
+        Command::Stop,
+        Command::ClearFault,
+        Command::DirectStroke {
+            leg: 1,
+            delta_nm: -12345,
+        },
+        Command::DirectStroke {
+            leg: 6,
+            delta_nm: i32::MAX,
+        },
+        Command::CommitTable { crc32: 0xdead_beef },
+        Command::ActivateTable,
+        Command::SwitchBank,
+        Command::RevertToNominal,
+        Command::LoadTableChunk(TableChunk::new(0, &[0u8; TABLE_CHUNK_MAX_LEN]).unwrap()),
+        Command::LoadTableChunk(TableChunk::new((TABLE_LEN - 4) as u16, &[0, 1, 0xff, 0]).unwrap()),
+        Command::DumpTable(MemoryId::ActiveTable),
+        Command::DumpTable(MemoryId::UploadBuffer),
+    ]
+}
+
+fn packet(cmd: &Command, seq: u16) -> Vec<u8> {
+    let mut buf = [0u8; MAX_TC_PACKET_LEN];
+    let n = encode_telecommand(cmd, TcHeader::new(seq), &mut buf).unwrap();
+    buf[..n].to_vec()
+}
+
+/// Recomputes the CRC-16/CCITT-FALSE of a packet (after a deliberate edit).
+fn fix_crc(p: &mut [u8]) {
+    let crc = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740);
+    let n = p.len();
+    let c = crc.checksum(&p[..n - 2]);
+    p[n - 2..].copy_from_slice(&c.to_be_bytes());
+}
+
+fn deframe_all(bytes: &[u8]) -> Vec<Result<Vec<u8>, FrameError>> {
+    let mut d: Deframer = Deframer::new();
+    let mut out = Vec::new();
+    for &b in bytes {
+        if let Some(r) = d.push_byte(b) {
+            out.push(r.map(|p| p.to_vec()));
+        }
+    }
+    out
+}
+
+fn reject_code(p: &[u8]) -> u16 {
+    match decode_telecommand(p) {
+        Ok(tc) => panic!("accepted {tc:?}"),
+        Err(r) => r.error.code(),
+    }
+}
+
+#[test]
+fn every_command_round_trips_through_frame_and_decoder() {
+    let mut stream = Vec::new();
+    let cmds = all_commands();
+    for (i, c) in cmds.iter().enumerate() {
+        let p = packet(c, i as u16 * 1000);
+        let mut f = vec![0u8; MAX_TC_FRAME_LEN];
+        let n = encode_frame(&p, &mut f).unwrap();
+        assert!(n <= max_frame_len(p.len()));
+        assert!(!f[1..n - 1].contains(&0), "COBS body has no zero");
+        stream.extend_from_slice(&f[..n]);
+    }
+    let frames = deframe_all(&stream);
+    assert_eq!(frames.len(), cmds.len());
+    for (i, (f, c)) in frames.iter().zip(&cmds).enumerate() {
+        let tc = decode_telecommand(f.as_ref().unwrap()).unwrap();
+        assert_eq!(&tc.command, c);
+        assert_eq!(tc.request_id.apid(), M2_APID);
+        assert_eq!(tc.request_id.seq_count(), (i as u16 * 1000) & 0x3fff);
+        assert_eq!(tc.ack, AckFlags::ALL);
+    }
+    println!("round trip: {} commands", cmds.len());
+}
+
+#[test]
+fn header_fields_are_carried() {
+    let mut buf = [0u8; 64];
+    let h = TcHeader {
+        seq_count: 0x3fff,
+        source_id: 0xbeef,
+        ack: AckFlags(0b1001),
+    };
+    let n = encode_telecommand(&Command::Stop, h, &mut buf).unwrap();
+    let tc = decode_telecommand(&buf[..n]).unwrap();
+    assert_eq!(tc.source_id, 0xbeef);
+    assert!(tc.ack.acceptance() && tc.ack.completion() && !tc.ack.start());
+    assert_eq!(tc.request_id.seq_count(), 0x3fff);
+    assert_eq!(tc.request_id.to_bytes(), buf[..4]);
+    // Too small an output buffer is an error, not a panic.
+    assert!(encode_telecommand(&Command::Stop, h, &mut buf[..10]).is_err());
+}
+
+#[test]
+fn wrong_crc_is_rejected_with_its_code() {
+    for c in all_commands() {
+        let mut p = packet(&c, 7);
+        let n = p.len();
+        p[n - 1] ^= 0x01;
+        let r = decode_telecommand(&p).unwrap_err();
+        assert_eq!(r.error.code(), 0x0505, "{c:?}");
+        assert_eq!(r.request_id.unwrap().seq_count(), 7);
+        // A flipped payload bit too.
+        let mut p = packet(&c, 7);
+        p[8] ^= 0x40;
+        assert_eq!(reject_code(&p), 0x0505);
+    }
+}
+
+#[test]
+fn wrong_lengths_are_rejected() {
+    let p = packet(&Command::MoveAbsolute(WirePose::default()), 1);
+    // Truncated at every length.
+    for n in 0..p.len() {
+        let code = reject_code(&p[..n]);
+        assert_eq!(code, 0x0501, "truncated to {n}");
+        let r = decode_telecommand(&p[..n]).unwrap_err();
+        assert_eq!(r.request_id.is_some(), n >= 4);
+    }
+    // Trailing bytes.
+    let mut long = p.clone();
+    long.push(0xaa);
+    assert_eq!(reject_code(&long), 0x0502);
+    // Length field too small (CRC fixed): the frame is longer than declared.
+    let mut q = p.clone();
+    q[5] -= 1;
+    assert_eq!(reject_code(&q), 0x0502);
+    // Length field below the minimum packet.
+    let mut q = packet(&Command::Ping, 1);
+    q[4] = 0;
+    q[5] = 0;
+    assert_eq!(reject_code(&q), 0x0501);
+    // Valid CRC, but application data of the wrong length for the function.
+    let mut q = p.clone();
+    q.remove(p.len() - 3);
+    q[5] -= 1;
+    fix_crc(&mut q);
+    assert_eq!(reject_code(&q), 0x050c);
+    // Oversized: a packet beyond MAX_TC_PACKET_LEN, and a declared length beyond it.
+    let mut big = vec![0u8; MAX_TC_PACKET_LEN + 1];
+    big[..6].copy_from_slice(&p[..6]);
+    assert_eq!(reject_code(&big), 0x0503);
+    let mut q = p.clone();
+    q[4] = 0x10;
+    assert_eq!(reject_code(&q), 0x0503);
+    assert_eq!(MIN_TC_PACKET_LEN, 13);
+}
+
+#[test]
+fn unknown_service_subtype_function_and_bad_arguments_are_rejected() {
+    let edit = |c: &Command, f: &dyn Fn(&mut Vec<u8>)| {
+        let mut p = packet(c, 3);
+        f(&mut p);
+        fix_crc(&mut p);
+        p
+    };
+    assert_eq!(reject_code(&edit(&Command::Ping, &|p| p[7] = 99)), 0x0509);
+    assert_eq!(reject_code(&edit(&Command::Ping, &|p| p[7] = 1)), 0x0509);
+    assert_eq!(reject_code(&edit(&Command::Ping, &|p| p[8] = 3)), 0x050a);
+    assert_eq!(reject_code(&edit(&Command::Stop, &|p| p[8] = 2)), 0x050a);
+    assert_eq!(
+        reject_code(&edit(&Command::Stop, &|p| p[12] = 0x99)),
+        0x050b
+    );
+    let ds = Command::DirectStroke {
+        leg: 1,
+        delta_nm: 5,
+    };
+    assert_eq!(reject_code(&edit(&ds, &|p| p[13] = 0)), 0x050d);
+    assert_eq!(reject_code(&edit(&ds, &|p| p[13] = 7)), 0x050d);
+    let dump = Command::DumpTable(MemoryId::ActiveTable);
+    assert_eq!(reject_code(&edit(&dump, &|p| p[11] = 3)), 0x050d);
+    // Chunk past the end of the table.
+    let chunk = Command::LoadTableChunk(TableChunk::new(0, &[1, 2, 3, 4]).unwrap());
+    let past = edit(&chunk, &|p| {
+        p[12..14].copy_from_slice(&((TABLE_LEN - 3) as u16).to_be_bytes())
+    });
+    let r = decode_telecommand(&past).unwrap_err();
+    assert_eq!(r.error.code(), 0x050e);
+    assert_eq!(r.error.data(), ((TABLE_LEN as u32 - 3) << 16) | 4);
+    // Chunk into the active table (memory 2) is refused.
+    assert_eq!(reject_code(&edit(&chunk, &|p| p[11] = 2)), 0x050d);
+    // Chunk length field disagreeing with the data.
+    assert_eq!(reject_code(&edit(&chunk, &|p| p[15] = 5)), 0x050c);
+    // Builder refuses empty, too long and out-of-range chunks.
+    assert!(TableChunk::new(0, &[]).is_err());
+    assert!(TableChunk::new(0, &[0; TABLE_CHUNK_MAX_LEN + 1]).is_err());
+    assert!(TableChunk::new(TABLE_LEN as u16, &[0]).is_err());
+}
+
+#[test]
+fn wrong_apid_header_and_pus_version_are_rejected() {
+    let mut p = packet(&Command::Ping, 9);
+    p[1] ^= 0x01;
+    fix_crc(&mut p);
+    let r = decode_telecommand(&p).unwrap_err();
+    assert_eq!(r.error, LinkError::WrongApid { apid: M2_APID ^ 1 });
+    assert_eq!(r.error.code(), 0x0506);
+    // A TM (type bit clear) is not a TC.
+    let mut p = packet(&Command::Ping, 9);
+    p[0] &= !0x10;
+    fix_crc(&mut p);
+    assert_eq!(reject_code(&p), 0x0507);
+    // Segmented packet.
+    let mut p = packet(&Command::Ping, 9);
+    p[2] &= 0x3f;
+    fix_crc(&mut p);
+    assert_eq!(reject_code(&p), 0x0507);
+    // PUS-A (version 1).
+    let mut p = packet(&Command::Ping, 9);
+    p[6] = (1 << 4) | (p[6] & 0x0f);
+    fix_crc(&mut p);
+    assert_eq!(reject_code(&p), 0x0508);
+}
+
+#[test]
+fn deframer_recovers_after_garbage_overflow_and_bad_cobs() {
+    let good = tc_frame(&Command::Ping, 1);
+    let mut stream: Vec<u8> = Vec::new();
+    // Garbage without zeros, then a good frame (its leading 0x00 ends the garbage).
+    stream.extend([0x55u8; 17]);
+    stream.extend(&good);
+    // An overflow: more non-zero bytes than the buffer.
+    stream.extend(std::iter::repeat_n(0x11u8, DEFRAMER_BUFFER_LEN + 50));
+    stream.extend(&good);
+    // Invalid COBS (code byte pointing past the frame end).
+    stream.extend([0x00, 0x09, 0x01, 0x00]);
+    stream.extend(&good);
+    // Zeros only.
+    stream.extend([0u8; 10]);
+    stream.extend(&good);
+    let out = deframe_all(&stream);
+    let oks: Vec<_> = out.iter().filter_map(|r| r.as_ref().ok()).collect();
+    let errs: Vec<_> = out.iter().filter_map(|r| r.as_ref().err()).collect();
+    assert_eq!(oks.len(), 4, "{out:?}");
+    let decoded: Vec<_> = oks
+        .iter()
+        .filter_map(|p| decode_telecommand(p).ok())
+        .collect();
+    assert_eq!(decoded.len(), 4);
+    assert!(decoded.iter().all(|t| t.command == Command::Ping));
+    assert!(errs.contains(&&FrameError::Overflow));
+    assert_eq!(errs.len(), 3, "{out:?}"); // garbage, overflow, bad COBS
+    assert!(errs.contains(&&FrameError::BadCobs));
+    // Slice API gives the same.
+    let mut d: Deframer = Deframer::new();
+    let mut rest = &stream[..];
+    let mut n_ok = 0;
+    while !rest.is_empty() {
+        let (used, r) = d.push(rest);
+        if let Some(Ok(p)) = r {
+            n_ok += usize::from(decode_telecommand(p).is_ok());
+        }
+        rest = &rest[used..];
+    }
+    assert_eq!(n_ok, 4);
+    // A frame exactly filling the buffer still decodes (the largest telecommand).
+    let big = tc_frame(&all_commands()[13], 2);
+    assert!(big.len() - 2 <= DEFRAMER_BUFFER_LEN);
+    let out = deframe_all(&big);
+    assert!(decode_telecommand(out[0].as_ref().unwrap()).is_ok());
+    // encode_frame refuses a too-small buffer.
+    let mut small = [0u8; 8];
+    assert!(encode_frame(&packet(&Command::Ping, 0), &mut small).is_err());
+}
+
+fn tc_frame(c: &Command, seq: u16) -> Vec<u8> {
+    let p = packet(c, seq);
+    let mut f = vec![0u8; MAX_TC_FRAME_LEN];
+    let n = encode_frame(&p, &mut f).unwrap();
+    f.truncate(n);
+    f
+}
+
+fn sample_hk() -> Housekeeping {
+    Housekeeping {
+        state: 3,
+        boot_source: 2,
+        active_bank: 2,
+        fk_iterations: 2,
+        fk_valid: true,
+        cycle_counter: 123_456,
+        fault_flags: 0x8000_0001,
+        warning_flags: 0x10,
+        refusal_bits: 0x0100_0002,
+        active_table_id: 42,
+        active_table_crc32: 0x1234_5678,
+        pose_fk: WirePose::from_array([1, -2, 3, -4, 5, -6]),
+        pose_commanded: WirePose::from_array([i32::MAX, i32::MIN, 0, 7, 8, 9]),
+        strokes_commanded_nm: [100, -200, 300, -400, 500, -600],
+        encoders_nm: [0, 100, -100, 1_000_000, -5_000_000, 7],
+        tc_accepted: 65535,
+        tc_rejected: 3,
+        last_failure_code: 0x0505,
+        moving_legs: 0b10_1010,
+    }
+}
+
+fn tm_packet(frame: &[u8]) -> Vec<u8> {
+    let out = deframe_all(frame);
+    assert_eq!(out.len(), 1);
+    out[0].clone().unwrap()
+}
+
+#[test]
+fn telemetry_emitters_round_trip_and_count() {
+    let mut w = TmWriter::new();
+    let mut buf = [0u8; MAX_TM_FRAME_LEN];
+    let t = TmTime::from_millis(12_345);
+    assert_eq!(t.seconds, 12);
+    assert_eq!(t.fraction, (345 * 65536 / 1000) as u16);
+    let rid = RequestId {
+        packet_id: 0x18b2,
+        sequence_control: 0xc005,
+    };
+    let reports = [
+        Verification::AcceptanceSuccess,
+        Verification::acceptance_failure(&LinkError::BadCrc { found: 0xabcd }),
+        Verification::StartSuccess,
+        Verification::StartFailure {
+            code: 0x0202,
+            data: 0x0100_0000,
+        },
+        Verification::CompletionSuccess,
+        Verification::CompletionFailure {
+            code: 0x0418,
+            data: 9,
+        },
+    ];
+    for (i, v) in reports.iter().enumerate() {
+        let n = w.emit_verification(t, rid, *v, &mut buf).unwrap();
+        let p = tm_packet(&buf[..n]);
+        let tm = parse_tm(&p).unwrap();
+        assert_eq!(tm.apid, M2_APID);
+        assert_eq!(tm.seq_count, i as u16);
+        assert_eq!(tm.msg_counter, i as u16);
+        assert_eq!(tm.time, t);
+        assert_eq!(
+            tm.report,
+            TmReport::Verification {
+                request_id: rid,
+                report: *v
+            }
+        );
+    }
+    let hk = sample_hk();
+    let n = w.emit_housekeeping(t, &hk, &mut buf).unwrap();
+    let p = tm_packet(&buf[..n]);
+    assert_eq!(p.len(), 6 + 7 + 6 + HK_REPORT_LEN + 2);
+    let tm = parse_tm(&p).unwrap();
+    assert_eq!(tm.report, TmReport::Housekeeping(hk));
+    assert_eq!((tm.seq_count, tm.msg_counter), (6, 0));
+    let n = w
+        .emit_event(
+            t,
+            EventSeverity::High,
+            event_id::FAULT_LATCHED,
+            [1, 2],
+            &mut buf,
+        )
+        .unwrap();
+    let ev = tm_packet(&buf[..n]);
+    let tm = parse_tm(&ev).unwrap();
+    assert_eq!(
+        tm.report,
+        TmReport::Event {
+            severity: EventSeverity::High,
+            event_id: event_id::FAULT_LATCHED,
+            aux: [1, 2]
+        }
+    );
+    let n = w.emit_ping_reply(t, &mut buf).unwrap();
+    assert_eq!(
+        parse_tm(&tm_packet(&buf[..n])).unwrap().report,
+        TmReport::PingReply
+    );
+    // Table dump: chunks reassemble the table.
+    let table = Table::nominal().to_bytes();
+    let mut back = Vec::new();
+    for (off, bytes) in dump_chunks(&table) {
+        let n = w
+            .emit_table_dump_chunk(t, MemoryId::ActiveTable, off, bytes, &mut buf)
+            .unwrap();
+        match parse_tm(&tm_packet(&buf[..n])).unwrap().report {
+            TmReport::DumpChunk {
+                memory,
+                offset_bytes,
+                bytes,
+            } => {
+                assert_eq!(memory, MemoryId::ActiveTable);
+                assert_eq!(usize::from(offset_bytes), back.len());
+                back.extend_from_slice(bytes);
+            }
+            r => panic!("{r:?}"),
+        }
+    }
+    assert_eq!(back, table);
+    assert_eq!(
+        w.emit_table_dump_chunk(t, MemoryId::ActiveTable, 0, &[], &mut buf),
+        Err(EmitError::BadChunk)
+    );
+    // A too-small buffer fails without consuming a sequence count.
+    let before = w.next_seq_count();
+    assert_eq!(
+        w.emit_housekeeping(t, &hk, &mut buf[..40]),
+        Err(EmitError::BufferTooSmall)
+    );
+    assert_eq!(w.next_seq_count(), before);
+    // Sequence count wraps at 2^14.
+    let mut w = TmWriter::new();
+    for _ in 0..(1 << 14) {
+        w.emit_ping_reply(t, &mut buf).unwrap();
+    }
+    assert_eq!(w.next_seq_count(), 0);
+}
+
+#[test]
+fn wire_pose_converts_units() {
+    let p = WirePose::from_array([1_000_000, -500, 0, 1_000_000, -2_500_000, 0]);
+    let pose = p.to_pose::<f64>();
+    assert!((pose.translation_mm[0] - 1.0).abs() < 1e-15);
+    assert!((pose.translation_mm[1] + 0.0005).abs() < 1e-15);
+    let arcsec = pose.rotation_arcsec();
+    assert!((arcsec[0] - 1.0).abs() < 1e-9 && (arcsec[1] + 2.5).abs() < 1e-9);
+    assert_eq!(WirePose::from_pose(&pose), p);
+    let f32_pose = p.to_pose::<f32>();
+    assert_eq!(WirePose::from_pose(&f32_pose), p);
+    let mut b = [0u8; WIRE_POSE_LEN];
+    p.emit(&mut b);
+    assert_eq!(WirePose::parse(&b), p);
+    let nan = m2ctl::kinematics::Pose {
+        translation_mm: [f64::NAN, 1e300, -1e300],
+        rotation_rad: [0.0; 3],
+    };
+    assert_eq!(
+        WirePose::from_pose(&nan).translation_nm,
+        [0, i32::MAX, i32::MIN]
+    );
+}
+
+static FUZZ_CASES: AtomicUsize = AtomicUsize::new(0);
+static FUZZ_FRAMES: AtomicUsize = AtomicUsize::new(0);
+static MUTANT_CASES: AtomicUsize = AtomicUsize::new(0);
+static MUTANT_ACCEPTED: AtomicUsize = AtomicUsize::new(0);
+
+/// Fuzz cases per proptest property (moderate: the suite stays fast).
+const FUZZ_CASES_PER_PROPERTY: u32 = 4000;
+
+fn feed_everything(bytes: &[u8]) -> usize {
+    let mut d: Deframer = Deframer::new();
+    let mut frames = 0;
+    for &b in bytes {
+        if let Some(Ok(p)) = d.push_byte(b) {
+            frames += 1;
+            let _ = decode_telecommand(p);
+            let _ = parse_tm(p);
+        }
+    }
+    // The raw bytes as a packet too.
+    let _ = decode_telecommand(bytes);
+    let _ = parse_tm(bytes);
+    let _ = Housekeeping::parse(bytes);
+    frames
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: FUZZ_CASES_PER_PROPERTY, failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// Arbitrary bytes (with plenty of zeros) never panic the deframer or the decoders.
+    #[test]
+    fn fuzz_arbitrary_bytes(bytes in proptest::collection::vec(
+        prop_oneof![3 => any::<u8>(), 1 => Just(0u8)], 0..700)) {
+        FUZZ_CASES.fetch_add(1, Ordering::Relaxed);
+        FUZZ_FRAMES.fetch_add(feed_everything(&bytes), Ordering::Relaxed);
+    }
+
+    /// Valid telecommands with random byte edits: never panic; an accepted mutant is
+    /// exactly what re-encoding its command gives (nothing half-parsed).
+    #[test]
+    fn fuzz_mutated_telecommands(which in 0usize..17, seq in 0u16..0x4000,
+        edits in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..4),
+        fix in any::<bool>()) {
+        MUTANT_CASES.fetch_add(1, Ordering::Relaxed);
+        let mut p = packet(&all_commands()[which], seq);
+        for (at, v) in &edits {
+            let i = at % p.len();
+            p[i] = *v;
+        }
+        if fix && p.len() >= 2 { fix_crc(&mut p); }
+        if let Ok(tc) = decode_telecommand(&p) {
+            MUTANT_ACCEPTED.fetch_add(1, Ordering::Relaxed);
+            let h = TcHeader { seq_count: tc.request_id.seq_count(), source_id: tc.source_id, ack: tc.ack };
+            let mut buf = [0u8; MAX_TC_PACKET_LEN];
+            let n = encode_telecommand(&tc.command, h, &mut buf).unwrap();
+            prop_assert_eq!(&buf[..n], &p[..]);
+        }
+        let mut f = vec![0u8; MAX_TC_FRAME_LEN];
+        let n = encode_frame(&p, &mut f).unwrap();
+        feed_everything(&f[..n]);
+    }
+}
+
+#[test]
+fn zz_fuzz_report() {
+    // Runs the properties again explicitly so the counts are known in this test.
+    let start = std::time::Instant::now();
+    let mut runner = proptest::test_runner::TestRunner::new(ProptestConfig {
+        cases: FUZZ_CASES_PER_PROPERTY,
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    });
+    let count = AtomicUsize::new(0);
+    let frames = AtomicUsize::new(0);
+    let bytes_fed = AtomicUsize::new(0);
+    runner
+        .run(
+            &proptest::collection::vec(prop_oneof![3 => any::<u8>(), 1 => Just(0u8)], 0..700),
+            |bytes| {
+                count.fetch_add(1, Ordering::Relaxed);
+                bytes_fed.fetch_add(bytes.len(), Ordering::Relaxed);
+                frames.fetch_add(feed_everything(&bytes), Ordering::Relaxed);
+                Ok(())
+            },
+        )
+        .unwrap();
+    println!(
+        "fuzz: {} arbitrary-byte cases ({} bytes, {} COBS frames decoded as TC and TM) in {:.2?}, no panic",
+        count.load(Ordering::Relaxed),
+        bytes_fed.load(Ordering::Relaxed),
+        frames.load(Ordering::Relaxed),
+        start.elapsed()
+    );
+    assert_eq!(
+        count.load(Ordering::Relaxed),
+        FUZZ_CASES_PER_PROPERTY as usize
+    );
+    // Mutated valid telecommands (byte edits, CRC re-fixed half of the time).
+    let start = std::time::Instant::now();
+    let cases = AtomicUsize::new(0);
+    let accepted = AtomicUsize::new(0);
+    let cmds = all_commands();
+    let mut runner = proptest::test_runner::TestRunner::new(ProptestConfig {
+        cases: FUZZ_CASES_PER_PROPERTY,
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    });
+    runner
+        .run(
+            &(
+                0..cmds.len(),
+                0u16..0x4000,
+                proptest::collection::vec((any::<usize>(), any::<u8>()), 1..4),
+                any::<bool>(),
+            ),
+            |(which, seq, edits, fix)| {
+                cases.fetch_add(1, Ordering::Relaxed);
+                let mut p = packet(&cmds[which], seq);
+                for (at, v) in &edits {
+                    let i = at % p.len();
+                    p[i] = *v;
+                }
+                if fix {
+                    fix_crc(&mut p);
+                }
+                if decode_telecommand(&p).is_ok() {
+                    accepted.fetch_add(1, Ordering::Relaxed);
+                }
+                Ok(())
+            },
+        )
+        .unwrap();
+    println!(
+        "fuzz: {} mutated-TC cases ({} still accepted after the edit) in {:.2?}, no panic",
+        cases.load(Ordering::Relaxed),
+        accepted.load(Ordering::Relaxed),
+        start.elapsed()
+    );
+}
+
+/// The TCs of host-tests/py/pus_tcs.py, encoded here.
+fn python_reference_set() -> Vec<(&'static str, Command, u16)> {
+    vec![
+        ("ping", Command::Ping, 0),
+        ("hk", Command::HousekeepingOneShot, 1),
+        (
+            "move_abs",
+            Command::MoveAbsolute(WirePose::from_array([
+                1500, -2000, 30000, -2_000_000, 1_000_000, 7,
+            ])),
+            2,
+        ),
+        (
+            "move_rel",
+            Command::MoveRelative(WirePose::from_array([-1, 0, i32::MAX, 0, i32::MIN, 0])),
+            3,
+        ),
+        ("stop", Command::Stop, 4),
+        (
+            "direct_stroke",
+            Command::DirectStroke {
+                leg: 6,
+                delta_nm: -12345,
+            },
+            5,
+        ),
+        ("commit", Command::CommitTable { crc32: 0xdead_beef }, 6),
+        ("activate", Command::ActivateTable, 16383),
+        (
+            "load_chunk",
+            Command::LoadTableChunk(TableChunk::new(128, &[0, 1, 2, 0xff]).unwrap()),
+            7,
+        ),
+        ("dump", Command::DumpTable(MemoryId::ActiveTable), 8),
+    ]
+}
+
+#[test]
+fn python_spacepackets_encodes_identical_telecommands() {
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/host-tests/py/pus_tcs.py");
+    let out = std::process::Command::new("python3")
+        .arg(script)
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run python3 ({e}); install python3 and `pip install spacepackets` (scripts/setup.sh)"));
+    assert!(
+        out.status.success(),
+        "host-tests/py/pus_tcs.py failed: python package 'spacepackets' missing? run `pip install spacepackets` (scripts/setup.sh)\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let py: Vec<(String, String)> = text
+        .lines()
+        .map(|l| {
+            let (a, b) = l.split_once(' ').unwrap();
+            (a.to_string(), b.to_string())
+        })
+        .collect();
+    let ours = python_reference_set();
+    assert_eq!(py.len(), ours.len());
+    for ((name, hex), (n2, cmd, seq)) in py.iter().zip(&ours) {
+        assert_eq!(name, n2);
+        let p = packet(cmd, *seq);
+        let mine: String = p.iter().map(|b| format!("{b:02x}")).collect();
+        assert_eq!(&mine, hex, "{name}: Rust vs Python spacepackets");
+        // And the Python bytes decode to the command.
+        let bytes = parse_hex_lines(hex).unwrap().remove(0);
+        assert_eq!(&decode_telecommand(&bytes).unwrap().command, cmd);
+    }
+    println!(
+        "python spacepackets cross-check: {} TCs byte-identical",
+        ours.len()
+    );
+}
+
+#[test]
+fn icd_example_bytes_are_true() {
+    // Ping TC, sequence count 0, and its TM[17,2] reply (sequence 0, time 0) as printed
+    // in docs/icd.md.
+    let tc = tc_frame(&Command::Ping, 0);
+    let mut w = TmWriter::new();
+    let mut buf = [0u8; MAX_TM_FRAME_LEN];
+    let n = w.emit_ping_reply(TmTime::default(), &mut buf).unwrap();
+    let hex = |b: &[u8]| {
+        b.iter()
+            .map(|x| format!("{x:02x}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let tc_hex = hex(&tc);
+    let tm_frame_hex = hex(&buf[..n]);
+    let tm_packet_hex = hex(&tm_packet(&buf[..n]));
+    let tc_packet_hex = hex(&packet(&Command::Ping, 0));
+    let icd = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/icd.md"))
+        .unwrap_or_default();
+    println!("ICD example:\n TC packet {tc_packet_hex}\n TC frame {tc_hex}\n TM packet {tm_packet_hex}\n TM frame {tm_frame_hex}");
+    for (what, h) in [
+        ("TC packet", &tc_packet_hex),
+        ("TC frame", &tc_hex),
+        ("TM packet", &tm_packet_hex),
+        ("TM frame", &tm_frame_hex),
+    ] {
+        assert!(icd.contains(h.as_str()), "{what} `{h}` not in docs/icd.md");
+    }
+}
+
+#[test]
+fn ground_tc_upload_reassembles_the_table() {
+    let dir = std::env::temp_dir().join(format!("m2ctl-link-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let geom = dir.join("calibrated.toml");
+    let file = m2ctl::ground::files::GeometryFile {
+        params: m2ctl::nominal::prototype_with_flight_limits(),
+        provenance: vec![("calibration_id".into(), "cal-test-1".into())],
+    };
+    std::fs::write(&geom, m2ctl::ground::files::format_geometry(&file, "test")).unwrap();
+    let req = TcRequest::Upload {
+        geometry: geom.clone(),
+        table_id: 77,
+        calibration_id: None,
+    };
+    let mut seq = TcSequencer::new(100);
+    let text = run_tc(&req, &mut seq, TcOutput::HexLines, false).unwrap();
+    let frames = parse_hex_lines(std::str::from_utf8(&text).unwrap()).unwrap();
+    assert_eq!(frames.len(), TABLE_LEN.div_ceil(TABLE_CHUNK_MAX_LEN) + 1);
+    let mut image = vec![0u8; TABLE_LEN];
+    let mut commit = None;
+    for (i, f) in frames.iter().enumerate() {
+        let out = deframe_all(f);
+        let tc = decode_telecommand(out[0].as_ref().unwrap()).unwrap();
+        assert_eq!(tc.request_id.seq_count(), 100 + i as u16);
+        match tc.command {
+            Command::LoadTableChunk(c) => image[c.range()].copy_from_slice(c.bytes()),
+            Command::CommitTable { crc32 } => commit = Some(crc32),
+            c => panic!("{c:?}"),
+        }
+    }
+    let table = Table::decode(&image).unwrap();
+    assert_eq!(table.table_id, 77);
+    assert_eq!(&table.provenance.tag[..10], b"cal-test-1");
+    assert_eq!(commit, Some(table.crc32()));
+    assert_eq!(upload_commands(&table).unwrap().len(), frames.len());
+    // Binary output is the frames back to back.
+    let mut seq = TcSequencer::new(100);
+    let bin = run_tc(&req, &mut seq, TcOutput::Binary, false).unwrap();
+    assert_eq!(bin, frames.concat());
+    assert_eq!(hex_lines(&frames).into_bytes(), text);
+    // A geometry file without limits is refused with a message.
+    std::fs::write(
+        &geom,
+        m2ctl::ground::files::format_geometry(
+            &m2ctl::ground::files::GeometryFile {
+                params: m2ctl::nominal::PROTOTYPE,
+                provenance: vec![],
+            },
+            "x",
+        ),
+    )
+    .unwrap();
+    let e = run_tc(&req, &mut seq, TcOutput::Binary, false).unwrap_err();
+    assert!(e.contains("[limits]"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn m2ground_tc_cli_writes_frames() {
+    let exe = env!("CARGO_BIN_EXE_m2ground");
+    let run = |args: &[&str]| {
+        let o = std::process::Command::new(exe).args(args).output().unwrap();
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        String::from_utf8(o.stdout).unwrap()
+    };
+    let ping = run(&["tc", "ping"]);
+    assert_eq!(
+        ping.trim(),
+        hex_lines(&[tc_frame(&Command::Ping, 0)]).trim()
+    );
+    let mv = run(&[
+        "tc",
+        "--seq",
+        "5",
+        "move",
+        "--x-um",
+        "1.5",
+        "--y-um",
+        "-2",
+        "--rx-arcsec",
+        "-0.25",
+        "--relative",
+    ]);
+    let f = parse_hex_lines(&mv).unwrap();
+    let tc = decode_telecommand(deframe_all(&f[0])[0].as_ref().unwrap()).unwrap();
+    assert_eq!(
+        tc.command,
+        Command::MoveRelative(WirePose::from_array([1500, -2000, 0, -250_000, 0, 0]))
+    );
+    assert_eq!(tc.request_id.seq_count(), 5);
+    for (sub, cmd) in [
+        ("stop", Command::Stop),
+        ("activate", Command::ActivateTable),
+        ("hk", Command::HousekeepingOneShot),
+        ("switch-bank", Command::SwitchBank),
+        ("revert-nominal", Command::RevertToNominal),
+        ("clear-fault", Command::ClearFault),
+    ] {
+        let f = parse_hex_lines(&run(&["tc", sub])).unwrap();
+        let tc = decode_telecommand(deframe_all(&f[0])[0].as_ref().unwrap()).unwrap();
+        assert_eq!(tc.command, cmd, "{sub}");
+    }
+    let unframed = run(&["tc", "--unframed", "ping"]);
+    assert_eq!(unframed.trim(), "18b2c00000062f11010000ee7d");
+}

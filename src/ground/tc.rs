@@ -1,0 +1,337 @@
+//! Ground telecommand encoder (host): builds the framed TC byte sequences of the link
+//! ICD (`docs/icd.md`) and the `m2ground tc ...` output (hex lines or a binary file).
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use crate::link::command::{TABLE_CHUNK_MAX_LEN, UAS_PER_ARCSEC};
+use crate::link::tc::{EncodeError, TcHeader};
+use crate::link::{
+    encode_frame, encode_telecommand, AckFlags, Command, TableChunk, WirePose, MAX_TC_FRAME_LEN,
+    MAX_TC_PACKET_LEN,
+};
+use crate::table::layout::{CRC32, PROVENANCE_TAG_LEN};
+use crate::table::{Provenance, Table, DEFAULT_SUPERVISION};
+
+/// Nanometres per micrometre.
+pub const NM_PER_UM: f64 = 1.0e3;
+/// Provenance key whose value becomes the table's calibration ID and tag.
+pub const CALIBRATION_ID_KEY: &str = "calibration_id";
+
+/// Numbers telecommands in sequence: every encoded TC takes the next sequence count
+/// (14 bits, wrapping) and carries the source ID and acknowledgement flags given here.
+#[derive(Clone, Copy, Debug)]
+pub struct TcSequencer {
+    /// Sequence count of the next TC.
+    pub next_seq_count: u16,
+    /// Source ID of every TC.
+    pub source_id: u16,
+    /// Acknowledgement flags of every TC.
+    pub ack: AckFlags,
+}
+
+impl TcSequencer {
+    /// Starting at `first_seq_count`, source ID 0, all acknowledgements.
+    pub fn new(first_seq_count: u16) -> TcSequencer {
+        TcSequencer {
+            next_seq_count: first_seq_count,
+            source_id: 0,
+            ack: AckFlags::ALL,
+        }
+    }
+
+    fn header(&mut self) -> TcHeader {
+        let h = TcHeader {
+            seq_count: self.next_seq_count,
+            source_id: self.source_id,
+            ack: self.ack,
+        };
+        self.next_seq_count = self.next_seq_count.wrapping_add(1) & crate::link::tc::SEQ_COUNT_MASK;
+        h
+    }
+
+    /// The PUS packet (unframed) of the next TC.
+    pub fn packet(&mut self, command: &Command) -> Result<Vec<u8>, String> {
+        let mut buf = [0u8; MAX_TC_PACKET_LEN];
+        let n = encode_telecommand(command, self.header(), &mut buf)
+            .map_err(|EncodeError::BufferTooSmall| format!("{command:?}: packet too long"))?;
+        Ok(buf[..n].to_vec())
+    }
+
+    /// The framed bytes (`0x00, COBS(packet), 0x00`) of the next TC.
+    pub fn frame(&mut self, command: &Command) -> Result<Vec<u8>, String> {
+        let packet = self.packet(command)?;
+        Ok(frame(&packet))
+    }
+
+    /// Frames of a command sequence, one per command.
+    pub fn frames(&mut self, commands: &[Command]) -> Result<Vec<Vec<u8>>, String> {
+        commands.iter().map(|c| self.frame(c)).collect()
+    }
+}
+
+/// COBS frame of a packet.
+pub fn frame(packet: &[u8]) -> Vec<u8> {
+    let mut out = vec![0u8; crate::link::framing::max_frame_len(packet.len())];
+    let n = encode_frame(packet, &mut out).unwrap_or(0);
+    out.truncate(n);
+    out
+}
+
+/// Largest frame any telecommand can have (bytes).
+pub const MAX_FRAME_LEN: usize = MAX_TC_FRAME_LEN;
+
+/// A wire pose from micrometres and arcseconds; refused if not finite or beyond the i32
+/// range of nanometres / micro-arcseconds.
+pub fn wire_pose(translation_um: [f64; 3], rotation_arcsec: [f64; 3]) -> Result<WirePose, String> {
+    let conv = |v: f64, scale: f64, what: &str| -> Result<i32, String> {
+        let r = (v * scale).round();
+        if r.is_finite() && r >= f64::from(i32::MIN) && r <= f64::from(i32::MAX) {
+            Ok(r as i32)
+        } else {
+            Err(format!("{what} = {v} is not finite or out of range"))
+        }
+    };
+    let mut p = WirePose::default();
+    for (k, (dst, v)) in p.translation_nm.iter_mut().zip(translation_um).enumerate() {
+        *dst = conv(v, NM_PER_UM, ["x_um", "y_um", "z_um"][k])?;
+    }
+    for (k, (dst, v)) in p.rotation_uas.iter_mut().zip(rotation_arcsec).enumerate() {
+        *dst = conv(
+            v,
+            UAS_PER_ARCSEC,
+            ["rx_arcsec", "ry_arcsec", "rz_arcsec"][k],
+        )?;
+    }
+    Ok(p)
+}
+
+/// The provenance of a table from a geometry file's `[provenance]`: calibration ID =
+/// CRC-32 of the `calibration_id` text (or `calibration_id_override`), tag = its first
+/// 16 ASCII characters, space padded (`m2ground` without a calibration ID).
+pub fn provenance(
+    entries: &[(String, String)],
+    calibration_id_override: Option<u32>,
+) -> Provenance {
+    let text = entries
+        .iter()
+        .find(|(k, _)| k == CALIBRATION_ID_KEY)
+        .map(|(_, v)| v.as_str());
+    let mut tag = [b' '; PROVENANCE_TAG_LEN];
+    let src = text.unwrap_or("m2ground");
+    for (d, c) in tag
+        .iter_mut()
+        .zip(src.bytes().filter(|b| b.is_ascii_graphic() || *b == b' '))
+    {
+        *d = c;
+    }
+    Provenance {
+        calibration_id: calibration_id_override
+            .unwrap_or_else(|| text.map_or(0, |t| CRC32.checksum(t.as_bytes()))),
+        tag,
+    }
+}
+
+/// The table of a geometry file (with `[limits]`), default supervision thresholds.
+pub fn table_from_geometry_file(
+    path: &Path,
+    table_id: u32,
+    calibration_id: Option<u32>,
+) -> Result<Table, String> {
+    let file = crate::ground::files::read_geometry(path)?;
+    Table::from_geometry(
+        &file.params,
+        table_id,
+        provenance(&file.provenance, calibration_id),
+        DEFAULT_SUPERVISION,
+    )
+    .map_err(|_| {
+        format!(
+            "{}: a table needs [limits] with stroke and workspace limits",
+            path.display()
+        )
+    })
+}
+
+/// The upload sequence of a table: TC[6,2] chunks of at most 128 bytes in offset order,
+/// then TC[8,1] commit with the table's CRC-32.
+pub fn upload_commands(table: &Table) -> Result<Vec<Command>, String> {
+    let bytes = table.to_bytes();
+    let mut cmds = Vec::new();
+    for (i, chunk) in bytes.chunks(TABLE_CHUNK_MAX_LEN).enumerate() {
+        let offset = u16::try_from(i * TABLE_CHUNK_MAX_LEN).map_err(|e| e.to_string())?;
+        let c = TableChunk::new(offset, chunk).map_err(|e| format!("chunk {i}: {e:?}"))?;
+        cmds.push(Command::LoadTableChunk(c));
+    }
+    cmds.push(Command::CommitTable {
+        crc32: table.crc32(),
+    });
+    Ok(cmds)
+}
+
+/// Lowercase hex, one frame per line.
+pub fn hex_lines(frames: &[Vec<u8>]) -> String {
+    let mut s = String::new();
+    for f in frames {
+        for b in f {
+            let _ = write!(s, "{b:02x}");
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// Parses hex lines back into frames (blank lines and `#` comments skipped).
+pub fn parse_hex_lines(text: &str) -> Result<Vec<Vec<u8>>, String> {
+    let mut out = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        if line.len() % 2 != 0 {
+            return Err(format!("line {}: odd number of hex digits", n + 1));
+        }
+        let bytes = (0..line.len())
+            .step_by(2)
+            .map(|i| u8::from_str_radix(&line[i..i + 2], 16))
+            .collect::<Result<Vec<u8>, _>>()
+            .map_err(|e| format!("line {}: {e}", n + 1))?;
+        out.push(bytes);
+    }
+    Ok(out)
+}
+
+/// What `m2ground tc` is asked to encode.
+#[derive(Clone, Debug)]
+pub enum TcRequest {
+    /// TC[17,1].
+    Ping,
+    /// TC[3,27].
+    Housekeeping,
+    /// TC[8,1] move (absolute or relative).
+    Move {
+        /// Translation (um).
+        translation_um: [f64; 3],
+        /// Rotation (arcsec).
+        rotation_arcsec: [f64; 3],
+        /// Relative to the commanded pose.
+        relative: bool,
+    },
+    /// TC[8,1] direct stroke (recovery).
+    DirectStroke {
+        /// Leg 1..6.
+        leg: u8,
+        /// Stroke increment (um).
+        delta_um: f64,
+    },
+    /// TC[8,1] stop.
+    Stop,
+    /// TC[8,1] clear fault.
+    ClearFault,
+    /// TC[8,1] activate table.
+    Activate,
+    /// TC[8,1] switch bank.
+    SwitchBank,
+    /// TC[8,1] revert to nominal.
+    RevertToNominal,
+    /// TC[6,2] chunks + TC[8,1] commit of the table built from a geometry file.
+    Upload {
+        /// Geometry file with `[limits]`.
+        geometry: std::path::PathBuf,
+        /// Table ID.
+        table_id: u32,
+        /// Calibration ID override.
+        calibration_id: Option<u32>,
+    },
+    /// TC[6,5] dump of the active table (or of the upload buffer).
+    Dump {
+        /// Dump the upload buffer instead of the active table.
+        upload_buffer: bool,
+    },
+}
+
+impl TcRequest {
+    /// The command sequence.
+    pub fn commands(&self) -> Result<Vec<Command>, String> {
+        use crate::link::MemoryId;
+        Ok(match self {
+            TcRequest::Ping => vec![Command::Ping],
+            TcRequest::Housekeeping => vec![Command::HousekeepingOneShot],
+            TcRequest::Move {
+                translation_um,
+                rotation_arcsec,
+                relative,
+            } => {
+                let p = wire_pose(*translation_um, *rotation_arcsec)?;
+                vec![if *relative {
+                    Command::MoveRelative(p)
+                } else {
+                    Command::MoveAbsolute(p)
+                }]
+            }
+            TcRequest::DirectStroke { leg, delta_um } => {
+                if !(1..=6).contains(leg) {
+                    return Err(format!("leg {leg}: must be 1..6"));
+                }
+                let d = wire_pose([*delta_um, 0.0, 0.0], [0.0; 3])?;
+                vec![Command::DirectStroke {
+                    leg: *leg,
+                    delta_nm: d.translation_nm[0],
+                }]
+            }
+            TcRequest::Stop => vec![Command::Stop],
+            TcRequest::ClearFault => vec![Command::ClearFault],
+            TcRequest::Activate => vec![Command::ActivateTable],
+            TcRequest::SwitchBank => vec![Command::SwitchBank],
+            TcRequest::RevertToNominal => vec![Command::RevertToNominal],
+            TcRequest::Upload {
+                geometry,
+                table_id,
+                calibration_id,
+            } => upload_commands(&table_from_geometry_file(
+                geometry,
+                *table_id,
+                *calibration_id,
+            )?)?,
+            TcRequest::Dump { upload_buffer } => vec![Command::DumpTable(if *upload_buffer {
+                MemoryId::UploadBuffer
+            } else {
+                MemoryId::ActiveTable
+            })],
+        })
+    }
+}
+
+/// Output of `m2ground tc`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TcOutput {
+    /// One frame per line, lowercase hex.
+    HexLines,
+    /// The frames back to back, raw bytes (ready for the UART).
+    Binary,
+}
+
+/// Runs `m2ground tc`: the bytes to write (hex text or binary).
+pub fn run_tc(
+    request: &TcRequest,
+    sequencer: &mut TcSequencer,
+    output: TcOutput,
+    unframed: bool,
+) -> Result<Vec<u8>, String> {
+    let cmds = request.commands()?;
+    let frames = cmds
+        .iter()
+        .map(|c| {
+            if unframed {
+                sequencer.packet(c)
+            } else {
+                sequencer.frame(c)
+            }
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(match output {
+        TcOutput::HexLines => hex_lines(&frames).into_bytes(),
+        TcOutput::Binary => frames.concat(),
+    })
+}
