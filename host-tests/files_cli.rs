@@ -1,4 +1,5 @@
 //! Geometry/CSV files and the `m2ground ik`/`fk` commands, run as a newcomer would.
+#![allow(clippy::needless_range_loop)] // index loops over six legs/axes read clearer here
 
 mod common;
 

@@ -3,6 +3,7 @@
 //! Needs the decoded log of the firmware's QEMU run, produced by
 //! `scripts/qemu-selftest.sh` (which then runs this test) or `.ci/run`:
 //! `M2_FIRMWARE_LOG=target/m2fw-selftest.log cargo test --features host --test firmware -- --ignored`.
+#![allow(clippy::needless_range_loop)] // index loops over six legs/axes read clearer here
 
 use m2ctl::kinematics::Geometry;
 use m2ctl::nominal::prototype_with_flight_limits;

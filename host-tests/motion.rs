@@ -378,7 +378,7 @@ fn refused_targets_return_every_reason_and_no_trajectory() {
         refusals.first_error(),
         Some(IkError::OutsideWorkspace { axes: 0b10_0001 })
     );
-    assert_eq!(r.unwrap_err().code(), 0x0504);
+    assert_eq!(r.unwrap_err().code(), 0x0604);
     // Non-finite.
     let mut nan = home;
     nan.translation_mm[1] = f32::NAN;
@@ -614,7 +614,7 @@ fn direct_stroke_refusals() {
         "partial recovery toward the range"
     );
     assert!(StrokeMove::plan(&out, 2, -0.8, &lim).is_ok());
-    assert_eq!(StrokeMoveError::OutsideStrokeRange.code(), 0x0515);
+    assert_eq!(StrokeMoveError::OutsideStrokeRange.code(), 0x0615);
     let m = StrokeMove::plan(&cur, 1, 0.0, &lim).unwrap();
     assert!(m.setpoint(0).done);
 }

@@ -1,5 +1,6 @@
 //! The simulated plant: deterministic from a seed, finite slider speed, quantised
 //! encoders, driven through the same traits as the target hardware.
+#![allow(clippy::needless_range_loop)] // index loops over six legs/axes read clearer here
 
 use m2ctl::hw::{counts_to_mm, SliderDrives, StrokeEncoders, ENCODER_MM_PER_COUNT};
 use m2ctl::kinematics::{fk, ik, FkConfig, Geometry, Pose, ARCSEC_PER_RAD};

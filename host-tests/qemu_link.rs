@@ -2,6 +2,7 @@
 //! ping, housekeeping, a table upload with commit and activation, a move, and a
 //! malformed packet. Needs the firmware built and QEMU installed, so it is `#[ignore]`d
 //! in the plain test run; `scripts/qemu-link-test.sh` (and CI) runs it.
+#![allow(clippy::needless_range_loop)] // index loops over six legs/axes read clearer here
 
 mod common;
 

@@ -443,7 +443,13 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
             }
             _ => self.fk_valid = false,
         }
-        // 3. Supervision.
+        // 3. Supervision. Faulted and at rest, the drives are not commanded; the
+        //    following reference is then the measured stroke, so that a fault can be
+        //    cleared once the mechanism is at rest and consistent again (e.g. after a
+        //    drive was re-referenced following missed steps).
+        if let (State::Faulted, Motion::Hold, Ok(s)) = (self.state, &self.motion, &readings) {
+            self.strokes_commanded_mm = *s;
+        }
         let verdict = self.supervisor.check(&CycleInputs {
             encoders: readings,
             commanded_prev_mm: self.strokes_commanded_mm,
@@ -548,7 +554,10 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
                 (sp.strokes_mm, sp.moving, sp.done, stopping)
             }
         };
-        if !matches!(self.motion, Motion::Hold) {
+        if matches!(self.motion, Motion::Hold) {
+            // Nothing is commanded at rest: poll the drives' health instead.
+            self.last_drive = self.mech.status();
+        } else {
             self.strokes_commanded_mm = strokes;
             self.last_drive = self.mech.command_strokes_mm(&strokes);
         }

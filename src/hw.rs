@@ -45,6 +45,8 @@ pub trait SliderDrives {
     fn command_strokes_mm(&mut self, setpoint_mm: &[f32; LEGS]) -> Result<(), DriveError>;
     /// Holds every slider where it is now (setpoint := current position).
     fn hold(&mut self);
+    /// Health of the drives now (polled while no command is sent, i.e. at rest).
+    fn status(&mut self) -> Result<(), DriveError>;
 }
 
 /// Converts encoder counts to strokes (mm) in f32.

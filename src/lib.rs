@@ -14,6 +14,7 @@
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod controller;
 pub mod hw;
 pub mod kinematics;
 pub mod link;

@@ -74,4 +74,8 @@ impl SliderDrives for SliderModel {
     fn hold(&mut self) {
         self.setpoint_mm = self.stroke_mm;
     }
+
+    fn status(&mut self) -> Result<(), DriveError> {
+        Ok(())
+    }
 }

@@ -3,6 +3,7 @@
 
 pub mod ground;
 pub mod qemu;
+pub mod rig;
 
 use m2ctl::kinematics::{Pose, ARCSEC_PER_RAD};
 

@@ -13,7 +13,7 @@
 //! began (a few tens of instructions), turns the pose into strokes by IK and commands
 //! the drives. Nothing here allocates or panics.
 //!
-//! Error codes (family 0x05xx): [`MotionError`] 0x0501.., [`StrokeMoveError`] 0x0511...
+//! Error codes (family 0x06xx): [`MotionError`] 0x0601.., [`StrokeMoveError`] 0x0611...
 
 #![deny(
     clippy::unwrap_used,

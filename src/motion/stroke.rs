@@ -57,7 +57,7 @@ impl Default for DirectStrokeLimits {
     }
 }
 
-/// Why a direct-stroke move was refused. Stable numeric codes (family 0x05xx, from 0x0511).
+/// Why a direct-stroke move was refused. Stable numeric codes (family 0x06xx, from 0x0611).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StrokeMoveError {
     /// Leg index not in 0..6.
@@ -78,12 +78,12 @@ impl StrokeMoveError {
     /// Stable numeric code for telemetry.
     pub const fn code(&self) -> u16 {
         match self {
-            StrokeMoveError::BadLeg => 0x0511,
-            StrokeMoveError::NonFinite => 0x0512,
-            StrokeMoveError::BadLimits => 0x0513,
-            StrokeMoveError::DeltaTooLarge => 0x0514,
-            StrokeMoveError::OutsideStrokeRange => 0x0515,
-            StrokeMoveError::TooLong => 0x0516,
+            StrokeMoveError::BadLeg => 0x0611,
+            StrokeMoveError::NonFinite => 0x0612,
+            StrokeMoveError::BadLimits => 0x0613,
+            StrokeMoveError::DeltaTooLarge => 0x0614,
+            StrokeMoveError::OutsideStrokeRange => 0x0615,
+            StrokeMoveError::TooLong => 0x0616,
         }
     }
 }

@@ -81,7 +81,7 @@ impl Default for MotionLimits {
     }
 }
 
-/// Why a move was not planned. Stable numeric codes for telemetry (family 0x05xx).
+/// Why a move was not planned. Stable numeric codes for telemetry (family 0x06xx).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MotionError {
     /// The start or target pose has a NaN or infinite component.
@@ -111,12 +111,12 @@ impl MotionError {
     /// Stable numeric code for telemetry.
     pub const fn code(&self) -> u16 {
         match self {
-            MotionError::NonFinite => 0x0501,
-            MotionError::BadLimits { .. } => 0x0502,
-            MotionError::StartRefused(_) => 0x0503,
-            MotionError::TargetRefused(_) => 0x0504,
-            MotionError::PathRefused { .. } => 0x0505,
-            MotionError::TooLong => 0x0506,
+            MotionError::NonFinite => 0x0601,
+            MotionError::BadLimits { .. } => 0x0602,
+            MotionError::StartRefused(_) => 0x0603,
+            MotionError::TargetRefused(_) => 0x0604,
+            MotionError::PathRefused { .. } => 0x0605,
+            MotionError::TooLong => 0x0606,
         }
     }
 }

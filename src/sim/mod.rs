@@ -8,4 +8,4 @@
 pub mod manufacturing;
 pub mod plant;
 
-pub use plant::{Plant, PlantConfig};
+pub use plant::{InjectedFault, Plant, PlantConfig};

@@ -36,6 +36,75 @@ impl Default for PlantConfig {
     }
 }
 
+/// A fault the plant can be made to show, from the moment it is injected
+/// ([`Plant::inject`]) until [`Plant::clear_faults`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum InjectedFault {
+    /// The encoder of `leg` (0-based) keeps reporting the value it had at injection.
+    EncoderStuck {
+        /// 0-based leg.
+        leg: u8,
+    },
+    /// The encoder of `leg` reads `jump_mm` off from the injection on (a slipped scale
+    /// or a counting glitch): an impossible step between two cycles.
+    EncoderJump {
+        /// 0-based leg.
+        leg: u8,
+        /// Offset added to the reading (mm).
+        jump_mm: f64,
+    },
+    /// The encoder of `leg` does not answer.
+    EncoderNoResponse {
+        /// 0-based leg.
+        leg: u8,
+    },
+    /// The encoder of `leg` answers with corrupted frames.
+    EncoderCorrupted {
+        /// 0-based leg.
+        leg: u8,
+    },
+    /// The drive of `leg` loses `lost_mm` of travel at once (missed steps): the slider
+    /// is that much short of where the drive believes it is, from then on.
+    MissedSteps {
+        /// 0-based leg.
+        leg: u8,
+        /// Travel lost (mm, along base z).
+        lost_mm: f64,
+    },
+    /// The slider of `leg` is jammed: it no longer moves.
+    StuckSlider {
+        /// 0-based leg.
+        leg: u8,
+    },
+    /// The encoder of `leg` gets extra Gaussian noise of `sigma_mm`.
+    NoiseBurst {
+        /// 0-based leg.
+        leg: u8,
+        /// Standard deviation of the extra noise (mm).
+        sigma_mm: f64,
+    },
+    /// The drive of `leg` reports a fault and refuses commands.
+    DriveFault {
+        /// 0-based leg.
+        leg: u8,
+    },
+}
+
+impl InjectedFault {
+    fn leg(&self) -> usize {
+        usize::from(match *self {
+            InjectedFault::EncoderStuck { leg }
+            | InjectedFault::EncoderJump { leg, .. }
+            | InjectedFault::EncoderNoResponse { leg }
+            | InjectedFault::EncoderCorrupted { leg }
+            | InjectedFault::MissedSteps { leg, .. }
+            | InjectedFault::StuckSlider { leg }
+            | InjectedFault::NoiseBurst { leg, .. }
+            | InjectedFault::DriveFault { leg } => leg,
+        })
+    }
+}
+
 /// The true mechanism.
 #[derive(Clone, Debug)]
 pub struct Plant {
@@ -51,6 +120,10 @@ pub struct Plant {
     time_s: f64,
     /// Last true pose, the warm start of the next [`Plant::true_pose`].
     last_pose: Pose<f64>,
+    /// Active injected faults, with the reading frozen at injection for stuck encoders.
+    faults: Vec<(InjectedFault, i32)>,
+    /// Travel lost per slider by missed steps (mm): true stroke = drive position - loss.
+    loss_mm: [f64; LEGS],
 }
 
 impl Plant {
@@ -71,23 +144,72 @@ impl Plant {
                 .filter(|_| cfg.encoder_noise_mm > 0.0),
             time_s: 0.0,
             last_pose: Pose::home(),
+            faults: Vec::new(),
+            loss_mm: [0.0; LEGS],
         })
+    }
+
+    /// Injects a fault now (the test chooses the time by the cycle it calls this in).
+    pub fn inject(&mut self, fault: InjectedFault) {
+        let leg = fault.leg();
+        let frozen = self
+            .stroke_mm
+            .get(leg)
+            .map(|s| {
+                ((s - self.loss_mm.get(leg).copied().unwrap_or(0.0)) / ENCODER_MM_PER_COUNT).round()
+                    as i32
+            })
+            .unwrap_or(0);
+        if let InjectedFault::MissedSteps { lost_mm, .. } = fault {
+            if let Some(l) = self.loss_mm.get_mut(leg) {
+                *l += lost_mm;
+            }
+        }
+        self.faults.push((fault, frozen));
+    }
+
+    /// Removes every injected fault (a repaired mechanism). Drives that missed steps
+    /// are re-referenced to where their sliders really are (the slider does not move;
+    /// the drive's position and setpoint are corrected by the lost travel).
+    pub fn clear_faults(&mut self) {
+        self.faults.clear();
+        for ((s, sp), l) in self
+            .stroke_mm
+            .iter_mut()
+            .zip(self.setpoint_mm.iter_mut())
+            .zip(self.loss_mm.iter_mut())
+        {
+            *s -= *l;
+            *sp -= *l;
+            *l = 0.0;
+        }
+    }
+
+    fn has(&self, leg: usize, pred: impl Fn(&InjectedFault) -> bool) -> bool {
+        self.faults.iter().any(|(f, _)| f.leg() == leg && pred(f))
     }
 
     /// Advances time by `dt_s`: every slider moves toward its setpoint at most
     /// `max_speed * dt`.
     pub fn step(&mut self, dt_s: f64) {
         let max_step = self.cfg.max_speed_mm_per_s * dt_s.max(0.0);
-        for (s, sp) in self.stroke_mm.iter_mut().zip(self.setpoint_mm.iter()) {
-            let d = (*sp - *s).clamp(-max_step, max_step);
-            *s += d;
+        for leg in 0..LEGS {
+            if self.has(leg, |f| matches!(f, InjectedFault::StuckSlider { .. })) {
+                continue;
+            }
+            let d = (self.setpoint_mm[leg] - self.stroke_mm[leg]).clamp(-max_step, max_step);
+            self.stroke_mm[leg] += d;
         }
         self.time_s += dt_s.max(0.0);
     }
 
-    /// True slider positions (mm).
+    /// True slider positions (mm): the drive positions less any travel lost.
     pub fn strokes_mm(&self) -> [f64; LEGS] {
-        self.stroke_mm
+        let mut s = self.stroke_mm;
+        for (v, l) in s.iter_mut().zip(self.loss_mm.iter()) {
+            *v -= l;
+        }
+        s
     }
 
     /// Simulated time (s).
@@ -95,9 +217,13 @@ impl Plant {
         self.time_s
     }
 
-    /// Whether every slider has reached its setpoint.
+    /// Whether every slider has reached its setpoint (a jammed slider counts as
+    /// settled: it will not move).
     pub fn settled(&self) -> bool {
-        self.stroke_mm == self.setpoint_mm
+        (0..LEGS).all(|leg| {
+            self.stroke_mm[leg] == self.setpoint_mm[leg]
+                || self.has(leg, |f| matches!(f, InjectedFault::StuckSlider { .. }))
+        })
     }
 
     /// The mirror's true pose: FK of the true geometry at the true strokes (f64).
@@ -106,7 +232,7 @@ impl Plant {
             max_iterations: 20,
             ..FkConfig::default()
         };
-        let sol = fk(&self.truth, &self.stroke_mm, &self.last_pose, &cfg)?;
+        let sol = fk(&self.truth, &self.strokes_mm(), &self.last_pose, &cfg)?;
         self.last_pose = sol.pose;
         Ok(sol.pose)
     }
@@ -120,13 +246,37 @@ impl Plant {
 impl StrokeEncoders for Plant {
     fn read_counts(&mut self) -> Result<[i32; LEGS], EncoderError> {
         let mut out = [0i32; LEGS];
-        for (o, s) in out.iter_mut().zip(self.stroke_mm.iter()) {
-            let noise = match &self.noise {
+        let strokes = self.strokes_mm();
+        for (leg, (o, s)) in out.iter_mut().zip(strokes.iter()).enumerate() {
+            let mut noise = match &self.noise {
                 Some(n) => n.sample(&mut self.rng),
                 None => 0.0,
             };
+            let mut offset = 0.0;
+            let mut frozen = None;
+            for (f, frozen_counts) in &self.faults {
+                if f.leg() != leg {
+                    continue;
+                }
+                match *f {
+                    InjectedFault::EncoderNoResponse { .. } => {
+                        return Err(EncoderError::NoResponse { leg: leg as u8 })
+                    }
+                    InjectedFault::EncoderCorrupted { .. } => {
+                        return Err(EncoderError::Corrupted { leg: leg as u8 })
+                    }
+                    InjectedFault::EncoderStuck { .. } => frozen = Some(*frozen_counts),
+                    InjectedFault::EncoderJump { jump_mm, .. } => offset += jump_mm,
+                    InjectedFault::NoiseBurst { sigma_mm, .. } => {
+                        if let Ok(n) = Normal::new(0.0, sigma_mm.abs()) {
+                            noise += n.sample(&mut self.rng);
+                        }
+                    }
+                    _ => {}
+                }
+            }
             // Quantisation: the encoder reports the nearest count.
-            *o = ((s + noise) / ENCODER_MM_PER_COUNT).round() as i32;
+            *o = frozen.unwrap_or(((s + offset + noise) / ENCODER_MM_PER_COUNT).round() as i32);
         }
         Ok(out)
     }
@@ -134,6 +284,8 @@ impl StrokeEncoders for Plant {
 
 impl SliderDrives for Plant {
     fn command_strokes_mm(&mut self, setpoint_mm: &[f32; LEGS]) -> Result<(), DriveError> {
+        // A faulted drive holds and refuses.
+        self.status()?;
         for (sp, c) in self.setpoint_mm.iter_mut().zip(setpoint_mm.iter()) {
             *sp = f64::from(*c);
         }
@@ -142,5 +294,16 @@ impl SliderDrives for Plant {
 
     fn hold(&mut self) {
         self.setpoint_mm = self.stroke_mm;
+    }
+
+    fn status(&mut self) -> Result<(), DriveError> {
+        match self
+            .faults
+            .iter()
+            .find(|(f, _)| matches!(f, InjectedFault::DriveFault { .. }))
+        {
+            Some((f, _)) => Err(DriveError::DriveFault { leg: f.leg() as u8 }),
+            None => Ok(()),
+        }
     }
 }

@@ -1,0 +1,335 @@
+//! Fault injection on the simulated plant, one test per fault: detection within the
+//! stated number of cycles (the supervision module's latency table), a safe stop within
+//! the motion limits, the fault in telemetry, no motion until cleared, then recovery.
+#![allow(clippy::needless_range_loop)] // index loops over six legs/axes read clearer here
+
+mod common;
+
+use common::rig::Rig;
+use m2ctl::controller::{event, State};
+use m2ctl::link::command::WirePose;
+use m2ctl::link::tm::Verification;
+use m2ctl::link::Command;
+use m2ctl::motion::{MotionLimits, CYCLE_S};
+use m2ctl::nominal::PROTOTYPE;
+use m2ctl::sim::{InjectedFault, Plant, PlantConfig};
+use m2ctl::supervision::FaultFlags;
+
+/// Cycles into the move at which the fault is injected (cruising by then).
+const INJECT_AFTER_CYCLES: u32 = 1500;
+/// Cycles a stop may take: cruise speed / deceleration at the default limits, plus margin.
+const STOP_BOUND_CYCLES: u32 = 400;
+
+struct Outcome {
+    latency_cycles: u32,
+    flags: FaultFlags,
+    stop_cycles: u32,
+}
+
+fn move_and_inject(fault: InjectedFault, expect: FaultFlags, max_latency: u32) -> (Rig, Outcome) {
+    let plant = Plant::new(
+        &PROTOTYPE,
+        PlantConfig {
+            seed: 21,
+            ..PlantConfig::default()
+        },
+    )
+    .unwrap();
+    let mut r = Rig::with_plant(plant);
+    r.run(2);
+    let mv = r.send(&Command::MoveAbsolute(WirePose {
+        translation_nm: [1_500_000, -500_000, 300_000],
+        rotation_uas: [0; 3],
+    }));
+    r.run(INJECT_AFTER_CYCLES);
+    assert_eq!(r.ctl.state(), State::Moving);
+    assert!(r.ctl.faults().is_empty());
+    r.ctl.mechanism_mut().inject(fault);
+    // Detection.
+    let mut latency = None;
+    for n in 1..=max_latency + 50 {
+        r.tick(None);
+        if !r.ctl.faults().is_empty() {
+            latency = Some(n);
+            break;
+        }
+    }
+    let latency = latency.unwrap_or_else(|| panic!("{fault:?}: not detected"));
+    let flags = r.ctl.faults();
+    assert!(
+        flags.intersects(expect),
+        "{fault:?}: flags {:#x}, expected {:#x}",
+        flags.bits(),
+        expect.bits()
+    );
+    assert!(
+        latency <= max_latency,
+        "{fault:?}: detected after {latency} cycles (bound {max_latency})"
+    );
+    // Safe stop: commanded strokes decelerate within the limits and come to rest.
+    let lim = MotionLimits::default();
+    let vmax = lim.max_speed_mm_per_s[0] as f64;
+    let mut prev = r.ctl.housekeeping().strokes_commanded_nm;
+    let mut stop_cycles = 0;
+    for n in 1..=STOP_BOUND_CYCLES {
+        r.tick(None);
+        let now = r.ctl.housekeeping().strokes_commanded_nm;
+        for i in 0..6 {
+            let v_mm_s = (now[i] - prev[i]) as f64 * 1e-6 / f64::from(CYCLE_S);
+            assert!(
+                v_mm_s.abs() <= vmax * 1.001 + 1e-3,
+                "{fault:?}: leg {i} at {v_mm_s} mm/s while stopping"
+            );
+        }
+        prev = now;
+        if r.ctl.state() == State::Faulted {
+            stop_cycles = n;
+            break;
+        }
+    }
+    assert_eq!(
+        r.ctl.state(),
+        State::Faulted,
+        "{fault:?}: not at rest after {STOP_BOUND_CYCLES} cycles"
+    );
+    // Telemetry: the fault event, housekeeping flags, the move's completion failure.
+    assert!(r
+        .st
+        .events(event::FAULT)
+        .iter()
+        .any(|a| FaultFlags::from_bits_truncate(a[0]).intersects(expect)));
+    let hk = r.hk();
+    // Consequences may latch more flags while stopping (e.g. a following error after a
+    // drive fault); the detected ones stay.
+    assert!(
+        FaultFlags::from_bits_truncate(hk.fault_flags).contains(flags),
+        "{hk:?}"
+    );
+    assert_eq!(hk.state, State::Faulted.code());
+    assert!(
+        matches!(
+            r.st.reports(mv).last(),
+            Some(Verification::CompletionFailure { code: 0x0709, .. })
+        ),
+        "{:?}",
+        r.st.reports(mv)
+    );
+    // No motion until cleared.
+    let at_rest = r.ctl.mechanism_mut().strokes_mm();
+    let refused = r.send(&Command::MoveRelative(WirePose {
+        translation_nm: [10_000, 0, 0],
+        rotation_uas: [0; 3],
+    }));
+    assert!(
+        matches!(
+            r.st.reports(refused)[..],
+            [_, Verification::StartFailure { code: 0x0701, .. }]
+        ),
+        "{:?}",
+        r.st.reports(refused)
+    );
+    r.run(500);
+    let still = r.ctl.mechanism_mut().strokes_mm();
+    for i in 0..6 {
+        assert!(
+            (still[i] - at_rest[i]).abs() < 1e-9,
+            "{fault:?}: leg {i} moved while faulted"
+        );
+    }
+    (
+        r,
+        Outcome {
+            latency_cycles: latency,
+            flags,
+            stop_cycles,
+        },
+    )
+}
+
+/// Repairs the plant, clears by telecommand, and proves a move works again.
+fn recover(r: &mut Rig) {
+    r.ctl.mechanism_mut().clear_faults();
+    r.run(5);
+    let clr = r.send(&Command::ClearFault);
+    assert!(
+        matches!(
+            r.st.reports(clr).last(),
+            Some(Verification::CompletionSuccess)
+        ),
+        "{:?}",
+        r.st.reports(clr)
+    );
+    assert_eq!(r.ctl.state(), State::Idle);
+    let mv = r.send(&Command::MoveRelative(WirePose {
+        translation_nm: [-20_000, 0, 0],
+        rotation_uas: [0; 3],
+    }));
+    r.settle(20_000);
+    assert!(
+        matches!(
+            r.st.reports(mv).last(),
+            Some(Verification::CompletionSuccess)
+        ),
+        "{:?}",
+        r.st.reports(mv)
+    );
+}
+
+fn report(name: &str, o: &Outcome) {
+    println!(
+        "{name:<22} detected after {:>3} cycles, flags {:#06x}, at rest {:>3} cycles later",
+        o.latency_cycles,
+        o.flags.bits(),
+        o.stop_cycles
+    );
+}
+
+#[test]
+fn encoder_no_response() {
+    let (mut r, o) = move_and_inject(
+        InjectedFault::EncoderNoResponse { leg: 2 },
+        FaultFlags::ENCODER_READ_FAILURE,
+        1,
+    );
+    report("encoder no response", &o);
+    // The condition persists: clearing is refused.
+    let clr = r.send(&Command::ClearFault);
+    assert!(
+        matches!(
+            r.st.reports(clr)[..],
+            [_, Verification::StartFailure { code: 0x0703, .. }]
+        ),
+        "{:?}",
+        r.st.reports(clr)
+    );
+    recover(&mut r);
+}
+
+#[test]
+fn encoder_corrupted() {
+    let (mut r, o) = move_and_inject(
+        InjectedFault::EncoderCorrupted { leg: 0 },
+        FaultFlags::ENCODER_READ_FAILURE,
+        1,
+    );
+    report("encoder corrupted", &o);
+    recover(&mut r);
+}
+
+#[test]
+fn encoder_jump() {
+    let (mut r, o) = move_and_inject(
+        InjectedFault::EncoderJump {
+            leg: 4,
+            jump_mm: 0.5,
+        },
+        FaultFlags::ENCODER_JUMP,
+        1,
+    );
+    report("encoder jump", &o);
+    recover(&mut r);
+}
+
+#[test]
+fn encoder_stuck() {
+    // Stuck window 200 cycles after the last 1 um of progress (5 cycles at 0.2 mm/s).
+    let (mut r, o) = move_and_inject(
+        InjectedFault::EncoderStuck { leg: 1 },
+        FaultFlags::ENCODER_STUCK | FaultFlags::FOLLOWING_ERROR,
+        210,
+    );
+    report("encoder stuck", &o);
+    recover(&mut r);
+}
+
+#[test]
+fn stuck_slider() {
+    let (mut r, o) = move_and_inject(
+        InjectedFault::StuckSlider { leg: 3 },
+        FaultFlags::ENCODER_STUCK | FaultFlags::FOLLOWING_ERROR,
+        210,
+    );
+    report("stuck slider", &o);
+    recover(&mut r);
+}
+
+#[test]
+fn missed_steps() {
+    // 0.1 mm lost at once: above the 0.05 mm following-error threshold, debounce 3.
+    let (mut r, o) = move_and_inject(
+        InjectedFault::MissedSteps {
+            leg: 5,
+            lost_mm: 0.1,
+        },
+        FaultFlags::FOLLOWING_ERROR,
+        3,
+    );
+    report("missed steps", &o);
+    recover(&mut r);
+}
+
+#[test]
+fn noise_burst() {
+    let (mut r, o) = move_and_inject(
+        InjectedFault::NoiseBurst {
+            leg: 2,
+            sigma_mm: 0.3,
+        },
+        FaultFlags::ENCODER_JUMP | FaultFlags::FOLLOWING_ERROR,
+        3,
+    );
+    report("noise burst", &o);
+    recover(&mut r);
+}
+
+#[test]
+fn drive_fault() {
+    let (mut r, o) = move_and_inject(
+        InjectedFault::DriveFault { leg: 1 },
+        FaultFlags::DRIVE_FAULT,
+        2,
+    );
+    report("drive fault", &o);
+    recover(&mut r);
+}
+
+#[test]
+fn small_noise_and_quantisation_raise_no_false_alarm_over_many_moves() {
+    let plant = Plant::new(
+        &m2ctl::sim::manufacturing::perturbed(&PROTOTYPE, 0.1, 5),
+        PlantConfig {
+            seed: 8,
+            ..PlantConfig::default()
+        },
+    )
+    .unwrap();
+    let mut r = Rig::with_plant(plant);
+    r.run(2);
+    let targets = [
+        [1_800_000, 0, 0, 0, 0, 0],
+        [0, -1_900_000, 500_000, 500_000_000, 0, 0],
+        [
+            -1_000_000,
+            1_000_000,
+            -1_500_000,
+            0,
+            -550_000_000,
+            300_000_000,
+        ],
+        [0; 6],
+    ];
+    for t in targets {
+        let mv = r.send(&Command::MoveAbsolute(WirePose::from_array(t)));
+        r.settle(100_000);
+        assert!(
+            matches!(
+                r.st.reports(mv).last(),
+                Some(Verification::CompletionSuccess)
+            ),
+            "{:?}",
+            r.st.reports(mv)
+        );
+    }
+    assert!(r.ctl.faults().is_empty());
+    assert!(r.st.events(event::FAULT).is_empty() && r.st.events(event::WARNING).is_empty());
+}
