@@ -1,29 +1,44 @@
 #!/usr/bin/env bash
-# Firmware figures on the emulated Cortex-M4F (mps2-an386): instruction counts of IK and
-# of FK warm-started within 10 um (shared/tools/qemu-insncount), image sizes, stack peak.
-# A benchmark, not a test: it prints figures. Run after scripts/qemu-selftest.sh or alone.
+# Firmware figures on the emulated Cortex-M4F (mps2-an386), measured with
+# shared/tools/qemu-insncount: IK, FK warm-started within 10 um, whole control cycles,
+# image sizes and stack peaks. A benchmark, not a test: it prints figures.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-ELF=target/thumbv7em-none-eabihf/release/m2selftest
+D=target/thumbv7em-none-eabihf/release
 TOOL=${QEMU_INSNCOUNT:-../shared/tools/qemu-insncount}
 export DEFMT_LOG=${DEFMT_LOG:-info}
-cargo build --release --target thumbv7em-none-eabihf --features firmware --bin m2selftest
+cargo build --release --target thumbv7em-none-eabihf --features firmware --bins
 # The tool's directory may be read-only: build the plugin in a scratch copy.
 work=$(mktemp -d)
 cp "$TOOL"/* "$work"/ && chmod -R u+w "$work"
 "$work/build.sh" >/dev/null
-out=$("$work/count.sh" "$ELF" 2>&1 >/dev/null | tr -cd '[:print:]\n' | grep -E "^(BENCH|TOTAL)" || true)
-[ -n "$out" ] || out=$("$work/count.sh" "$ELF" 2>/dev/null | tr -cd '[:print:]\n' | grep -E "BENCH|TOTAL")
-echo "$out"
-empty=$(echo "$out" | awk -F'insns=' '/BENCH n=1 /{print $2}')
-ik=$(echo "$out" | awk -F'insns=' '/BENCH n=2 /{print $2}')
-fk=$(echo "$out" | awk -F'insns=' '/BENCH n=3 /{print $2}')
-echo "IK (one pose, six strokes, all checks):        $((ik - empty)) instructions (goal <= 1000)"
-echo "FK (warm start within 10 um, with residual):   $((fk - empty)) instructions (goal <= 8000)"
-read -r text data bss _ < <(arm-none-eabi-size "$ELF" | tail -1)
-echo "flash (text + data):                           $((text + data)) bytes (goal <= 65536)"
-timeout 120 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none -serial none \
-  -semihosting-config enable=on,target=native -kernel "$ELF" > "$work/run.bin" || true
-stack=$(defmt-print -e "$ELF" < "$work/run.bin" | sed -n 's/.*STACK peak_bytes=\([0-9]*\).*/\1/p')
-echo "RAM (data + bss + measured stack peak):        $((data + bss + stack)) bytes = $data + $bss + $stack (goal <= 16384)"
+count() { "$work/count.sh" "$1" 2>&1 | tr -cd '[:print:]\n' | grep -E "^(BENCH|TOTAL)" || true; }
+pick() { echo "$1" | awk -F'insns=' -v k="$2" '$0 ~ "BENCH n="k" " {print $2}'; }
+run_log() {
+  timeout 120 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none -serial none \
+    -semihosting-config enable=on,target=native -kernel "$1" > "$work/run.bin" || true
+  defmt-print -e "$1" < "$work/run.bin"
+}
+sizes() { arm-none-eabi-size "$1" | tail -1; }
+
+k=$(count "$D/m2selftest"); echo "$k"
+e=$(pick "$k" 1)
+echo "IK (one pose, six strokes, all checks):          $(( $(pick "$k" 2) - e )) instructions (goal <= 1000)"
+echo "FK (warm start within 10 um, with residual):     $(( $(pick "$k" 3) - e )) instructions (goal <= 8000)"
+read -r text data bss _ < <(sizes "$D/m2selftest")
+stack=$(run_log "$D/m2selftest" | sed -n 's/.*STACK peak_bytes=\([0-9]*\).*/\1/p')
+echo "self-test image flash (text + data):             $((text + data)) bytes (goal <= 65536)"
+echo "self-test image RAM (data + bss + stack peak):   $((data + bss + stack)) bytes = $data + $bss + $stack (goal <= 16384)"
+
+c=$(count "$D/m2cyclebench"); echo "$c"
+e=$(pick "$c" 1)
+echo "control cycle, steady during a move (3 cycles):  $(( $(pick "$c" 3) - e )), $(( $(pick "$c" 4) - e )), $(( $(pick "$c" 5) - e )) instructions (goal <= 20000)"
+echo "control cycle that decodes and plans a move:     $(( $(pick "$c" 2) - e )) instructions"
+echo "control cycle that also emits housekeeping:      $(( $(pick "$c" 6) - e )) instructions"
+log=$(run_log "$D/m2cyclebench")
+cstack=$(echo "$log" | sed -n 's/.*STACK peak_bytes=\([0-9]*\).*/\1/p')
+csize=$(echo "$log" | sed -n 's/.*CONTROLLER size_bytes=\([0-9]*\).*/\1/p')
+read -r ftext fdata fbss _ < <(sizes "$D/m2fw")
+echo "flight image m2fw flash (text + data):           $((ftext + fdata)) bytes"
+echo "controller RAM: struct $csize bytes; stack peak of the cycle benchmark $cstack bytes; data + bss of m2fw $((fdata + fbss)) bytes"
 rm -rf "$work"
