@@ -1,16 +1,21 @@
 #!/usr/bin/env bash
-# The main job, one command on a fresh machine: installs the prerequisites, builds the
-# flight firmware, runs its self-test on the emulated Cortex-M4F (QEMU mps2-an386) and
-# checks the target's f32 results bit for bit against the host's, prints the firmware
-# figures (instruction counts, image sizes, stack), and runs the ground tool's IK/FK
-# on the reference poses.
+# The main job, one command on a fresh machine:
+#  1. installs the prerequisites (scripts/setup.sh);
+#  2. the mission story on the simulated plant (m2ground mission): a mechanism with
+#     manufacturing errors, the real controller moving to targets by telecommand, a
+#     calibration campaign, ground calibration (improved cuckoo search + LM), the table
+#     uploaded/validated/activated by telecommand, the targets again; summary + plot;
+#  3. the flight firmware on the emulated Cortex-M4F: kinematics self-test (target bits
+#     == host bits), then the flight image driven over its UART;
+#  4. the firmware figures (instruction counts, sizes, stack).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
-scripts/qemu-selftest.sh
-scripts/bench.sh
+mkdir -p target/mission
 cargo build --release --features host --bin m2ground
-mkdir -p target/demo
-target/release/m2ground ik --geometry testdata/geometry.toml --input testdata/ik_golden.csv --output target/demo/ik.csv
-target/release/m2ground fk --geometry testdata/geometry.toml --input target/demo/ik.csv --output target/demo/fk.csv
-echo "ground tool: target/demo/ik.csv (strokes of the reference poses), target/demo/fk.csv (poses back)"
+target/release/m2ground mission --plot target/mission/errors.svg "$@"
+scripts/qemu-selftest.sh
+scripts/qemu-link-test.sh
+scripts/bench.sh
+echo
+echo "main: mission plot target/mission/errors.svg; all steps passed"

@@ -48,6 +48,64 @@ enum Cmd {
     CompareCuckoo(CompareCli),
     /// Encode telecommands (framed PUS-C packets, docs/icd.md) as hex lines or binary.
     Tc(TcCli),
+    /// The whole mission story on the simulated plant: move, calibrate, upload, move again.
+    Mission(MissionCli),
+}
+
+#[derive(clap::Args)]
+struct MissionCli {
+    /// Seed of the manufacturing errors, tracker noise, targets and solver.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Number of operator targets.
+    #[arg(long, default_value_t = m2ctl::ground::mission::DEFAULT_TARGETS)]
+    targets: usize,
+    /// Manufacturing error of each joint coordinate (mm, standard deviation).
+    #[arg(long, default_value_t = m2ctl::ground::mission::DEFAULT_MANUFACTURING_SIGMA_MM)]
+    sigma_mm: f64,
+    /// Tracker noise: "paper" (0.1 um, 0.1 arcsec) or "realistic" (5 um, 1 arcsec).
+    #[arg(long, default_value = "paper")]
+    tracker: String,
+    /// Calibration solver: lm, smcs, improved, improved+lm.
+    #[arg(long, default_value = "improved+lm")]
+    solver: String,
+    /// Write the per-target error plot (SVG) here.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// No progress bars.
+    #[arg(long)]
+    quiet: bool,
+}
+
+fn mission_cmd(a: &MissionCli) -> Result<(), String> {
+    use m2ctl::ground::calib::SolverKind;
+    use m2ctl::ground::campaign::Tracker;
+    use m2ctl::ground::mission::{format_summary, run_mission, MissionConfig};
+    let tracker = match a.tracker.as_str() {
+        "paper" => Tracker::PAPER,
+        "realistic" => Tracker::REALISTIC,
+        other => {
+            return Err(format!(
+                "--tracker: '{other}' is neither 'paper' nor 'realistic'"
+            ))
+        }
+    };
+    let solver = SolverKind::parse(&a.solver)
+        .ok_or_else(|| format!("--solver: unknown solver '{}'", a.solver))?;
+    let mut cfg = MissionConfig {
+        seed: a.seed,
+        n_targets: a.targets,
+        manufacturing_sigma_mm: a.sigma_mm,
+        tracker,
+        plot: a.plot.clone(),
+        progress: !a.quiet,
+        ..MissionConfig::default()
+    };
+    cfg.calib.solver = solver;
+    let report = run_mission(&cfg, &mut |line: &str| println!("{line}"))?;
+    println!();
+    print!("{}", format_summary(&report));
+    Ok(())
 }
 
 #[derive(clap::Args)]
@@ -455,6 +513,7 @@ fn main() -> ExitCode {
                 compare_cuckoo(&table_config(&a.solver_cli, None), a.seeds).map(|t| print!("{t}"))
             }
             Cmd::Tc(a) => tc_cmd(a),
+            Cmd::Mission(a) => mission_cmd(a),
             Cmd::Bench(a) => {
                 bench(&table_config(&a.solver_cli, None), a.repeats).map(|t| print!("{t}"))
             }

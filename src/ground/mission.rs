@@ -1,0 +1,486 @@
+//! The mission story, end to end on the simulated plant (`m2ground mission`):
+//!
+//! 1. a mechanism with manufacturing errors (the "true" geometry) and the controller,
+//!    running its real code, booted on the nominal table;
+//! 2. the operator moves the mirror to a set of targets by telecommand; a simulated
+//!    laser tracker measures where it really went (pose error before calibration);
+//! 3. a calibration campaign: the paper's sampling plan, each pose commanded by
+//!    telecommand, the tracker's pose and the encoder strokes (from housekeeping
+//!    telemetry) recorded;
+//! 4. ground calibration: the improved cuckoo search followed by Levenberg-Marquardt;
+//! 5. the calibrated table uploaded by telecommands (chunks, commit with CRC-32),
+//!    validated on board and activated;
+//! 6. the same targets again: pose error after calibration;
+//! 7. a summary table and a plot.
+//!
+//! Everything the controller sees arrives as framed PUS telecommands and everything the
+//! ground learns comes from telemetry or the tracker, as in operations.
+
+use std::path::PathBuf;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use rand::SeedableRng;
+use rand_pcg::Pcg64;
+
+use super::calib::{calibrate, CalibConfig, CalibResult, Measurement, SolverKind};
+use super::campaign::Tracker;
+use super::eval::{random_poses, Accuracy};
+use super::plan::{plan_poses, PlanConfig};
+use crate::controller::{Controller, ControllerConfig, State};
+use crate::kinematics::{Pose, ARCSEC_PER_RAD, LEGS};
+use crate::link::framing::Deframer;
+use crate::link::tc::{encode_telecommand, TcHeader};
+use crate::link::tm::{dump_chunks, parse_tm, TmReport, Verification};
+use crate::link::{Command, Housekeeping, RequestId, TableChunk, WirePose, MAX_TC_PACKET_LEN};
+use crate::motion::CYCLE_S;
+use crate::sim::manufacturing::perturbed;
+use crate::sim::{Plant, PlantConfig};
+use crate::table::mock_flash::MockFlash;
+use crate::table::{Provenance, Table, TableStore, DEFAULT_SUPERVISION, FLIGHT_LAYOUT};
+
+/// Micrometres per millimetre.
+const UM_PER_MM: f64 = 1.0e3;
+/// Nanometres per millimetre.
+const NM_PER_MM: f64 = 1.0e6;
+/// Size of the mock flash (bytes): the board's 4 MiB.
+const FLASH_BYTES: usize = 0x40_0000;
+/// Most cycles one telecommand may take to complete (a move across the workspace at
+/// the default 0.2 mm/s is well under this).
+const MAX_CYCLES_PER_COMMAND: u32 = 200_000;
+/// Cycles to wait after arrival before a measurement (drives settled, encoders fresh).
+const SETTLE_CYCLES: u32 = 20;
+/// Table ID of the uploaded calibrated table.
+const CALIBRATED_TABLE_ID: u32 = 1;
+/// Provenance tag of the calibrated table (16 ASCII bytes).
+const PROVENANCE_TAG: [u8; 16] = *b"MISSION-DEMO-IMP";
+
+/// Settings of the mission demo.
+#[derive(Clone, Debug)]
+pub struct MissionConfig {
+    /// Seed of the manufacturing errors, the tracker noise, the targets and the solver.
+    pub seed: u64,
+    /// Standard deviation of each joint coordinate's manufacturing error (mm).
+    pub manufacturing_sigma_mm: f64,
+    /// Laser-tracker noise.
+    pub tracker: Tracker,
+    /// Number of operator targets.
+    pub n_targets: usize,
+    /// Targets are drawn uniformly within +- this translation (mm)...
+    pub target_translation_mm: f64,
+    /// ...and +- this rotation (arcsec).
+    pub target_rotation_arcsec: f64,
+    /// The calibration sampling plan.
+    pub plan: PlanConfig,
+    /// Calibration settings (solver: improved+lm by default).
+    pub calib: CalibConfig,
+    /// Show progress bars.
+    pub progress: bool,
+    /// Write the per-target error plot here (SVG).
+    pub plot: Option<PathBuf>,
+}
+
+/// Default number of operator targets.
+pub const DEFAULT_TARGETS: usize = 20;
+/// Default target range in translation (mm): the paper's +-1 mm stroke.
+pub const DEFAULT_TARGET_TRANSLATION_MM: f64 = 1.0;
+/// Default target range in rotation (arcsec): the paper's +-1 arcmin.
+pub const DEFAULT_TARGET_ROTATION_ARCSEC: f64 = 60.0;
+/// Default manufacturing error (mm).
+pub const DEFAULT_MANUFACTURING_SIGMA_MM: f64 = 0.1;
+
+impl Default for MissionConfig {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            manufacturing_sigma_mm: DEFAULT_MANUFACTURING_SIGMA_MM,
+            tracker: Tracker::PAPER,
+            n_targets: DEFAULT_TARGETS,
+            target_translation_mm: DEFAULT_TARGET_TRANSLATION_MM,
+            target_rotation_arcsec: DEFAULT_TARGET_ROTATION_ARCSEC,
+            plan: PlanConfig::default(),
+            calib: CalibConfig {
+                solver: SolverKind::ImprovedLm,
+                ..CalibConfig::default()
+            },
+            progress: true,
+            plot: None,
+        }
+    }
+}
+
+/// What the mission measured.
+#[derive(Clone, Debug)]
+pub struct MissionReport {
+    /// Tracker-measured pose error at the targets with the nominal table.
+    pub before: Accuracy,
+    /// The same targets with the calibrated table.
+    pub after: Accuracy,
+    /// The calibration run.
+    pub calib: CalibResult,
+    /// Calibration measurements taken.
+    pub n_measurements: usize,
+    /// Telecommands sent and telemetry packets received.
+    pub tc_sent: usize,
+    /// Telemetry packets received.
+    pub tm_received: usize,
+    /// Simulated time (s).
+    pub sim_time_s: f64,
+    /// CRC-32 of the table that became active.
+    pub table_crc32: u32,
+}
+
+/// The ground side of the link: numbers and frames telecommands, parses telemetry.
+struct Ground {
+    seq: u16,
+    deframer: Deframer,
+    reports: Vec<(RequestId, Verification)>,
+    last_hk: Option<Housekeeping>,
+    tm_received: usize,
+    tc_sent: usize,
+    bad_tm: usize,
+}
+
+impl Ground {
+    fn receive(&mut self, frame_bytes: &[u8]) {
+        for &b in frame_bytes {
+            if let Some(frame) = self.deframer.push_byte(b) {
+                let Ok(f) = frame else {
+                    self.bad_tm += 1;
+                    continue;
+                };
+                match parse_tm(f) {
+                    Ok(tm) => {
+                        self.tm_received += 1;
+                        match tm.report {
+                            TmReport::Verification { request_id, report } => {
+                                self.reports.push((request_id, report))
+                            }
+                            TmReport::Housekeeping(h) => self.last_hk = Some(h),
+                            _ => {}
+                        }
+                    }
+                    Err(_) => self.bad_tm += 1,
+                }
+            }
+        }
+    }
+}
+
+/// Controller + plant + ground, ticked together.
+struct Mission {
+    ctl: Controller<Plant, MockFlash>,
+    ground: Ground,
+    cycles: u64,
+}
+
+impl Mission {
+    fn tick(&mut self, packet: Option<&[u8]>) {
+        self.ctl.mechanism_mut().step(f64::from(CYCLE_S));
+        let g = &mut self.ground;
+        self.ctl.tick(packet, &mut |f: &[u8]| g.receive(f));
+        self.cycles += 1;
+    }
+
+    /// Sends a telecommand and runs until its completion report (success or failure).
+    fn command(&mut self, cmd: &Command) -> Result<(), String> {
+        let mut buf = [0u8; MAX_TC_PACKET_LEN];
+        let n = encode_telecommand(cmd, TcHeader::new(self.ground.seq), &mut buf)
+            .map_err(|e| format!("encoding {cmd:?}: {e:?}"))?;
+        self.ground.seq = (self.ground.seq + 1) & 0x3fff;
+        let pkt = buf.get(..n).ok_or("encoded length")?.to_vec();
+        let rid = RequestId::from_packet(&pkt).ok_or("request id")?;
+        self.ground.tc_sent += 1;
+        self.tick(Some(&pkt));
+        for _ in 0..MAX_CYCLES_PER_COMMAND {
+            for (r, v) in self.ground.reports.iter().filter(|(r, _)| *r == rid) {
+                let _ = r;
+                match v {
+                    Verification::CompletionSuccess => return Ok(()),
+                    Verification::AcceptanceFailure { code, data }
+                    | Verification::StartFailure { code, data }
+                    | Verification::CompletionFailure { code, data } => {
+                        return Err(format!("{cmd:?} failed: code {code:#06x} data {data:#x}"))
+                    }
+                    _ => {}
+                }
+            }
+            self.tick(None);
+        }
+        Err(format!(
+            "{cmd:?}: no completion after {MAX_CYCLES_PER_COMMAND} cycles"
+        ))
+    }
+
+    fn settle(&mut self) {
+        for _ in 0..SETTLE_CYCLES {
+            self.tick(None);
+        }
+    }
+
+    fn move_to(&mut self, target: &Pose<f64>) -> Result<(), String> {
+        self.command(&Command::MoveAbsolute(WirePose::from_pose(target)))?;
+        self.settle();
+        if self.ctl.state() != State::Idle {
+            return Err(format!("not idle after a move: {:?}", self.ctl.state()));
+        }
+        Ok(())
+    }
+
+    /// Strokes from a housekeeping report (what the ground knows of the encoders).
+    fn strokes_from_hk(&mut self) -> Result<[f64; LEGS], String> {
+        self.command(&Command::HousekeepingOneShot)?;
+        let hk = self.ground.last_hk.ok_or("no housekeeping received")?;
+        Ok(hk.encoders_nm.map(|v| f64::from(v) / NM_PER_MM))
+    }
+}
+
+fn accuracy_of(errors: Vec<[f64; 6]>) -> Accuracy {
+    let mut max_abs = [0.0f64; 6];
+    let mut sum_sq = [0.0f64; 6];
+    for e in &errors {
+        for k in 0..6 {
+            max_abs[k] = max_abs[k].max(e[k].abs());
+            sum_sq[k] += e[k] * e[k];
+        }
+    }
+    let n = errors.len().max(1) as f64;
+    Accuracy {
+        rms: sum_sq.map(|s| (s / n).sqrt()),
+        max_abs,
+        errors,
+    }
+}
+
+fn pose_error(measured: &Pose<f64>, target: &Pose<f64>) -> [f64; 6] {
+    let mut e = [0.0; 6];
+    for k in 0..3 {
+        e[k] = (measured.translation_mm[k] - target.translation_mm[k]) * UM_PER_MM;
+        e[k + 3] = (measured.rotation_rad[k] - target.rotation_rad[k]) * ARCSEC_PER_RAD;
+    }
+    e
+}
+
+fn bar(show: bool, len: u64, msg: &'static str) -> ProgressBar {
+    if !show {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(len);
+    if let Ok(style) = ProgressStyle::with_template("{msg:<34} [{bar:30}] {pos}/{len} {elapsed}") {
+        pb.set_style(style.progress_chars("=> "));
+    }
+    pb.set_message(msg);
+    pb
+}
+
+/// Moves to each target and returns the tracker-measured errors.
+fn visit_targets(
+    m: &mut Mission,
+    targets: &[Pose<f64>],
+    tracker: &Tracker,
+    rng: &mut Pcg64,
+    pb: &ProgressBar,
+) -> Result<Accuracy, String> {
+    let mut errors = Vec::with_capacity(targets.len());
+    for t in targets {
+        m.move_to(t)?;
+        let truth = m
+            .ctl
+            .mechanism_mut()
+            .true_pose()
+            .map_err(|e| format!("true pose: {e:?}"))?;
+        errors.push(pose_error(&tracker.measure(&truth, rng), t));
+        pb.inc(1);
+    }
+    pb.finish();
+    Ok(accuracy_of(errors))
+}
+
+/// Runs the whole story; `log` receives the narrative lines.
+pub fn run_mission(
+    cfg: &MissionConfig,
+    log: &mut dyn FnMut(&str),
+) -> Result<MissionReport, String> {
+    let nominal = Table::nominal();
+    let nominal_params = nominal.geometry_params();
+    let truth = perturbed(&nominal_params, cfg.manufacturing_sigma_mm, cfg.seed);
+    log(&format!(
+        "1. mechanism: nominal prototype with manufacturing errors (sigma {} mm, seed {}); controller booted on the nominal table",
+        cfg.manufacturing_sigma_mm, cfg.seed
+    ));
+    let plant = Plant::new(
+        &truth,
+        PlantConfig {
+            seed: cfg.seed,
+            ..PlantConfig::default()
+        },
+    )
+    .map_err(|e| format!("true geometry: {e:?}"))?;
+    let store = TableStore::new(MockFlash::new(FLASH_BYTES), FLIGHT_LAYOUT)
+        .map_err(|(_, e)| format!("store: {e:?}"))?;
+    let mut m = Mission {
+        ctl: Controller::new(plant, store, ControllerConfig::default()),
+        ground: Ground {
+            seq: 0,
+            deframer: Deframer::new(),
+            reports: Vec::new(),
+            last_hk: None,
+            tm_received: 0,
+            tc_sent: 0,
+            bad_tm: 0,
+        },
+        cycles: 0,
+    };
+    m.tick(None);
+    let mut rng = Pcg64::seed_from_u64(cfg.seed ^ 0x5eed_7a46_e75a_11ce);
+    let targets = random_poses(
+        cfg.n_targets,
+        cfg.target_translation_mm,
+        cfg.target_rotation_arcsec,
+        cfg.seed.wrapping_add(1),
+    );
+
+    let pb = bar(
+        cfg.progress,
+        targets.len() as u64,
+        "2. targets, nominal table",
+    );
+    let before = visit_targets(&mut m, &targets, &cfg.tracker, &mut rng, &pb)?;
+    log(&format!(
+        "2. {} targets with the nominal table: max error {:.3} um, {:.3} arcsec (tracker noise {} um, {} arcsec)",
+        targets.len(),
+        before.max_um(),
+        before.max_arcsec(),
+        cfg.tracker.noise_um,
+        cfg.tracker.noise_arcsec
+    ));
+
+    let plan = plan_poses(&cfg.plan);
+    let pb = bar(cfg.progress, plan.len() as u64, "3. calibration campaign");
+    let mut meas = Vec::with_capacity(plan.len());
+    for (k, p) in plan.iter().enumerate() {
+        m.move_to(p)?;
+        let strokes_mm = m.strokes_from_hk()?;
+        let truth_pose = m
+            .ctl
+            .mechanism_mut()
+            .true_pose()
+            .map_err(|e| format!("true pose: {e:?}"))?;
+        meas.push(Measurement {
+            line: k + 1,
+            pose: cfg.tracker.measure(&truth_pose, &mut rng),
+            strokes_mm,
+        });
+        pb.inc(1);
+    }
+    pb.finish();
+    log(&format!(
+        "3. campaign: {} poses of the paper's sampling plan, tracker pose + encoder strokes from housekeeping",
+        meas.len()
+    ));
+
+    let mut ccfg = cfg.calib.clone();
+    ccfg.seed = cfg.seed;
+    ccfg.progress = cfg.progress;
+    let calib =
+        calibrate(&nominal_params, &meas, &ccfg).map_err(|e| format!("calibration: {e}"))?;
+    log(&format!(
+        "4. calibration ({}): residual RMS {:.4} um -> {:.4} um, condition {:.2e}, {} evaluations, {:.2} s",
+        ccfg.solver.name(),
+        calib.rms_before_mm * UM_PER_MM,
+        calib.rms_after_mm * UM_PER_MM,
+        calib.condition(),
+        calib.evaluations,
+        calib.elapsed.as_secs_f64()
+    ));
+
+    let table = Table::from_geometry(
+        &calib.params,
+        CALIBRATED_TABLE_ID,
+        Provenance {
+            calibration_id: u32::try_from(cfg.seed & u64::from(u32::MAX)).unwrap_or(0),
+            tag: PROVENANCE_TAG,
+        },
+        DEFAULT_SUPERVISION,
+    )
+    .map_err(|e| format!("table: {e:?}"))?;
+    let bytes = table.to_bytes();
+    let chunks: Vec<(u16, Vec<u8>)> = dump_chunks(&bytes).map(|(o, b)| (o, b.to_vec())).collect();
+    for (off, data) in &chunks {
+        let chunk = TableChunk::new(*off, data).map_err(|e| format!("chunk: {e:?}"))?;
+        m.command(&Command::LoadTableChunk(chunk))?;
+    }
+    m.command(&Command::CommitTable {
+        crc32: table.crc32(),
+    })?;
+    m.command(&Command::ActivateTable)?;
+    let hk_table = {
+        m.command(&Command::HousekeepingOneShot)?;
+        m.ground
+            .last_hk
+            .map(|h| (h.active_table_id, h.active_table_crc32))
+    };
+    if hk_table != Some((CALIBRATED_TABLE_ID, table.crc32())) {
+        return Err(format!("the calibrated table is not active: {hk_table:?}"));
+    }
+    log(&format!(
+        "5. table {} uploaded in {} chunks, committed (CRC-32 {:#010x}), validated on board, activated",
+        CALIBRATED_TABLE_ID,
+        chunks.len(),
+        table.crc32()
+    ));
+
+    let pb = bar(
+        cfg.progress,
+        targets.len() as u64,
+        "6. targets, calibrated table",
+    );
+    let after = visit_targets(&mut m, &targets, &cfg.tracker, &mut rng, &pb)?;
+    log(&format!(
+        "6. the same targets with the calibrated table: max error {:.3} um, {:.3} arcsec",
+        after.max_um(),
+        after.max_arcsec()
+    ));
+    if m.ground.bad_tm != 0 {
+        return Err(format!(
+            "{} telemetry frames did not parse",
+            m.ground.bad_tm
+        ));
+    }
+    if let Some(path) = &cfg.plot {
+        super::report::plot_per_pose(
+            path,
+            &[("nominal table", &before), ("calibrated table", &after)],
+        )?;
+        log(&format!("7. plot: {}", path.display()));
+    }
+    Ok(MissionReport {
+        before,
+        after,
+        calib,
+        n_measurements: meas.len(),
+        tc_sent: m.ground.tc_sent,
+        tm_received: m.ground.tm_received,
+        sim_time_s: m.cycles as f64 * f64::from(CYCLE_S),
+        table_crc32: table.crc32(),
+    })
+}
+
+/// The summary table: max and RMS error per axis before and after.
+pub fn format_summary(r: &MissionReport) -> String {
+    let mut s = String::new();
+    s.push_str("| table | | x um | y um | z um | alpha arcsec | beta arcsec | gamma arcsec |\n");
+    s.push_str("|---|---|---|---|---|---|---|---|\n");
+    for (name, a) in [("nominal", &r.before), ("calibrated", &r.after)] {
+        for (what, v) in [("max", &a.max_abs), ("RMS", &a.rms)] {
+            s.push_str(&format!(
+                "| {name} | {what} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} |\n",
+                v[0], v[1], v[2], v[3], v[4], v[5]
+            ));
+        }
+    }
+    s.push_str(&format!(
+        "\n{} calibration poses, {} telecommands, {} telemetry packets, {:.1} s of simulated time\n",
+        r.n_measurements, r.tc_sent, r.tm_received, r.sim_time_s
+    ));
+    s
+}
