@@ -114,6 +114,7 @@ fn refused_moves_change_nothing_and_report_every_reason() {
     assert_eq!(r.ctl.mechanism_mut().strokes_mm(), before);
     assert_eq!(r.ctl.state(), State::Idle);
     assert_eq!(r.hk().refusal_bits, data);
+    assert_eq!(r.st.events(event::MOVE_REFUSED).last(), Some(&[data, 0x0604]));
 }
 
 #[test]
@@ -284,6 +285,8 @@ fn bad_uploads_are_refused_and_the_active_table_stays() {
     let hk = r.hk();
     assert_eq!(hk.active_table_crc32, nominal_crc);
     assert_eq!(hk.active_table_id, 0);
+    // Every refusal of a table command was also an event.
+    assert_eq!(r.st.events(event::TABLE_REJECTED).len(), 5);
 }
 
 #[test]

@@ -95,7 +95,7 @@ fn move_and_inject(fault: InjectedFault, expect: FaultFlags, max_latency: u32) -
     // Telemetry: the fault event, housekeeping flags, the move's completion failure.
     assert!(r
         .st
-        .events(event::FAULT)
+        .events(event::FAULT_LATCHED)
         .iter()
         .any(|a| FaultFlags::from_bits_truncate(a[0]).intersects(expect)));
     let hk = r.hk();
@@ -331,5 +331,5 @@ fn small_noise_and_quantisation_raise_no_false_alarm_over_many_moves() {
         );
     }
     assert!(r.ctl.faults().is_empty());
-    assert!(r.st.events(event::FAULT).is_empty() && r.st.events(event::WARNING).is_empty());
+    assert!(r.st.events(event::FAULT_LATCHED).is_empty() && r.st.events(event::WARNING_CHANGED).is_empty());
 }

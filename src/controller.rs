@@ -47,25 +47,8 @@ const UPLOAD_BITMAP_LEN: usize = TABLE_LEN.div_ceil(8);
 /// Nanometres per millimetre (telemetry).
 const NM_PER_MM: f32 = 1.0e6;
 
-/// Event IDs of service 5 (aux words in brackets).
-pub mod event {
-    /// Controller booted [boot flags, boot source code].
-    pub const BOOT: u16 = 0x0001;
-    /// State changed [old state code, new state code].
-    pub const STATE_CHANGE: u16 = 0x0002;
-    /// Fault latched [new fault flags, legs mask].
-    pub const FAULT: u16 = 0x0010;
-    /// Faults cleared by telecommand [cleared flags, 0].
-    pub const FAULT_CLEARED: u16 = 0x0011;
-    /// Warning set changed [warning flags, legs mask].
-    pub const WARNING: u16 = 0x0012;
-    /// A table became active [table ID, table CRC-32].
-    pub const TABLE_ACTIVATED: u16 = 0x0020;
-    /// A table was written to flash [bank code, table CRC-32].
-    pub const TABLE_STORED: u16 = 0x0021;
-    /// A setpoint on a planned path failed IK (defect guard) [refusal bits, cycle].
-    pub const SETPOINT_REFUSED: u16 = 0x0030;
-}
+/// Event IDs of service 5 (the ICD's table; aux words in the link's `event_id` docs).
+pub use crate::link::tm::event_id as event;
 
 /// Controller state, as reported in housekeeping (`code()`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -399,7 +382,7 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
             self.event(
                 out,
                 EventSeverity::Info,
-                event::STATE_CHANGE,
+                event::STATE_CHANGED,
                 [u32::from(old.code()), u32::from(new.code())],
             );
         }
@@ -462,16 +445,16 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
             self.event(
                 out,
                 EventSeverity::Low,
-                event::WARNING,
-                [verdict.warnings.bits(), u32::from(verdict.warning_legs)],
+                event::WARNING_CHANGED,
+                [verdict.warnings.bits(), 0],
             );
         }
         if !verdict.new_faults.is_empty() {
             self.event(
                 out,
                 EventSeverity::High,
-                event::FAULT,
-                [verdict.new_faults.bits(), u32::from(verdict.new_fault_legs)],
+                event::FAULT_LATCHED,
+                [verdict.latched.bits(), verdict.new_faults.bits()],
             );
             self.begin_stop();
         }
@@ -640,14 +623,43 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
                     ack: tc.ack,
                 });
             }
-            Err(e) => self.verify(
-                out,
-                tc.request_id,
-                Verification::StartFailure {
-                    code: e.code(),
-                    data: e.data(),
-                },
-            ),
+            Err(e) => {
+                match tc.command {
+                    Command::MoveAbsolute(_) | Command::MoveRelative(_) => {
+                        let refusal = match e {
+                            CommandError::Motion(_) => e.data(),
+                            _ => 0,
+                        };
+                        self.event(
+                            out,
+                            EventSeverity::Low,
+                            event::MOVE_REFUSED,
+                            [refusal, u32::from(e.code())],
+                        );
+                    }
+                    Command::CommitTable { .. }
+                    | Command::ActivateTable
+                    | Command::SwitchBank
+                    | Command::RevertToNominal => {
+                        let id = Table::decode(&self.upload).map(|t| t.table_id).unwrap_or(0);
+                        self.event(
+                            out,
+                            EventSeverity::Medium,
+                            event::TABLE_REJECTED,
+                            [u32::from(e.code()), id],
+                        );
+                    }
+                    _ => {}
+                }
+                self.verify(
+                    out,
+                    tc.request_id,
+                    Verification::StartFailure {
+                        code: e.code(),
+                        data: e.data(),
+                    },
+                );
+            }
         }
     }
 
@@ -712,7 +724,7 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
                     self.event(
                         out,
                         EventSeverity::Info,
-                        event::FAULT_CLEARED,
+                        event::FAULTS_CLEARED,
                         [latched.bits(), 0],
                     );
                 }
@@ -879,10 +891,10 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
         self.event(
             out,
             EventSeverity::Info,
-            event::TABLE_STORED,
+            event::TABLE_COMMITTED,
             [
+                table.table_id,
                 u32::from(BootSource::from(report.bank).code()),
-                report.table_crc,
             ],
         );
         Ok(Outcome::Done)

@@ -203,6 +203,9 @@ pub mod event_id {
     pub const WARNING_CHANGED: u16 = 0x0004;
     /// A move was refused. aux0: refusal bits, aux1: failure code.
     pub const MOVE_REFUSED: u16 = 0x0005;
+    /// A setpoint on a planned path failed IK (a defect guard: the motion holds).
+    /// aux0: refusal bits, aux1: control cycle.
+    pub const SETPOINT_REFUSED: u16 = 0x0006;
     /// A table was activated. aux0: table ID, aux1: CRC-32.
     pub const TABLE_ACTIVATED: u16 = 0x0010;
     /// A table was rejected (commit/activation). aux0: failure code, aux1: table ID.
