@@ -114,7 +114,10 @@ fn refused_moves_change_nothing_and_report_every_reason() {
     assert_eq!(r.ctl.mechanism_mut().strokes_mm(), before);
     assert_eq!(r.ctl.state(), State::Idle);
     assert_eq!(r.hk().refusal_bits, data);
-    assert_eq!(r.st.events(event::MOVE_REFUSED).last(), Some(&[data, 0x0604]));
+    assert_eq!(
+        r.st.events(event::MOVE_REFUSED).last(),
+        Some(&[data, 0x0604])
+    );
 }
 
 #[test]
@@ -350,4 +353,76 @@ fn stop_decelerates_and_reports_the_move_as_stopped() {
         "stopped short of the target: {x} nm"
     );
     assert_eq!(r.ctl.state(), State::Idle);
+}
+
+/// The state an operator sees, without the counters a rejection legitimately changes.
+fn observable(r: &mut Rig) -> (m2ctl::link::Housekeeping, [f64; 6]) {
+    // Measurements (encoder noise, FK of it) change every cycle by themselves.
+    let mut hk = r.ctl.housekeeping();
+    hk.cycle_counter = 0;
+    hk.tc_rejected = 0;
+    hk.last_failure_code = 0;
+    hk.encoders_nm = [0; 6];
+    hk.pose_fk = WirePose::default();
+    hk.fk_iterations = 0;
+    (hk, r.ctl.mechanism_mut().strokes_mm())
+}
+
+#[test]
+fn fuzzed_packets_never_panic_and_rejected_ones_change_nothing() {
+    let mut r = Rig::new();
+    r.run(2);
+    let mut rng = common::TestRng(0x00f0_0f00);
+    let mut byte = |rng: &mut common::TestRng| ((rng.sym() + 1.0) * 128.0) as u8;
+    let templates = [
+        Command::MoveAbsolute(wire(300.0, -200.0, 100.0, 10.0, 0.0, -5.0)),
+        Command::CommitTable { crc32: 0x1234_5678 },
+        Command::ActivateTable,
+        Command::RevertToNominal,
+        Command::LoadTableChunk(TableChunk::new(0, &[0xAA; 64]).unwrap()),
+        Command::DirectStroke {
+            leg: 3,
+            delta_nm: 1000,
+        },
+        Command::ClearFault,
+    ];
+    let (mut rejected, mut accepted) = (0u32, 0u32);
+    const CASES: u32 = 20_000;
+    for case in 0..CASES {
+        let pkt: Vec<u8> = if case % 2 == 0 {
+            // Arbitrary bytes, arbitrary length.
+            let n = (byte(&mut rng) as usize) % 200;
+            (0..n).map(|_| byte(&mut rng)).collect()
+        } else {
+            // A valid packet with 1..4 bytes mutated (CRC then almost always fails).
+            let cmd = &templates[case as usize % templates.len()];
+            let (mut p, _) = r.st.packet(cmd);
+            for _ in 0..1 + byte(&mut rng) % 4 {
+                let at = byte(&mut rng) as usize % p.len();
+                p[at] ^= byte(&mut rng) | 1;
+            }
+            p
+        };
+        let before = observable(&mut r);
+        let rejected_before = r.ctl.housekeeping().tc_rejected;
+        // No plant time passes: only the packet may change anything.
+        let st = &mut r.st;
+        r.ctl.tick(Some(&pkt), &mut |f: &[u8]| st.receive(f));
+        if r.ctl.housekeeping().tc_rejected != rejected_before {
+            rejected += 1;
+            assert_eq!(
+                observable(&mut r),
+                before,
+                "case {case}: rejected packet changed state: {pkt:02x?}"
+            );
+        } else {
+            accepted += 1;
+            // A valid packet got through (two mutations of one byte cancelled): reset.
+            r = Rig::new();
+            r.run(2);
+        }
+    }
+    println!("controller fuzz: {CASES} packets, {rejected} rejected without a state change, {accepted} accepted");
+    assert!(rejected > CASES * 9 / 10);
+    assert_eq!(r.st.bad_frames, 0);
 }

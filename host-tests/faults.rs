@@ -331,5 +331,8 @@ fn small_noise_and_quantisation_raise_no_false_alarm_over_many_moves() {
         );
     }
     assert!(r.ctl.faults().is_empty());
-    assert!(r.st.events(event::FAULT_LATCHED).is_empty() && r.st.events(event::WARNING_CHANGED).is_empty());
+    assert!(
+        r.st.events(event::FAULT_LATCHED).is_empty()
+            && r.st.events(event::WARNING_CHANGED).is_empty()
+    );
 }
