@@ -373,7 +373,7 @@ fn fuzzed_packets_never_panic_and_rejected_ones_change_nothing() {
     let mut r = Rig::new();
     r.run(2);
     let mut rng = common::TestRng(0x00f0_0f00);
-    let mut byte = |rng: &mut common::TestRng| ((rng.sym() + 1.0) * 128.0) as u8;
+    let byte = |rng: &mut common::TestRng| ((rng.sym() + 1.0) * 128.0) as u8;
     let templates = [
         Command::MoveAbsolute(wire(300.0, -200.0, 100.0, 10.0, 0.0, -5.0)),
         Command::CommitTable { crc32: 0x1234_5678 },
