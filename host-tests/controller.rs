@@ -426,3 +426,88 @@ fn fuzzed_packets_never_panic_and_rejected_ones_change_nothing() {
     assert!(rejected > CASES * 9 / 10);
     assert_eq!(r.st.bad_frames, 0);
 }
+
+/// Uploads, commits and (optionally) activates a table by telecommand.
+fn install(r: &mut Rig, t: &Table, activate: bool) -> Vec<Verification> {
+    let n = TABLE_LEN.div_ceil(TABLE_CHUNK_MAX_LEN);
+    upload(r, &t.to_bytes(), &(0..n).collect::<Vec<_>>());
+    let rid = r.send(&Command::CommitTable { crc32: t.crc32() });
+    let reps = r.st.reports(rid);
+    if activate && all_ok(&reps) {
+        let a = r.send(&Command::ActivateTable);
+        assert!(all_ok(&r.st.reports(a)));
+    }
+    reps
+}
+
+#[test]
+fn switch_bank_and_revert_to_nominal_between_motions() {
+    let mut r = Rig::new();
+    r.run(1);
+    install(&mut r, &calibrated_table(1), true);
+    install(&mut r, &calibrated_table(2), true);
+    assert_eq!(r.hk().active_table_id, 2);
+    let rid = r.send(&Command::SwitchBank);
+    assert!(all_ok(&r.st.reports(rid)), "{:?}", r.st.reports(rid));
+    assert_eq!(r.hk().active_table_id, 1);
+    let rid = r.send(&Command::RevertToNominal);
+    assert!(all_ok(&r.st.reports(rid)));
+    let hk = r.hk();
+    assert_eq!(
+        (hk.active_table_id, hk.active_table_crc32),
+        (0, Table::nominal().crc32())
+    );
+    // Not while moving.
+    r.send(&Command::MoveAbsolute(wire(500.0, 0.0, 0.0, 0.0, 0.0, 0.0)));
+    r.run(10);
+    let rid = r.send(&Command::SwitchBank);
+    assert!(matches!(
+        r.st.reports(rid)[..],
+        [_, Verification::StartFailure { code: 0x0702, .. }]
+    ));
+}
+
+#[test]
+fn power_cut_during_a_commit_by_telecommand_boots_the_old_or_the_new_table() {
+    use m2ctl::table::mock_flash::TearMode;
+    let old = calibrated_table(1);
+    let new = calibrated_table(2);
+    // An update writes ~4,700 byte steps (sector erase, body, header last); cut across them.
+    let cuts: Vec<u64> = (0..4800)
+        .step_by(149)
+        .chain([4660, 4663, 4664, 4665, 4671, 4672])
+        .collect();
+    let (mut booted_old, mut booted_new) = (0, 0);
+    for &cut in &cuts {
+        let mut r = Rig::new();
+        r.run(1);
+        assert!(all_ok(&install(&mut r, &old, true)));
+        r.ctl
+            .store_mut()
+            .flash_mut()
+            .cut_power_after(cut, TearMode::TornByte);
+        install(&mut r, &new, false);
+        // Reboot on what the flash holds now.
+        let mut flash = r.ctl.store_mut().flash_mut().clone();
+        flash.power_cycle();
+        let mut again = Rig::with_flash(flash);
+        again.run(2);
+        let hk = again.hk();
+        match hk.active_table_id {
+            1 => {
+                booted_old += 1;
+                assert_eq!(hk.active_table_crc32, old.crc32());
+            }
+            2 => {
+                booted_new += 1;
+                assert_eq!(hk.active_table_crc32, new.crc32());
+            }
+            other => panic!("cut after {cut} steps booted table {other}"),
+        }
+    }
+    println!(
+        "{} cuts during a commit: {booted_old} booted the old table, {booted_new} the new one",
+        cuts.len()
+    );
+    assert!(booted_old > 0 && booted_new > 0);
+}

@@ -336,3 +336,142 @@ fn small_noise_and_quantisation_raise_no_false_alarm_over_many_moves() {
             && r.st.events(event::WARNING_CHANGED).is_empty()
     );
 }
+
+/// Boots the controller on a plant whose sliders are found at `strokes_mm`.
+fn boot_displaced(strokes_mm: [f64; 6]) -> Rig {
+    let mut plant = Plant::new(
+        &PROTOTYPE,
+        PlantConfig {
+            seed: 4,
+            ..PlantConfig::default()
+        },
+    )
+    .unwrap();
+    plant.set_strokes_mm(&strokes_mm);
+    Rig::with_plant(plant)
+}
+
+/// Direct-stroke moves of one leg (1-based) back to 0 in steps within the recovery limit.
+fn walk_home(r: &mut Rig, leg: u8) {
+    for _ in 0..40 {
+        let s = r.ctl.mechanism_mut().strokes_mm()[usize::from(leg - 1)];
+        if s.abs() < 1e-4 {
+            return;
+        }
+        let step_mm = s.clamp(-0.45, 0.45);
+        let rid = r.send(&Command::DirectStroke {
+            leg,
+            delta_nm: (-step_mm * 1e6).round() as i32,
+        });
+        r.settle(50_000);
+        assert!(
+            matches!(
+                r.st.reports(rid).last(),
+                Some(Verification::CompletionSuccess)
+            ),
+            "{:?}",
+            r.st.reports(rid)
+        );
+    }
+    panic!("leg {leg} not home");
+}
+
+#[test]
+fn slider_found_beyond_its_soft_limit_at_boot_is_recovered_by_direct_stroke() {
+    // Slider 4 at 5.2 mm: beyond the 5 mm soft limit (and the pose far outside the workspace).
+    let mut r = boot_displaced([0.0, 0.0, 0.0, 5.2, 0.0, 0.0]);
+    let mut detected = None;
+    for n in 1..=10 {
+        r.tick(None);
+        if r.ctl.faults().contains(FaultFlags::SOFT_LIMIT) {
+            detected = Some(n);
+            break;
+        }
+    }
+    let n = detected.expect("soft limit not detected");
+    println!(
+        "soft limit at boot detected after {n} cycles, flags {:#x}",
+        r.ctl.faults().bits()
+    );
+    assert!(n <= 3);
+    r.run(5);
+    assert_eq!(r.ctl.state(), State::Faulted);
+    let refused = r.send(&Command::MoveAbsolute(WirePose::default()));
+    assert!(matches!(
+        r.st.reports(refused)[..],
+        [_, Verification::StartFailure { code: 0x0701, .. }]
+    ));
+    // Clearing is refused while the slider is still out.
+    let clr = r.send(&Command::ClearFault);
+    assert!(matches!(
+        r.st.reports(clr)[..],
+        [_, Verification::StartFailure { code: 0x0703, .. }]
+    ));
+    // A move that would take the slider further out is refused; back towards home is allowed.
+    let out = r.send(&Command::DirectStroke {
+        leg: 4,
+        delta_nm: 100_000,
+    });
+    assert!(
+        matches!(
+            r.st.reports(out)[..],
+            [_, Verification::StartFailure { .. }]
+        ),
+        "{:?}",
+        r.st.reports(out)
+    );
+    walk_home(&mut r, 4);
+    let clr = r.send(&Command::ClearFault);
+    assert!(
+        matches!(
+            r.st.reports(clr).last(),
+            Some(Verification::CompletionSuccess)
+        ),
+        "{:?}",
+        r.st.reports(clr)
+    );
+    let mv = r.send(&Command::MoveAbsolute(WirePose {
+        translation_nm: [0, 0, 100_000],
+        rotation_uas: [0; 3],
+    }));
+    r.settle(20_000);
+    assert!(matches!(
+        r.st.reports(mv).last(),
+        Some(Verification::CompletionSuccess)
+    ));
+}
+
+#[test]
+fn pose_found_outside_the_workspace_at_boot_is_detected_and_recovered() {
+    // Every slider at 2.3 mm: the mirror 2.3 mm up, beyond the 2 mm workspace.
+    let mut r = boot_displaced([2.3; 6]);
+    r.run(3);
+    assert!(
+        r.ctl.faults().contains(FaultFlags::POSE_OUTSIDE_WORKSPACE),
+        "{:#x}",
+        r.ctl.faults().bits()
+    );
+    assert!(!r.ctl.faults().contains(FaultFlags::SOFT_LIMIT));
+    assert_eq!(r.hk().state, State::Faulted.code());
+    for leg in 1..=6u8 {
+        let rid = r.send(&Command::DirectStroke {
+            leg,
+            delta_nm: -500_000,
+        });
+        r.settle(50_000);
+        assert!(matches!(
+            r.st.reports(rid).last(),
+            Some(Verification::CompletionSuccess)
+        ));
+    }
+    let clr = r.send(&Command::ClearFault);
+    assert!(
+        matches!(
+            r.st.reports(clr).last(),
+            Some(Verification::CompletionSuccess)
+        ),
+        "{:?}",
+        r.st.reports(clr)
+    );
+    assert_eq!(r.ctl.state(), State::Idle);
+}

@@ -168,6 +168,13 @@ impl Plant {
         self.faults.push((fault, frozen));
     }
 
+    /// Places the sliders (drive positions and setpoints) at these strokes (mm), e.g.
+    /// where they were found at power-on.
+    pub fn set_strokes_mm(&mut self, strokes_mm: &[f64; LEGS]) {
+        self.stroke_mm = *strokes_mm;
+        self.setpoint_mm = *strokes_mm;
+    }
+
     /// Removes every injected fault (a repaired mechanism). Drives that missed steps
     /// are re-referenced to where their sliders really are (the slider does not move;
     /// the drive's position and setpoint are corrected by the lost travel).
