@@ -52,7 +52,7 @@ impl Qemu {
             .args(["-semihosting-config", "enable=on,target=native"])
             .arg("-chardev")
             .arg(format!(
-                "socket,id=tc,path={},server=on,wait=off",
+                "socket,id=tc,path={},server=on,wait=on",
                 sock.display()
             ))
             .args(["-serial", "chardev:tc", "-kernel"])
