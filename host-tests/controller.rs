@@ -51,12 +51,15 @@ fn move_absolute_reaches_the_target_and_reports_completion_on_arrival() {
     r.run(1);
     let target = wire(800.0, -600.0, 400.0, 45.0, -30.0, 20.0);
     let rid = r.send(&Command::MoveAbsolute(target));
-    // Accepted and started at once; completion only on arrival.
+    // Accepted at once, started when the path is planned (a few cycles), completion
+    // only on arrival.
+    assert_eq!(r.st.reports(rid), [Verification::AcceptanceSuccess]);
+    assert_eq!(r.ctl.state(), State::Moving);
+    r.run(m2ctl::controller::PLAN_SAMPLES_PER_CYCLE as u32 + 3);
     assert_eq!(
         r.st.reports(rid),
         [Verification::AcceptanceSuccess, Verification::StartSuccess]
     );
-    assert_eq!(r.ctl.state(), State::Moving);
     let n = r.settle(60_000);
     assert_eq!(
         *r.st.reports(rid).last().unwrap(),
@@ -510,4 +513,27 @@ fn power_cut_during_a_commit_by_telecommand_boots_the_old_or_the_new_table() {
         cuts.len()
     );
     assert!(booted_old > 0 && booted_new > 0);
+}
+
+#[test]
+fn stop_while_a_move_is_being_planned_cancels_it() {
+    let mut r = Rig::new();
+    r.run(1);
+    let mv = r.send(&Command::MoveAbsolute(wire(900.0, 0.0, 0.0, 0.0, 0.0, 0.0)));
+    let stop = r.send(&Command::Stop);
+    assert!(all_ok(&r.st.reports(stop)));
+    r.run(5);
+    let reps = r.st.reports(mv);
+    assert!(
+        matches!(
+            reps[..],
+            [
+                Verification::AcceptanceSuccess,
+                Verification::StartFailure { code: 0x0708, .. }
+            ]
+        ),
+        "{reps:?}"
+    );
+    assert_eq!(r.ctl.state(), State::Idle);
+    assert_eq!(r.hk().pose_commanded, WirePose::default());
 }

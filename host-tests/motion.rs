@@ -642,3 +642,48 @@ proptest! {
         assert_limits(&t, &lim, "random");
     }
 }
+
+#[test]
+fn stepwise_planning_gives_the_same_trajectory_as_one_call() {
+    use m2ctl::motion::{PlanStart, TrajectoryPlanner};
+    let geom = Geometry::<f32>::new(&m2ctl::nominal::prototype_with_flight_limits()).unwrap();
+    let limits = MotionLimits::default();
+    let ends = [
+        (
+            [0.0, 0.0, 0.0],
+            [0.0; 3],
+            [1.9, -1.9, 1.9],
+            [590.0, -590.0, 590.0],
+        ),
+        (
+            [0.5, 0.2, -0.3],
+            [10.0, 0.0, -20.0],
+            [-1.0, 0.7, 0.3],
+            [-40.0, 300.0, 0.0],
+        ),
+    ];
+    for (ts, rs, tt, rt) in ends {
+        let start = Pose::<f32>::from_mm_arcsec(ts, rs);
+        let target = Pose::<f32>::from_mm_arcsec(tt, rt);
+        let one = Trajectory::plan(&geom, &start, &target, &limits).unwrap();
+        for per_call in [1usize, 2, 3, 4, 7, 100] {
+            let PlanStart::Sampling(mut p) =
+                TrajectoryPlanner::begin(&geom, &start, &target, &limits).unwrap()
+            else {
+                panic!("expected sampling")
+            };
+            let mut calls = 1;
+            let stepwise = loop {
+                if let Some(r) = p.advance(&geom, per_call) {
+                    break r.unwrap();
+                }
+                calls += 1;
+            };
+            assert_eq!(stepwise, one, "{per_call} samples per call");
+            assert_eq!(
+                calls,
+                m2ctl::motion::trajectory::PATH_SAMPLE_INTERVALS.div_ceil(per_call)
+            );
+        }
+    }
+}

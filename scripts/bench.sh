@@ -12,7 +12,7 @@ cargo build --release --target thumbv7em-none-eabihf --features firmware --bins
 work=$(mktemp -d)
 cp "$TOOL"/* "$work"/ && chmod -R u+w "$work"
 "$work/build.sh" >/dev/null
-count() { "$work/count.sh" "$1" 2>&1 | tr -cd '[:print:]\n' | grep -E "^(BENCH|TOTAL)" || true; }
+count() { "$work/count.sh" "$1" 2>&1 >/dev/null | tr -cd '[:print:]\n' | grep -E "^(BENCH|TOTAL)" || true; }
 pick() { echo "$1" | awk -F'insns=' -v k="$2" '$0 ~ "BENCH n="k" " {print $2}'; }
 run_log() {
   timeout 120 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none -serial none \
@@ -32,9 +32,12 @@ echo "self-test image RAM (data + bss + stack peak):   $((data + bss + stack)) b
 
 c=$(count "$D/m2cyclebench"); echo "$c"
 e=$(pick "$c" 1)
-echo "control cycle, steady during a move (3 cycles):  $(( $(pick "$c" 3) - e )), $(( $(pick "$c" 4) - e )), $(( $(pick "$c" 5) - e )) instructions (goal <= 20000)"
-echo "control cycle that decodes and plans a move:     $(( $(pick "$c" 2) - e )) instructions"
-echo "control cycle that also emits housekeeping:      $(( $(pick "$c" 6) - e )) instructions"
+echo "control cycle, steady during a move (3 cycles):  $(( $(pick "$c" 8) - e )), $(( $(pick "$c" 9) - e )), $(( $(pick "$c" 10) - e )) instructions (goal <= 20000)"
+echo "control cycle that receives a move telecommand:  $(( $(pick "$c" 2) - e )) instructions"
+echo "the next five cycles (planning, move begins):    $(( $(pick "$c" 3) - e )), $(( $(pick "$c" 4) - e )), $(( $(pick "$c" 5) - e )), $(( $(pick "$c" 6) - e )), $(( $(pick "$c" 7) - e )) instructions"
+echo "control cycle that also emits housekeeping:      $(( $(pick "$c" 11) - e )) instructions"
+echo "cycle that commits a table (validate + flash):   $(( $(pick "$c" 12) - e )) instructions (at rest only)"
+echo "cycle that activates a table:                    $(( $(pick "$c" 13) - e )) instructions (at rest only)"
 log=$(run_log "$D/m2cyclebench")
 cstack=$(echo "$log" | sed -n 's/.*STACK peak_bytes=\([0-9]*\).*/\1/p')
 csize=$(echo "$log" | sed -n 's/.*CONTROLLER size_bytes=\([0-9]*\).*/\1/p')

@@ -31,7 +31,8 @@ use crate::link::tc::{decode_telecommand, AckFlags, RequestId, Telecommand};
 use crate::link::tm::{dump_chunks, EventSeverity, TmTime, TmWriter, Verification};
 use crate::link::{Command, Housekeeping, MAX_TM_FRAME_LEN};
 use crate::motion::{
-    DirectStrokeLimits, MotionError, MotionLimits, StrokeMove, Trajectory, CYCLE_S,
+    DirectStrokeLimits, MotionError, MotionLimits, PlanStart, StrokeMove, Trajectory,
+    TrajectoryPlanner, CYCLE_S,
 };
 use crate::supervision::{CycleInputs, FaultFlags, SupervisionConfig, Supervisor};
 use crate::table::{
@@ -40,6 +41,9 @@ use crate::table::{
 
 /// Housekeeping period (cycles): 1 Hz at the 1 kHz control rate.
 pub const HK_PERIOD_CYCLES: u32 = 1000;
+/// Path samples (IK evaluations) a move's planning may use per control cycle: the
+/// ~17 samples of a plan are spread over a few cycles so that no cycle carries them all.
+pub const PLAN_SAMPLES_PER_CYCLE: usize = 4;
 /// Milliseconds per control cycle, for the TM timestamps.
 const MS_PER_CYCLE: u64 = 1;
 /// Bytes of the upload-received bitmap (one bit per table byte).
@@ -154,6 +158,8 @@ impl CommandError {
 #[derive(Clone, Copy, Debug)]
 enum Motion {
     Hold,
+    /// A move accepted and being planned (a few cycles); the sliders hold meanwhile.
+    Planning(TrajectoryPlanner),
     Path {
         traj: Trajectory,
         start_cycle: u32,
@@ -276,6 +282,8 @@ pub struct Controller<M, F> {
     last_failure_code: u16,
     refusal_bits: u32,
     boot_event_sent: bool,
+    /// A stop or a fault ended a move while it was being planned.
+    plan_aborted: bool,
 }
 
 impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
@@ -323,6 +331,7 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
             last_failure_code: 0,
             refusal_bits: 0,
             boot_event_sent: false,
+            plan_aborted: false,
         };
         c.hold_here();
         c
@@ -476,6 +485,7 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
         let now = self.cycle;
         match &mut self.motion {
             Motion::Hold => {}
+            Motion::Planning(_) => self.plan_aborted = true,
             Motion::Path {
                 traj,
                 start_cycle,
@@ -499,10 +509,71 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
         }
     }
 
+    /// Advances a move being planned: on completion it becomes the path (start success
+    /// reported), on refusal or abort the sliders keep holding (start failure reported).
+    fn step_planning(&mut self, out: &mut impl TmSink) {
+        let Motion::Planning(mut planner) = self.motion else {
+            return;
+        };
+        let result = if self.plan_aborted {
+            let latched = self.supervisor.latched();
+            Some(Err(if latched.is_empty() {
+                CommandError::Stopped
+            } else {
+                CommandError::AbortedByFault(latched)
+            }))
+        } else {
+            planner
+                .advance(&self.active.geom, PLAN_SAMPLES_PER_CYCLE)
+                .map(|r| r.map_err(CommandError::Motion))
+        };
+        self.plan_aborted = false;
+        match result {
+            None => self.motion = Motion::Planning(planner),
+            Some(Ok(traj)) => {
+                self.refusal_bits = 0;
+                // The path starts in this very cycle (the motion step follows).
+                self.motion = Motion::Path {
+                    traj,
+                    start_cycle: self.cycle,
+                    stopping: false,
+                };
+                if let Some(p) = self.pending {
+                    if p.ack.start() {
+                        self.verify(out, p.request_id, Verification::StartSuccess);
+                    }
+                }
+            }
+            Some(Err(e)) => {
+                self.motion = Motion::Hold;
+                if let CommandError::Motion(_) = e {
+                    self.refusal_bits = e.data();
+                    self.event(
+                        out,
+                        EventSeverity::Low,
+                        event::MOVE_REFUSED,
+                        [self.refusal_bits, u32::from(e.code())],
+                    );
+                }
+                if let Some(p) = self.pending.take() {
+                    self.verify(
+                        out,
+                        p.request_id,
+                        Verification::StartFailure {
+                            code: e.code(),
+                            data: e.data(),
+                        },
+                    );
+                }
+            }
+        }
+    }
+
     fn step_motion(&mut self, out: &mut impl TmSink) {
+        self.step_planning(out);
         let now = self.cycle;
         let (strokes, moving, done, stopping) = match self.motion {
-            Motion::Hold => (self.strokes_commanded_mm, false, false, false),
+            Motion::Hold | Motion::Planning(_) => (self.strokes_commanded_mm, false, false, false),
             Motion::Path {
                 traj,
                 start_cycle,
@@ -537,7 +608,7 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
                 (sp.strokes_mm, sp.moving, sp.done, stopping)
             }
         };
-        if matches!(self.motion, Motion::Hold) {
+        if matches!(self.motion, Motion::Hold | Motion::Planning(_)) {
             // Nothing is commanded at rest: poll the drives' health instead.
             self.last_drive = self.mech.status();
         } else {
@@ -580,7 +651,7 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
             (Motion::Hold, false) => State::Idle,
             (Motion::Path { stopping: true, .. }, _)
             | (Motion::Stroke { stopping: true, .. }, _) => State::Stopping,
-            (Motion::Path { .. }, _) => State::Moving,
+            (Motion::Path { .. }, _) | (Motion::Planning(_), _) => State::Moving,
             (Motion::Stroke { .. }, _) => State::StrokeMoving,
         };
         self.set_state(out, next);
@@ -611,6 +682,13 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
                 if tc.ack.completion() {
                     self.verify(out, tc.request_id, Verification::CompletionSuccess);
                 }
+            }
+            Ok(Outcome::Planning) => {
+                // Start success or failure is reported when the plan is done.
+                self.pending = Some(PendingCompletion {
+                    request_id: tc.request_id,
+                    ack: tc.ack,
+                });
             }
             Ok(Outcome::Started) => {
                 if tc.ack.start() {
@@ -834,24 +912,32 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
     fn start_move(&mut self, target: Pose<f32>) -> Result<Outcome, CommandError> {
         self.require_can_move()?;
         // Plan from the commanded pose (where the drives are being held); the FK pose
-        // differs from it by the encoder resolution only.
+        // differs from it by the encoder resolution only. The ends are checked now (a
+        // refused target is refused at once with every reason); the path samples are
+        // evaluated over the next cycles.
         let start = self.pose_commanded;
-        let plan = Trajectory::plan(&self.active.geom, &start, &target, &self.cfg.motion);
-        let traj = match plan {
-            Ok(t) => t,
-            Err(e) => {
+        let begun = TrajectoryPlanner::begin(&self.active.geom, &start, &target, &self.cfg.motion)
+            .map_err(|e| {
                 self.refusal_bits = CommandError::Motion(e).data();
-                return Err(CommandError::Motion(e));
-            }
-        };
+                CommandError::Motion(e)
+            })?;
         self.refusal_bits = 0;
-        self.motion = Motion::Path {
-            traj,
-            start_cycle: self.cycle.wrapping_add(1),
-            stopping: false,
-        };
+        self.plan_aborted = false;
         self.state = State::Moving;
-        Ok(Outcome::Started)
+        match begun {
+            PlanStart::Ready(traj) => {
+                self.motion = Motion::Path {
+                    traj,
+                    start_cycle: self.cycle.wrapping_add(1),
+                    stopping: false,
+                };
+                Ok(Outcome::Started)
+            }
+            PlanStart::Sampling(planner) => {
+                self.motion = Motion::Planning(planner);
+                Ok(Outcome::Planning)
+            }
+        }
     }
 
     fn commit_upload(
@@ -929,7 +1015,7 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
     pub fn housekeeping(&self) -> Housekeeping {
         let to_nm = |v: &[f32; LEGS]| v.map(|s| round_nm(s * NM_PER_MM));
         let moving_legs = match &self.motion {
-            Motion::Hold => 0,
+            Motion::Hold | Motion::Planning(_) => 0,
             Motion::Path { .. } => 0b11_1111,
             Motion::Stroke { mv, .. } => 1u8.checked_shl(u32::from(mv.leg())).unwrap_or(0),
         };
@@ -945,8 +1031,8 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
             refusal_bits: self.refusal_bits,
             active_table_id: self.active.table.table_id,
             active_table_crc32: self.active.crc32,
-            pose_fk: WirePose::from_pose(&self.pose_fk),
-            pose_commanded: WirePose::from_pose(&self.pose_commanded),
+            pose_fk: wire_pose_f32(&self.pose_fk),
+            pose_commanded: wire_pose_f32(&self.pose_commanded),
             strokes_commanded_nm: to_nm(&self.strokes_commanded_mm),
             encoders_nm: to_nm(&self.encoders_mm),
             tc_accepted: self.tc_accepted,
@@ -1005,6 +1091,8 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
 /// What a telecommand did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Outcome {
+    /// A move accepted and being planned: start is reported when the plan is done.
+    Planning,
     /// Executed completely.
     Done,
     /// Started; completion is reported when the motion ends.
@@ -1029,6 +1117,50 @@ fn nominal_active() -> ActiveTable {
         table,
         geom,
         source: BootSource::Nominal,
+    }
+}
+
+/// Below this magnitude every f32 multiple of 0.5 is exact, so rounding in f32 is
+/// exact too (2^22).
+const F32_EXACT_HALF_LIMIT: f32 = 4_194_304.0;
+
+/// A telemetry pose (nm, uas) of an f32 pose. Translations (|x| <= 4 mm in nm fits
+/// [`F32_EXACT_HALF_LIMIT`]) are scaled and rounded in f32: the product carries at most
+/// ~0.25 nm of rounding, so the reported nm can differ from exact rounding by 1 nm on a
+/// half-way value. Rotations need more than f32's 24 bits in micro-arcseconds and take
+/// the exact f64 path. This keeps the 1 Hz housekeeping cycle inside the cycle budget
+/// (f64 is software floating point on the Cortex-M4F).
+fn wire_pose_f32(pose: &Pose<f32>) -> WirePose {
+    let translation_nm = pose.translation_mm.map(|v| {
+        let p = v * NM_PER_MM;
+        if p.abs() < F32_EXACT_HALF_LIMIT {
+            round_nm(p)
+        } else {
+            round_sat_i32_f64(f64::from(v) * f64::from(NM_PER_MM))
+        }
+    });
+    WirePose {
+        translation_nm,
+        rotation_uas: pose
+            .rotation_rad
+            .map(|v| round_sat_i32_f64(f64::from(v) * UAS_PER_RAD)),
+    }
+}
+
+/// Micro-arcseconds per radian.
+const UAS_PER_RAD: f64 = crate::kinematics::ARCSEC_PER_RAD * 1.0e6;
+
+/// Rounds half away from zero to i32, saturating; NaN gives 0 (telemetry only).
+fn round_sat_i32_f64(v: f64) -> i32 {
+    let r = libm::round(v);
+    if r.is_nan() {
+        0
+    } else if r >= f64::from(i32::MAX) {
+        i32::MAX
+    } else if r <= f64::from(i32::MIN) {
+        i32::MIN
+    } else {
+        r as i32
     }
 }
 

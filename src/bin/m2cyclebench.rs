@@ -1,7 +1,10 @@
 //! Control-cycle benchmark image (target only, `--features firmware`): the controller
 //! with the QEMU slider model, measured with `qemu-insncount` markers around whole
-//! control cycles. BENCH n=1: empty pair; n=2: the cycle that receives and plans a move;
-//! n=3..5: steady cycles during the move; n=6: a cycle that also emits housekeeping.
+//! control cycles. BENCH n=1: empty pair; n=2: the cycle that receives a move
+//! telecommand (decode, acceptance report, both ends checked); n=3..7: the next five
+//! cycles (the path sampled `controller::PLAN_SAMPLES_PER_CYCLE` IK per cycle, start report, the
+//! move begins); n=8..10: steady cycles during the move; n=11: a cycle that also emits
+//! housekeeping.
 //! Exits through semihosting (0 if the move was running without a fault).
 #![no_std]
 #![no_main]
@@ -54,6 +57,8 @@ impl TmSink for CountingSink {
 const BENCH_MODEL_SPEED_MM_PER_S: f32 = 1.0;
 /// Cycles into the move before the steady-cycle measurements (cruising by then).
 const BENCH_CRUISE_CYCLES: u32 = 1500;
+/// Cycles measured after the telecommand cycle (planning, then the first move cycles).
+const BENCH_PLANNING_CYCLES: u32 = 5;
 
 /// Instruction counts of whole control cycles. Returns whether the move was running
 /// without a fault throughout.
@@ -86,6 +91,12 @@ fn bench_cycle() -> bool {
     hw::bench_start();
     ctl.tick(tc, &mut sink);
     hw::bench_end();
+    for _ in 0..BENCH_PLANNING_CYCLES {
+        ctl.mechanism_mut().step();
+        hw::bench_start();
+        ctl.tick(None, &mut sink);
+        hw::bench_end();
+    }
     for _ in 0..BENCH_CRUISE_CYCLES {
         ctl.mechanism_mut().step();
         ctl.tick(None, &mut sink);
@@ -115,5 +126,65 @@ fn bench_cycle() -> bool {
         hk.fault_flags,
         sink.0
     );
-    hk.state == State::Moving.code() && hk.fault_flags == 0
+    let moving_ok = hk.state == State::Moving.code() && hk.fault_flags == 0;
+    moving_ok && bench_table_cycles(&mut ctl, &mut sink)
+}
+
+/// Most cycles to wait for the move to end before the table benchmark.
+const MAX_WAIT_CYCLES: u32 = 100_000;
+/// Table ID of the table the benchmark commits.
+const BENCH_TABLE_ID: u32 = 9;
+
+/// BENCH n=12: the cycle that commits an uploaded table (CRC, decode, validation,
+/// flash write of the inactive bank); n=13: the cycle that activates it. Both are
+/// accepted only while the mechanism is at rest.
+fn bench_table_cycles<M, F>(ctl: &mut Controller<M, F>, sink: &mut CountingSink) -> bool
+where
+    M: m2ctl::hw::SliderDrives + m2ctl::hw::StrokeEncoders,
+    F: embedded_storage::nor_flash::NorFlash,
+{
+    for _ in 0..MAX_WAIT_CYCLES {
+        if ctl.state() == State::Idle {
+            break;
+        }
+        ctl.tick(None, sink);
+    }
+    let mut table = m2ctl::table::Table::nominal();
+    table.table_id = BENCH_TABLE_ID;
+    let bytes = table.to_bytes();
+    let mut seq = 10u16;
+    let mut send =
+        |ctl: &mut Controller<M, F>, sink: &mut CountingSink, cmd: &Command, measure: bool| {
+            let mut pkt = [0u8; MAX_TC_PACKET_LEN];
+            let Ok(n) = encode_telecommand(cmd, TcHeader::new(seq), &mut pkt) else {
+                return;
+            };
+            seq += 1;
+            if measure {
+                hw::bench_start();
+            }
+            ctl.tick(pkt.get(..n), sink);
+            if measure {
+                hw::bench_end();
+            }
+        };
+    for (off, chunk) in m2ctl::link::tm::dump_chunks(&bytes) {
+        if let Ok(c) = m2ctl::link::TableChunk::new(off, chunk) {
+            send(ctl, sink, &Command::LoadTableChunk(c), false);
+        }
+    }
+    send(
+        ctl,
+        sink,
+        &Command::CommitTable {
+            crc32: table.crc32(),
+        },
+        true,
+    );
+    send(ctl, sink, &Command::ActivateTable, true);
+    let ok = ctl.active_table().table_id == BENCH_TABLE_ID;
+    if !ok {
+        defmt::error!("bench: the committed table did not become active");
+    }
+    ok
 }

@@ -9,6 +9,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use super::calib::cuckoo::Coordinates;
 use super::calib::{calibrate, CalibConfig, CalibResult, Measurement, SolverKind};
 use super::campaign::{
     perturbed, simulate, CampaignError, Tracker, DEFAULT_MANUFACTURING_SIGMA_MM,
@@ -196,7 +197,7 @@ pub fn table3(cfg: &TableConfig) -> Result<String, String> {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "Campaign: {} plan poses, manufacturing sigma {} mm (seed {}), held-out {} poses within +-{} mm / +-{}\" (seed {}), Omega +-{} mm, solver seed {}, cuckoo: {} nests x {} generations, NM {} iterations on the worst {:.0} %.\n",
+        "Campaign: {} plan poses, manufacturing sigma {} mm (seed {}), held-out {} poses within +-{} mm / +-{}\" (seed {}), Omega +-{} mm, solver seed {}, cuckoo: {} nests x {} generations, NM {} iterations on the worst {:.0} %, {} coordinates.\n",
         plan_poses(&exp.plan).len(),
         exp.sigma_mm,
         exp.geometry_seed,
@@ -209,7 +210,8 @@ pub fn table3(cfg: &TableConfig) -> Result<String, String> {
         cfg.calib.cuckoo.nests,
         cfg.calib.cuckoo.max_generations,
         cfg.calib.cuckoo.nm_iterations,
-        cfg.calib.cuckoo.nm_fraction * 100.0
+        cfg.calib.cuckoo.nm_fraction * 100.0,
+        coordinates_name(cfg.calib.cuckoo.coordinates)
     );
     // Part 1: the paper's noise.
     let prep = exp.prepare(&Tracker::PAPER).map_err(|e| e.to_string())?;
@@ -401,37 +403,58 @@ pub fn plot_per_pose(path: &Path, series: &[(&str, &Accuracy)]) -> Result<(), St
 
 /// SMCS vs the improved algorithm over solver seeds `1..=seeds` on the paper-noise
 /// campaign: held-out max errors per seed and their means (a single seed is a noisy
-/// comparison of two stochastic searches).
+/// comparison of two stochastic searches), in the configured search coordinates and,
+/// for comparison, in the other ones (whitened vs the paper's original coordinates).
 pub fn compare_cuckoo(cfg: &TableConfig, seeds: u64) -> Result<String, String> {
     let exp = &cfg.exp;
     let prep = exp.prepare(&Tracker::PAPER).map_err(|e| e.to_string())?;
     let mut out = String::from(
-        "| seed | smcs max um | smcs max arcsec | smcs fit RMS um | improved max um | improved max arcsec | improved fit RMS um |\n|---|---|---|---|---|---|---|\n",
+        "| coordinates | seed | smcs max um | smcs max arcsec | smcs fit RMS um | improved max um | improved max arcsec | improved fit RMS um | improved time ms |\n|---|---|---|---|---|---|---|---|---|\n",
     );
-    let mut sums = [0.0f64; 6];
-    for seed in 1..=seeds.max(1) {
-        let mut cells = Vec::new();
-        for solver in [SolverKind::Smcs, SolverKind::Improved] {
-            let c = CalibConfig {
-                seed,
-                ..with_solver(&cfg.calib, solver)
-            };
-            let row = run_solver(exp, &prep, &c)?;
-            let fit = row
-                .calib
-                .as_ref()
-                .map(|r| r.rms_after_mm * 1e3)
-                .unwrap_or(0.0);
-            cells.extend([row.acc.max_um(), row.acc.max_arcsec(), fit]);
+    let configured = cfg.calib.cuckoo.coordinates;
+    let other = match configured {
+        Coordinates::Whitened => Coordinates::Original,
+        Coordinates::Original => Coordinates::Whitened,
+    };
+    for coordinates in [configured, other] {
+        let name = coordinates_name(coordinates);
+        let mut sums = [0.0f64; 7];
+        for seed in 1..=seeds.max(1) {
+            let mut cells = Vec::new();
+            for solver in [SolverKind::Smcs, SolverKind::Improved] {
+                let mut c = CalibConfig {
+                    seed,
+                    ..with_solver(&cfg.calib, solver)
+                };
+                c.cuckoo.coordinates = coordinates;
+                let row = run_solver(exp, &prep, &c)?;
+                let (fit, ms) = row
+                    .calib
+                    .as_ref()
+                    .map(|r| (r.rms_after_mm * 1e3, r.elapsed.as_secs_f64() * 1e3))
+                    .unwrap_or((0.0, 0.0));
+                cells.extend([row.acc.max_um(), row.acc.max_arcsec(), fit]);
+                if solver == SolverKind::Improved {
+                    cells.push(ms);
+                }
+            }
+            for (s, c) in sums.iter_mut().zip(cells.iter()) {
+                *s += c;
+            }
+            let f: Vec<String> = cells.iter().map(|v| format!("{v:.4}")).collect();
+            let _ = writeln!(out, "| {name} | {seed} | {} |", f.join(" | "));
         }
-        for (s, c) in sums.iter_mut().zip(cells.iter()) {
-            *s += c;
-        }
-        let f: Vec<String> = cells.iter().map(|v| format!("{v:.4}")).collect();
-        let _ = writeln!(out, "| {seed} | {} |", f.join(" | "));
+        let n = seeds.max(1) as f64;
+        let f: Vec<String> = sums.iter().map(|v| format!("{:.4}", v / n)).collect();
+        let _ = writeln!(out, "| {name} | mean | {} |", f.join(" | "));
     }
-    let n = seeds.max(1) as f64;
-    let f: Vec<String> = sums.iter().map(|v| format!("{:.4}", v / n)).collect();
-    let _ = writeln!(out, "| mean | {} |", f.join(" | "));
     Ok(out)
+}
+
+/// Report name of the search coordinates.
+pub fn coordinates_name(c: Coordinates) -> &'static str {
+    match c {
+        Coordinates::Whitened => "whitened",
+        Coordinates::Original => "original",
+    }
 }

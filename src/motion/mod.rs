@@ -31,4 +31,6 @@ pub mod trajectory;
 
 pub use ramp::{Ramp, RampError, RampSample, CYCLE_S, MAX_MOVE_CYCLES};
 pub use stroke::{DirectStrokeLimits, StrokeMove, StrokeMoveError, StrokeSetpoint};
-pub use trajectory::{MotionError, MotionLimits, PathBounds, Setpoint, Trajectory};
+pub use trajectory::{
+    MotionError, MotionLimits, PathBounds, PlanStart, Setpoint, Trajectory, TrajectoryPlanner,
+};

@@ -180,126 +180,24 @@ fn along(start: &[f32; 6], delta: &[f32; 6], s: f32) -> [f32; 6] {
 }
 
 impl Trajectory {
-    /// Plans a move from `start` to `target` within `limits`. A zero-length move is an
-    /// immediate arrival. Every error is reported before anything moves.
+    /// Plans a move from `start` to `target` within `limits`, in one call. A
+    /// zero-length move is an immediate arrival. Every error is reported before anything
+    /// moves. [`TrajectoryPlanner`] does the same in steps, to spread the path sampling
+    /// over several control cycles.
     pub fn plan(
         geom: &Geometry<f32>,
         start: &Pose<f32>,
         target: &Pose<f32>,
         limits: &MotionLimits,
     ) -> Result<Self, MotionError> {
-        if !start.is_finite() || !target.is_finite() {
-            return Err(MotionError::NonFinite);
-        }
-        validate_limits(limits)?;
-        let (start_a, target_a) = (start.to_array(), target.to_array());
-        let mut delta = [0.0f32; 6];
-        for ((d, t), s) in delta.iter_mut().zip(target_a.iter()).zip(start_a.iter()) {
-            *d = *t - *s;
-        }
-        if !delta.iter().all(|d| d.is_finite()) {
-            return Err(MotionError::NonFinite);
-        }
-        let (target_strokes, refused) = evaluate(geom, target);
-        if !refused.is_empty() {
-            return Err(MotionError::TargetRefused(refused));
-        }
-        let (start_strokes, refused) = evaluate(geom, start);
-        if !refused.is_empty() {
-            return Err(MotionError::StartRefused(refused));
-        }
-        let immediate = PathBounds {
-            stroke_slope_mm: [0.0; LEGS],
-            stroke_curvature_mm: [0.0; LEGS],
-            max_rate_per_s: f32::INFINITY,
-            max_accel_per_s2: f32::INFINITY,
-        };
-        if delta.iter().all(|d| *d == 0.0) {
-            return Ok(Self {
-                start: start_a,
-                target: target_a,
-                delta,
-                ramp: Ramp::immediate(),
-                bounds: immediate,
-            });
-        }
-
-        // Sample the strokes along the path: first and second differences per leg.
-        let n = PATH_SAMPLE_INTERVALS as f32;
-        let mut slope = [0.0f32; LEGS];
-        let mut curvature = [0.0f32; LEGS];
-        let mut prev2 = start_strokes;
-        let mut prev = start_strokes;
-        for k in 1..=PATH_SAMPLE_INTERVALS {
-            let strokes = if k == PATH_SAMPLE_INTERVALS {
-                target_strokes
-            } else {
-                let pose = Pose::from_array(along(&start_a, &delta, k as f32 / n));
-                let (strokes, refused) = evaluate(geom, &pose);
-                if !refused.is_empty() {
-                    return Err(MotionError::PathRefused {
-                        sample: k as u8,
-                        refusals: refused,
-                    });
+        match TrajectoryPlanner::begin(geom, start, target, limits)? {
+            PlanStart::Ready(t) => Ok(t),
+            PlanStart::Sampling(mut p) => loop {
+                if let Some(done) = p.advance(geom, PATH_SAMPLE_INTERVALS) {
+                    return done;
                 }
-                strokes
-            };
-            for ((((s, p1), p2), sl), cu) in strokes
-                .iter()
-                .zip(prev.iter())
-                .zip(prev2.iter())
-                .zip(slope.iter_mut())
-                .zip(curvature.iter_mut())
-            {
-                *sl = sl.max((*s - *p1).abs());
-                if k >= 2 {
-                    *cu = cu.max((*s - 2.0 * *p1 + *p2).abs());
-                }
-            }
-            prev2 = prev;
-            prev = strokes;
-        }
-
-        // Bounds of S' and S'' (see the module documentation), then the limits on s.
-        let mut rate = f32::INFINITY;
-        for (((sl, cu), v), a) in slope
-            .iter_mut()
-            .zip(curvature.iter_mut())
-            .zip(limits.max_speed_mm_per_s.iter())
-            .zip(limits.max_accel_mm_per_s2.iter())
-        {
-            let c = CURVATURE_SAFETY_FACTOR * (*cu + 4.0 * STROKE_ROUNDING_MM) * n * n;
-            let g = *sl * n + 2.0 * STROKE_ROUNDING_MM * n + c / n;
-            *cu = c;
-            *sl = g;
-            rate = rate.min(LIMIT_USE_FRACTION * *v / g).min(Real::sqrt(
-                CURVATURE_ACCEL_SHARE * LIMIT_USE_FRACTION * *a / c,
-            ));
-        }
-        let mut accel = f32::INFINITY;
-        for ((g, c), a) in slope
-            .iter()
-            .zip(curvature.iter())
-            .zip(limits.max_accel_mm_per_s2.iter())
-        {
-            accel = accel.min((LIMIT_USE_FRACTION * *a - *c * rate * rate) / *g);
-        }
-        let ramp = Ramp::plan(rate, accel).map_err(|e| match e {
-            RampError::BadLimits => MotionError::NonFinite,
-            RampError::TooLong => MotionError::TooLong,
-        })?;
-        Ok(Self {
-            start: start_a,
-            target: target_a,
-            delta,
-            ramp,
-            bounds: PathBounds {
-                stroke_slope_mm: slope,
-                stroke_curvature_mm: curvature,
-                max_rate_per_s: rate,
-                max_accel_per_s2: accel,
             },
-        })
+        }
     }
 
     /// The commanded pose at control cycle `cycle` (0 = the cycle the move starts; the
@@ -359,5 +257,186 @@ impl Trajectory {
     /// Target pose.
     pub fn target(&self) -> Pose<f32> {
         Pose::from_array(self.target)
+    }
+}
+
+/// The result of [`TrajectoryPlanner::begin`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PlanStart {
+    /// Nothing to sample (zero-length move): the trajectory is ready.
+    Ready(Trajectory),
+    /// The ends are accepted; the path samples remain to be evaluated.
+    Sampling(TrajectoryPlanner),
+}
+
+/// A trajectory being planned: [`TrajectoryPlanner::begin`] checks the inputs and both
+/// ends (two IK evaluations), then [`TrajectoryPlanner::advance`] evaluates a bounded
+/// number of path samples per call, so that a controller can spread the ~17 IK
+/// evaluations of a plan over several control cycles. The result is the same as
+/// [`Trajectory::plan`]'s (which is `begin` + `advance` to the end).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrajectoryPlanner {
+    start: [f32; 6],
+    target: [f32; 6],
+    delta: [f32; 6],
+    target_strokes: [f32; LEGS],
+    limits: MotionLimits,
+    /// Next sample index (1..=PATH_SAMPLE_INTERVALS).
+    k: usize,
+    prev: [f32; LEGS],
+    prev2: [f32; LEGS],
+    slope: [f32; LEGS],
+    curvature: [f32; LEGS],
+}
+
+impl TrajectoryPlanner {
+    /// Checks the inputs and both ends; a zero-length move is ready at once.
+    pub fn begin(
+        geom: &Geometry<f32>,
+        start: &Pose<f32>,
+        target: &Pose<f32>,
+        limits: &MotionLimits,
+    ) -> Result<PlanStart, MotionError> {
+        if !start.is_finite() || !target.is_finite() {
+            return Err(MotionError::NonFinite);
+        }
+        validate_limits(limits)?;
+        let (start_a, target_a) = (start.to_array(), target.to_array());
+        let mut delta = [0.0f32; 6];
+        for ((d, t), s) in delta.iter_mut().zip(target_a.iter()).zip(start_a.iter()) {
+            *d = *t - *s;
+        }
+        if !delta.iter().all(|d| d.is_finite()) {
+            return Err(MotionError::NonFinite);
+        }
+        let (target_strokes, refused) = evaluate(geom, target);
+        if !refused.is_empty() {
+            return Err(MotionError::TargetRefused(refused));
+        }
+        let (start_strokes, refused) = evaluate(geom, start);
+        if !refused.is_empty() {
+            return Err(MotionError::StartRefused(refused));
+        }
+        if delta.iter().all(|d| *d == 0.0) {
+            return Ok(PlanStart::Ready(Trajectory {
+                start: start_a,
+                target: target_a,
+                delta,
+                ramp: Ramp::immediate(),
+                bounds: PathBounds {
+                    stroke_slope_mm: [0.0; LEGS],
+                    stroke_curvature_mm: [0.0; LEGS],
+                    max_rate_per_s: f32::INFINITY,
+                    max_accel_per_s2: f32::INFINITY,
+                },
+            }));
+        }
+        Ok(PlanStart::Sampling(TrajectoryPlanner {
+            start: start_a,
+            target: target_a,
+            delta,
+            target_strokes,
+            limits: *limits,
+            k: 1,
+            prev: start_strokes,
+            prev2: start_strokes,
+            slope: [0.0; LEGS],
+            curvature: [0.0; LEGS],
+        }))
+    }
+
+    /// Evaluates up to `max_samples` more path samples (IK each); returns the finished
+    /// plan (or the refusal) once the last sample is done, `None` while samples remain.
+    pub fn advance(
+        &mut self,
+        geom: &Geometry<f32>,
+        max_samples: usize,
+    ) -> Option<Result<Trajectory, MotionError>> {
+        let n = PATH_SAMPLE_INTERVALS as f32;
+        for _ in 0..max_samples.max(1) {
+            let k = self.k;
+            if k > PATH_SAMPLE_INTERVALS {
+                break;
+            }
+            let strokes = if k == PATH_SAMPLE_INTERVALS {
+                self.target_strokes
+            } else {
+                let pose = Pose::from_array(along(&self.start, &self.delta, k as f32 / n));
+                let (strokes, refused) = evaluate(geom, &pose);
+                if !refused.is_empty() {
+                    return Some(Err(MotionError::PathRefused {
+                        sample: k as u8,
+                        refusals: refused,
+                    }));
+                }
+                strokes
+            };
+            for ((((s, p1), p2), sl), cu) in strokes
+                .iter()
+                .zip(self.prev.iter())
+                .zip(self.prev2.iter())
+                .zip(self.slope.iter_mut())
+                .zip(self.curvature.iter_mut())
+            {
+                *sl = sl.max((*s - *p1).abs());
+                if k >= 2 {
+                    *cu = cu.max((*s - 2.0 * *p1 + *p2).abs());
+                }
+            }
+            self.prev2 = self.prev;
+            self.prev = strokes;
+            self.k = k + 1;
+        }
+        if self.k <= PATH_SAMPLE_INTERVALS {
+            return None;
+        }
+        Some(self.finish())
+    }
+
+    /// Bounds of S' and S'' (see the module documentation), then the limits on s.
+    fn finish(&self) -> Result<Trajectory, MotionError> {
+        let n = PATH_SAMPLE_INTERVALS as f32;
+        let mut slope = self.slope;
+        let mut curvature = self.curvature;
+        let limits = &self.limits;
+        let mut rate = f32::INFINITY;
+        for (((sl, cu), v), a) in slope
+            .iter_mut()
+            .zip(curvature.iter_mut())
+            .zip(limits.max_speed_mm_per_s.iter())
+            .zip(limits.max_accel_mm_per_s2.iter())
+        {
+            let c = CURVATURE_SAFETY_FACTOR * (*cu + 4.0 * STROKE_ROUNDING_MM) * n * n;
+            let g = *sl * n + 2.0 * STROKE_ROUNDING_MM * n + c / n;
+            *cu = c;
+            *sl = g;
+            rate = rate.min(LIMIT_USE_FRACTION * *v / g).min(Real::sqrt(
+                CURVATURE_ACCEL_SHARE * LIMIT_USE_FRACTION * *a / c,
+            ));
+        }
+        let mut accel = f32::INFINITY;
+        for ((g, c), a) in slope
+            .iter()
+            .zip(curvature.iter())
+            .zip(limits.max_accel_mm_per_s2.iter())
+        {
+            accel = accel.min((LIMIT_USE_FRACTION * *a - *c * rate * rate) / *g);
+        }
+        let ramp = Ramp::plan(rate, accel).map_err(|e| match e {
+            RampError::BadLimits => MotionError::NonFinite,
+            RampError::TooLong => MotionError::TooLong,
+        })?;
+        Ok(Trajectory {
+            start: self.start,
+            target: self.target,
+            delta: self.delta,
+            ramp,
+            bounds: PathBounds {
+                stroke_slope_mm: slope,
+                stroke_curvature_mm: curvature,
+                max_rate_per_s: rate,
+                max_accel_per_s2: accel,
+            },
+        })
     }
 }

@@ -17,6 +17,12 @@
 //!    every NM point is clamped into Omega component-wise before it is evaluated.
 //! 5. Stop when the best RMS residual is below the target, or after `T_max` generations.
 //!
+//! Our addition (not in the paper): by default both variants run in Jacobian-whitened
+//! search coordinates ([`Coordinates`]), a fixed linear preconditioning computed once from
+//! the residual Jacobian at nominal. The objective, the steps above and Omega (a box in
+//! the joint coordinates, clamped there) are unchanged; [`Coordinates::Original`] is the
+//! paper's setting.
+//!
 //! Constants the seed notes leave open (the paper's values are unreadable) are named
 //! settings with the values used in the literature the paper builds on (Yang & Deb's
 //! cuckoo search: `n = 25`, `p_a = 0.25`, `alpha = 0.01`, `beta = 1.5`; standard
@@ -65,6 +71,37 @@ pub const NM_CONTRACTION: f64 = 0.5;
 /// Nelder-Mead shrink coefficient.
 pub const NM_SHRINK: f64 = 0.5;
 
+/// Coordinates of the search (our addition, not in the paper).
+///
+/// The residual Jacobian at nominal has a condition number of ~1e4 (18 barely observable
+/// directions), and Nelder-Mead in 36 dimensions does not resolve the ill-conditioned
+/// directions of such a problem in a reasonable budget. [`Coordinates::Whitened`] runs
+/// the unchanged algorithm in the coordinates `z = S' V^T (x - x_nominal)` (mm of
+/// residual norm), where `J = U S V^T` is the singular value decomposition of the
+/// residual Jacobian at nominal (computed once per run, `x_nominal` the centre of Omega)
+/// and `S' = diag(max(s_k, f s_1))` (`f` = [`WHITENING_FLOOR`]): a fixed linear change
+/// of variables that makes the objective nearly isotropic near the solution, the usual
+/// preconditioning. The objective is unchanged (plain sum of squares). Omega stays a box
+/// in the original coordinates: every point the algorithm puts into Omega (Levy moves,
+/// and in the improved variant every Nelder-Mead point) is mapped back to `x`, clamped
+/// into Omega component-wise there, and mapped to `z` again; random nests are drawn
+/// uniformly in Omega in `x`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Coordinates {
+    /// The joint coordinates themselves (mm), as in the paper.
+    Original,
+    /// Jacobian-whitened coordinates (see the enum documentation).
+    Whitened,
+}
+
+/// Default search coordinates: whitened (see [`Coordinates`]).
+pub const DEFAULT_COORDINATES: Coordinates = Coordinates::Whitened;
+/// Floor of the whitening scale, as a fraction of the largest singular value: a guard
+/// against a singular Jacobian (e.g. a degenerate sampling plan), far below the weakest
+/// direction of the paper's plan (1e-4 of the largest), so it does not change the map
+/// there. Stretching is limited to 1 / floor.
+pub const WHITENING_FLOOR: f64 = 1.0e-8;
+
 /// Which algorithm.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Variant {
@@ -101,6 +138,8 @@ pub struct CuckooConfig {
     pub nm_step_fraction: f64,
     /// Stop when the RMS residual (mm) is at or below this; `None` runs T_max generations.
     pub target_rms_mm: Option<f64>,
+    /// Coordinates the search runs in (our addition; see [`Coordinates`]).
+    pub coordinates: Coordinates,
 }
 
 impl Default for CuckooConfig {
@@ -118,6 +157,7 @@ impl Default for CuckooConfig {
             nm_iterations: DEFAULT_NM_ITERATIONS,
             nm_step_fraction: DEFAULT_NM_STEP_FRACTION,
             target_rms_mm: None,
+            coordinates: DEFAULT_COORDINATES,
         }
     }
 }
@@ -185,15 +225,119 @@ pub fn adaptive_coefficients(cfg: &CuckooConfig, t: usize, t_max: usize) -> (f64
     (lambda, s_min)
 }
 
+/// The search coordinates: `x = origin + T z` and `z = T^-1 (x - origin)` (row-major
+/// 36 x 36 matrices); `None` is the identity map (original coordinates).
+struct Frame {
+    origin: ParamVec,
+    maps: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+fn mat_vec(m: &[f64], v: &ParamVec) -> ParamVec {
+    let mut out = [0.0; N_PARAMS];
+    for (o, row) in out.iter_mut().zip(m.chunks_exact(N_PARAMS)) {
+        *o = row.iter().zip(v.iter()).map(|(a, b)| a * b).sum();
+    }
+    out
+}
+
+impl Frame {
+    fn new(problem: &Problem, omega: &ParamBox, cfg: &CuckooConfig) -> Result<Self, CalibError> {
+        let origin = omega.centre();
+        if cfg.coordinates == Coordinates::Original {
+            return Ok(Self { origin, maps: None });
+        }
+        let j = problem.jacobian(&origin);
+        let m = nalgebra::DMatrix::from_row_slice(problem.n_residuals(), N_PARAMS, &j);
+        let svd = m.svd(false, true);
+        let v_t = svd
+            .v_t
+            .ok_or_else(|| CalibError::Solver("Jacobian SVD failed".into()))?;
+        let s_max = svd.singular_values.max();
+        let floor = WHITENING_FLOOR * s_max;
+        let mut to_x = vec![0.0; N_PARAMS * N_PARAMS];
+        let mut to_z = vec![0.0; N_PARAMS * N_PARAMS];
+        for (r, s) in svd.singular_values.iter().enumerate() {
+            let scale = s.max(floor);
+            if !(scale > 0.0 && scale.is_finite()) {
+                return Err(CalibError::Solver(
+                    "zero or non-finite Jacobian at nominal: cannot whiten (use original coordinates)"
+                        .into(),
+                ));
+            }
+            for k in 0..N_PARAMS {
+                // z_r = scale_r (V^T)_rk x_k ;  x_k = sum_r V_kr z_r / scale_r.
+                to_z[r * N_PARAMS + k] = scale * v_t[(r, k)];
+                to_x[k * N_PARAMS + r] = v_t[(r, k)] / scale;
+            }
+        }
+        Ok(Self {
+            origin,
+            maps: Some((to_x, to_z)),
+        })
+    }
+
+    fn to_x(&self, z: &ParamVec) -> ParamVec {
+        match &self.maps {
+            None => *z,
+            Some((to_x, _)) => {
+                let mut x = mat_vec(to_x, z);
+                x.iter_mut()
+                    .zip(self.origin.iter())
+                    .for_each(|(a, o)| *a += o);
+                x
+            }
+        }
+    }
+
+    fn to_z(&self, x: &ParamVec) -> ParamVec {
+        match &self.maps {
+            None => *x,
+            Some((_, to_z)) => {
+                let mut d = *x;
+                d.iter_mut()
+                    .zip(self.origin.iter())
+                    .for_each(|(a, o)| *a -= o);
+                mat_vec(to_z, &d)
+            }
+        }
+    }
+
+    /// Maps `z` to `x`, clamps into Omega there, maps back.
+    fn clamp(&self, omega: &ParamBox, z: &mut ParamVec) {
+        let mut x = self.to_x(z);
+        if !omega.contains(&x) {
+            omega.clamp(&mut x);
+            *z = self.to_z(&x);
+        }
+    }
+}
+
 struct Counter<'a> {
     problem: &'a Problem,
+    frame: &'a Frame,
+    /// Improved variant: the box every evaluated point is in. Points reach the counter
+    /// already clamped (in `x`) and mapped to `z`; the round trip `z -> x` can put a
+    /// coordinate on a bound a few ulps outside, which this clamp removes (exact no-op in
+    /// original coordinates), so no point outside Omega is ever evaluated or returned.
+    omega: Option<&'a ParamBox>,
     evaluations: usize,
 }
 
 impl Counter<'_> {
-    fn eval(&mut self, v: &ParamVec) -> f64 {
+    /// The parameter vector (mm) of search-coordinate point `z`.
+    fn point(&self, z: &ParamVec) -> ParamVec {
+        let mut x = self.frame.to_x(z);
+        if let Some(o) = self.omega {
+            o.clamp(&mut x);
+        }
+        x
+    }
+
+    /// The objective `E` (mm^2) at the search-coordinate point `z`.
+    fn eval(&mut self, z: &ParamVec) -> f64 {
         self.evaluations += 1;
-        let e = self.problem.objective(v);
+        let x = self.point(z);
+        let e = self.problem.objective(&x);
         if e.is_nan() {
             f64::INFINITY
         } else {
@@ -221,9 +365,24 @@ pub fn nelder_mead(
     iterations: usize,
     omega: Option<&ParamBox>,
 ) -> (ParamVec, f64) {
+    match omega {
+        Some(o) => nelder_mead_projected(f, x0, step, iterations, Some(&|v| o.clamp(v))),
+        None => nelder_mead_projected(f, x0, step, iterations, None),
+    }
+}
+
+/// [`nelder_mead`] with a general projection applied to every trial point (the improved
+/// variant in whitened coordinates: map to `x`, clamp into Omega, map back).
+pub fn nelder_mead_projected(
+    f: &mut dyn FnMut(&ParamVec) -> f64,
+    x0: &ParamVec,
+    step: &ParamVec,
+    iterations: usize,
+    project: Option<&dyn Fn(&mut ParamVec)>,
+) -> (ParamVec, f64) {
     let fix = |mut v: ParamVec| {
-        if let Some(o) = omega {
-            o.clamp(&mut v);
+        if let Some(p) = project {
+            p(&mut v);
         }
         v
     };
@@ -334,8 +493,14 @@ pub fn solve(
 ) -> Result<CuckooResult, CalibError> {
     check(cfg)?;
     let mut rng = Pcg64::seed_from_u64(seed);
+    let frame = Frame::new(problem, omega, cfg)?;
     let mut f = Counter {
         problem,
+        frame: &frame,
+        omega: match variant {
+            Variant::Smcs => None,
+            Variant::Improved => Some(omega),
+        },
         evaluations: 0,
     };
     let sigma_u = mantegna_sigma(cfg.levy_beta);
@@ -344,9 +509,10 @@ pub fn solve(
     let n_res = problem.n_residuals().max(1) as f64;
     let rms = |e: f64| (e / n_res).sqrt();
 
+    // Nests are stored in search coordinates (see [`Coordinates`]).
     let mut nests: Vec<(ParamVec, f64)> = (0..cfg.nests)
         .map(|_| {
-            let v = uniform_in(omega, &mut rng);
+            let v = frame.to_z(&uniform_in(omega, &mut rng));
             let e = f.eval(&v);
             (v, e)
         })
@@ -398,7 +564,7 @@ pub fn solve(
                 let s_t = lambda * step + s_min;
                 *xk += cfg.step_scale * s_t * (nk - bk);
             }
-            omega.clamp(&mut x);
+            frame.clamp(omega, &mut x);
             let e = f.eval(&x);
             if e < nest.1 {
                 *nest = (x, e);
@@ -407,7 +573,7 @@ pub fn solve(
         // 3. Abandonment.
         for nest in nests.iter_mut() {
             if rng.random::<f64>() < cfg.discovery_probability {
-                let x = uniform_in(omega, &mut rng);
+                let x = frame.to_z(&uniform_in(omega, &mut rng));
                 let e = f.eval(&x);
                 if e < nest.1 {
                     *nest = (x, e);
@@ -417,9 +583,10 @@ pub fn solve(
         best = best_of(&nests);
         // 4. Nelder-Mead on the worse part.
         nests.sort_by(|a, b| a.1.total_cmp(&b.1));
-        let bounds = match variant {
+        let project = |z: &mut ParamVec| frame.clamp(omega, z);
+        let bounds: Option<&dyn Fn(&mut ParamVec)> = match variant {
             Variant::Smcs => None,
-            Variant::Improved => Some(omega),
+            Variant::Improved => Some(&project),
         };
         let start = nests.len() - n_nm.min(nests.len());
         for nest in nests[start..].iter_mut() {
@@ -428,7 +595,7 @@ pub fn solve(
                 *sk = (cfg.nm_step_fraction * (nk - bk).abs()).max(NM_MIN_STEP_MM);
             }
             let mut fe = |v: &ParamVec| f.eval(v);
-            let (x, e) = nelder_mead(&mut fe, &nest.0, &step, cfg.nm_iterations, bounds);
+            let (x, e) = nelder_mead_projected(&mut fe, &nest.0, &step, cfg.nm_iterations, bounds);
             if e < nest.1 {
                 *nest = (x, e);
             }
@@ -439,20 +606,25 @@ pub fn solve(
         bar.set_message(format!("RMS {:.4} um", rms(best.1) * 1e3));
     }
     bar.finish_and_clear();
+    let best_x = f.point(&best.0);
     Ok(CuckooResult {
-        best: best.0,
+        best: best_x,
         best_objective: best.1,
         generations,
         evaluations: f.evaluations,
         history_rms_mm: history,
         note: format!(
-            "{}: {} nests, {} generations, residual RMS {:.4} um",
+            "{}: {} nests, {} generations, {} coordinates, residual RMS {:.4} um",
             match variant {
                 Variant::Smcs => "smcs",
                 Variant::Improved => "improved",
             },
             cfg.nests,
             generations,
+            match cfg.coordinates {
+                Coordinates::Original => "original",
+                Coordinates::Whitened => "whitened",
+            },
             rms(best.1) * 1e3
         ),
     })
