@@ -26,7 +26,7 @@ use embedded_storage::nor_flash::NorFlash;
 
 use crate::hw::{counts_to_mm, DriveError, SliderDrives, StrokeEncoders};
 use crate::kinematics::{fk, ik, FkConfig, FkError, FkSolution, Geometry, Pose, Refusals, LEGS};
-use crate::link::command::{MemoryId, WirePose, TABLE_CHUNK_MAX_LEN};
+use crate::link::command::{round_sat_i32, MemoryId, WirePose, TABLE_CHUNK_MAX_LEN};
 use crate::link::tc::{decode_telecommand, AckFlags, RequestId, Telecommand};
 use crate::link::tm::{dump_chunks, EventSeverity, TmTime, TmWriter, Verification};
 use crate::link::{Command, Housekeeping, MAX_TM_FRAME_LEN};
@@ -1136,33 +1136,19 @@ fn wire_pose_f32(pose: &Pose<f32>) -> WirePose {
         if p.abs() < F32_EXACT_HALF_LIMIT {
             round_nm(p)
         } else {
-            round_sat_i32_f64(f64::from(v) * f64::from(NM_PER_MM))
+            round_sat_i32(f64::from(v) * f64::from(NM_PER_MM))
         }
     });
     WirePose {
         translation_nm,
         rotation_uas: pose
             .rotation_rad
-            .map(|v| round_sat_i32_f64(f64::from(v) * UAS_PER_RAD)),
+            .map(|v| round_sat_i32(f64::from(v) * UAS_PER_RAD)),
     }
 }
 
 /// Micro-arcseconds per radian.
 const UAS_PER_RAD: f64 = crate::kinematics::ARCSEC_PER_RAD * 1.0e6;
-
-/// Rounds half away from zero to i32, saturating; NaN gives 0 (telemetry only).
-fn round_sat_i32_f64(v: f64) -> i32 {
-    let r = libm::round(v);
-    if r.is_nan() {
-        0
-    } else if r >= f64::from(i32::MAX) {
-        i32::MAX
-    } else if r <= f64::from(i32::MIN) {
-        i32::MIN
-    } else {
-        r as i32
-    }
-}
 
 /// Rounds to the nearest nanometre, saturating at the i32 range (telemetry only).
 fn round_nm(v: f32) -> i32 {

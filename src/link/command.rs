@@ -33,8 +33,8 @@ pub struct WirePose {
     pub rotation_uas: [i32; 3],
 }
 
-/// Rounds to the nearest i32, saturating; NaN gives 0.
-fn round_sat_i32(v: f64) -> i32 {
+/// Rounds half away from zero to the nearest i32, saturating; NaN gives 0.
+pub fn round_sat_i32(v: f64) -> i32 {
     let r = libm::round(v);
     if r.is_nan() {
         0
