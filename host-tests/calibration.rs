@@ -2,6 +2,7 @@
 //!
 //! Budgets are small (dev profile); the full-size runs are `m2ground table3`.
 
+use m2ctl::ground::calib::cuckoo::Coordinates;
 use m2ctl::ground::calib::{
     self, calibrate, cuckoo, parse_measurements, CalibConfig, Measurement, ParamBox, Problem,
     SolverKind, N_PARAMS,
@@ -123,24 +124,84 @@ fn improved_stays_in_omega_and_beats_random_start() {
     let meas = campaign(&Tracker::PAPER);
     let problem = Problem::new(meas.clone(), PROTOTYPE.p0_mm);
     let nominal = calib::to_vec(&PROTOTYPE);
-    for half_width_mm in [0.05, 0.5] {
+    for (half_width_mm, coordinates) in [0.05, 0.5]
+        .into_iter()
+        .flat_map(|h| [(h, Coordinates::Original), (h, Coordinates::Whitened)])
+    {
         let omega = ParamBox::around(&nominal, half_width_mm);
+        let cfg = cuckoo::CuckooConfig {
+            coordinates,
+            ..small_cuckoo()
+        };
         for seed in 0..3 {
             let r = cuckoo::solve(
                 &problem,
                 &omega,
-                &small_cuckoo(),
+                &cfg,
                 cuckoo::Variant::Improved,
                 seed,
                 false,
             )
             .expect("improved");
-            assert!(omega.contains(&r.best), "seed {seed}: best left Omega");
+            assert!(
+                omega.contains(&r.best),
+                "{coordinates:?} seed {seed}: best left Omega"
+            );
             // Monotone best (elitism).
             for w in r.history_rms_mm.windows(2) {
                 assert!(w[1] <= w[0], "best got worse: {w:?}");
             }
         }
+    }
+}
+
+/// Whitened search coordinates (our preconditioning) reach LM's fit on a budget where the
+/// paper's original coordinates do not; both results stay in Omega.
+#[test]
+fn whitened_coordinates_reach_the_lm_fit() {
+    let meas = campaign(&Tracker::PAPER);
+    let lm = calibrate(&PROTOTYPE, &meas, &CalibConfig::default()).expect("lm");
+    let run = |coordinates| {
+        let cfg = CalibConfig {
+            solver: SolverKind::Improved,
+            cuckoo: cuckoo::CuckooConfig {
+                coordinates,
+                ..test_budget_cuckoo()
+            },
+            ..CalibConfig::default()
+        };
+        calibrate(&PROTOTYPE, &meas, &cfg).expect("improved")
+    };
+    let whitened = run(Coordinates::Whitened);
+    let original = run(Coordinates::Original);
+    eprintln!(
+        "fit RMS um: lm {:.4}, whitened {:.4}, original {:.4}",
+        lm.rms_after_mm * 1e3,
+        whitened.rms_after_mm * 1e3,
+        original.rms_after_mm * 1e3
+    );
+    assert!(whitened.inside_omega && original.inside_omega);
+    assert!(whitened.rms_after_mm < original.rms_after_mm);
+    assert!(
+        whitened.rms_after_mm <= lm.rms_after_mm * WHITENED_FIT_TOLERANCE,
+        "whitened {} um vs LM {} um",
+        whitened.rms_after_mm * 1e3,
+        lm.rms_after_mm * 1e3
+    );
+}
+
+/// Tolerance of the whitened search's fit RMS against LM's in
+/// `whitened_coordinates_reach_the_lm_fit` (ratio).
+const WHITENED_FIT_TOLERANCE: f64 = 1.05;
+
+/// Budget of `whitened_coordinates_reach_the_lm_fit`: a fraction of the default, enough
+/// for the whitened search to converge.
+fn test_budget_cuckoo() -> cuckoo::CuckooConfig {
+    cuckoo::CuckooConfig {
+        nests: 15,
+        max_generations: 60,
+        nm_iterations: 100,
+        ..cuckoo::CuckooConfig::default()
     }
 }
 
