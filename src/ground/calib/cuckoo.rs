@@ -59,8 +59,9 @@ pub const DEFAULT_NM_ITERATIONS: usize = 100;
 /// Default initial simplex edge, as a fraction of the nest's distance to the best nest
 /// (per parameter).
 pub const DEFAULT_NM_STEP_FRACTION: f64 = 0.5;
-/// Smallest initial simplex edge (mm): a nest that coincides with the best one still
-/// gets a non-degenerate simplex.
+/// Smallest initial simplex edge, in search coordinates (mm in the original coordinates,
+/// mm of residual norm in the whitened ones, see [`Coordinates`]): a nest that coincides
+/// with the best one still gets a non-degenerate simplex.
 pub const NM_MIN_STEP_MM: f64 = 1.0e-7;
 /// Nelder-Mead reflection coefficient.
 pub const NM_REFLECTION: f64 = 1.0;
