@@ -284,9 +284,22 @@ struct SolverCli {
     /// LM: assumed spread of the true joints about nominal (mm).
     #[arg(long, default_value_t = m2ctl::ground::calib::lm::DEFAULT_PRIOR_SIGMA_MM)]
     prior_sigma_mm: f64,
+    /// Cuckoo search coordinates: "whitened" (default, our preconditioning) or
+    /// "original" (the paper's joint coordinates, exactly as the seed notes describe).
+    #[arg(long, value_enum, default_value_t = CoordArg::Whitened)]
+    coordinates: CoordArg,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+}
+
+/// Search coordinates of the cuckoo-search solvers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum CoordArg {
+    /// Jacobian-whitened coordinates (our preconditioning; the default).
+    Whitened,
+    /// The paper's joint coordinates.
+    Original,
 }
 
 impl SolverCli {
@@ -299,6 +312,10 @@ impl SolverCli {
                 nests: self.nests,
                 max_generations: self.generations,
                 nm_iterations: self.nm_iterations,
+                coordinates: match self.coordinates {
+                    CoordArg::Original => m2ctl::ground::calib::cuckoo::Coordinates::Original,
+                    CoordArg::Whitened => m2ctl::ground::calib::cuckoo::Coordinates::Whitened,
+                },
                 ..CuckooConfig::default()
             },
             progress: !self.quiet,
