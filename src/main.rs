@@ -27,19 +27,11 @@ use m2ctl::table::{TableStore, FLIGHT_LAYOUT};
 
 /// Exit code: the boot self-test failed.
 const EXIT_SELFTEST_FAIL: i32 = 1;
-/// Exit code: the firmware panicked (a defect: flight code must not panic).
-const EXIT_PANIC: i32 = 101;
 /// Speed of the QEMU slider model (mm/s): faster than the motion limits, so the model
 /// follows the setpoints like a good drive.
 const MODEL_SLIDER_SPEED_MM_PER_S: f32 = 1.0;
 /// Most UART bytes taken per cycle (bounds the cycle time; the rest waits in the UART).
 const MAX_RX_BYTES_PER_CYCLE: usize = 64;
-
-#[panic_handler]
-fn panic(_info: &core::panic::PanicInfo) -> ! {
-    defmt::error!("PANIC");
-    hw::exit(EXIT_PANIC)
-}
 
 /// UART transmitter as a telemetry sink (blocking per byte; the UART is faster than
 /// the telemetry rate).

@@ -26,14 +26,6 @@ use m2ctl::table::{TableStore, FLIGHT_LAYOUT};
 const EXIT_PASS: i32 = 0;
 /// Exit code: the move did not run (the figures would not be what they claim).
 const EXIT_FAIL: i32 = 1;
-/// Exit code: panic.
-const EXIT_PANIC: i32 = 101;
-
-#[panic_handler]
-fn panic(_info: &core::panic::PanicInfo) -> ! {
-    defmt::error!("PANIC");
-    hw::exit(EXIT_PANIC)
-}
 
 #[entry]
 fn main() -> ! {

@@ -23,20 +23,12 @@ use m2ctl::{nominal, selftest};
 const EXIT_PASS: i32 = 0;
 /// Exit code: a self-test check failed.
 const EXIT_FAIL: i32 = 1;
-/// Exit code: the firmware panicked (a defect: flight code must not panic).
-const EXIT_PANIC: i32 = 101;
 
 /// Warm-start offset for the FK benchmark, per translation axis (mm): 5.7 um on each
 /// axis is 9.9 um in all, "within 10 um" of the true pose.
 const FK_BENCH_OFFSET_MM: f32 = 0.0057;
 /// Warm-start offset for the FK benchmark, per rotation axis (rad; 2 arcsec).
 const FK_BENCH_OFFSET_RAD: f32 = 2.0 / 206_264.8;
-
-#[panic_handler]
-fn panic(_info: &core::panic::PanicInfo) -> ! {
-    defmt::error!("PANIC");
-    hw::exit(EXIT_PANIC)
-}
 
 #[entry]
 fn main() -> ! {

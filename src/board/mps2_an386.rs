@@ -50,6 +50,17 @@ pub fn exit(code: i32) -> ! {
     semihosting::process::exit(code)
 }
 
+/// Exit code of a panic: a defect, flight code must not panic.
+pub const EXIT_PANIC: i32 = 101;
+
+/// The panic handler of every firmware image of this board: log and end the run with
+/// [`EXIT_PANIC`] (on a flight board: the watchdog/safe-mode path).
+#[panic_handler]
+fn panic(_info: &core::panic::PanicInfo) -> ! {
+    defmt::error!("PANIC");
+    exit(EXIT_PANIC)
+}
+
 /// Marker for `qemu-insncount`: start of a measured section.
 #[no_mangle]
 #[inline(never)]

@@ -7,12 +7,12 @@ use std::path::{Path, PathBuf};
 
 use super::calib::{calibrate, parse_measurements, CalibConfig, CalibResult, Measurement};
 use super::campaign::{perturbed, simulate, true_motion, Tracker};
-use super::eval::{accuracy, max_param_error_mm, random_poses, Accuracy, AXES, UM_PER_MM};
+use super::eval::{accuracy, max_param_error_mm, random_poses, Accuracy, AXES};
 use super::eval::{DEFAULT_EVAL_POSES, DEFAULT_EVAL_ROTATION_ARCSEC, DEFAULT_EVAL_TRANSLATION_MM};
 use super::files::{format_geometry, read_geometry, GeometryFile};
 use super::plan::{format_plan, plan_poses, PlanConfig};
 use super::report::{plot_per_pose, DEFAULT_EVAL_SEED};
-use crate::kinematics::{Geometry, GeometryParams, ARCSEC_PER_RAD};
+use crate::kinematics::{Geometry, GeometryParams};
 
 /// Reads and parses a measurement file; errors are prefixed with the path.
 pub fn read_measurements(path: &Path) -> Result<Vec<Measurement>, String> {
@@ -31,27 +31,9 @@ pub fn measured_pose_errors(
     for m in meas {
         let p =
             true_motion(&g, &m.strokes_mm, &m.pose).map_err(|e| format!("line {}: {e}", m.line))?;
-        let mut e = [0.0; 6];
-        for a in 0..3 {
-            e[a] = (p.translation_mm[a] - m.pose.translation_mm[a]) * UM_PER_MM;
-            e[a + 3] = (p.rotation_rad[a] - m.pose.rotation_rad[a]) * ARCSEC_PER_RAD;
-        }
-        errors.push(e);
+        errors.push(super::eval::pose_error(&p, &m.pose));
     }
-    let mut max_abs = [0.0f64; 6];
-    let mut sumsq = [0.0f64; 6];
-    for e in &errors {
-        for a in 0..6 {
-            max_abs[a] = max_abs[a].max(e[a].abs());
-            sumsq[a] += e[a] * e[a];
-        }
-    }
-    let n = errors.len().max(1) as f64;
-    Ok(Accuracy {
-        errors,
-        max_abs,
-        rms: sumsq.map(|s| (s / n).sqrt()),
-    })
+    Ok(Accuracy::from_errors(errors))
 }
 
 fn accuracy_lines(out: &mut String, label: &str, a: &Accuracy) {

@@ -95,27 +95,39 @@ pub fn accuracy(
             ))
         })?;
         let p = true_motion(&tru, &s, t)?;
-        let mut e = [0.0; 6];
-        for a in 0..3 {
-            e[a] = (p.translation_mm[a] - t.translation_mm[a]) * UM_PER_MM;
-            e[a + 3] = (p.rotation_rad[a] - t.rotation_rad[a]) * ARCSEC_PER_RAD;
-        }
-        errors.push(e);
+        errors.push(pose_error(&p, t));
     }
-    let mut max_abs = [0.0f64; 6];
-    let mut sumsq = [0.0f64; 6];
-    for e in &errors {
-        for a in 0..6 {
-            max_abs[a] = max_abs[a].max(e[a].abs());
-            sumsq[a] += e[a] * e[a];
+    Ok(Accuracy::from_errors(errors))
+}
+
+/// `reached - target` per axis: `[x, y, z]` in um and `[alpha, beta, gamma]` in arcsec.
+pub fn pose_error(reached: &Pose<f64>, target: &Pose<f64>) -> [f64; 6] {
+    let mut e = [0.0; 6];
+    for a in 0..3 {
+        e[a] = (reached.translation_mm[a] - target.translation_mm[a]) * UM_PER_MM;
+        e[a + 3] = (reached.rotation_rad[a] - target.rotation_rad[a]) * ARCSEC_PER_RAD;
+    }
+    e
+}
+
+impl Accuracy {
+    /// Max |error| and RMS per axis of per-pose errors (um x3, arcsec x3).
+    pub fn from_errors(errors: Vec<[f64; 6]>) -> Accuracy {
+        let mut max_abs = [0.0f64; 6];
+        let mut sumsq = [0.0f64; 6];
+        for e in &errors {
+            for a in 0..6 {
+                max_abs[a] = max_abs[a].max(e[a].abs());
+                sumsq[a] += e[a] * e[a];
+            }
+        }
+        let n = errors.len().max(1) as f64;
+        Accuracy {
+            errors,
+            max_abs,
+            rms: sumsq.map(|s| (s / n).sqrt()),
         }
     }
-    let n = errors.len().max(1) as f64;
-    Ok(Accuracy {
-        errors,
-        max_abs,
-        rms: sumsq.map(|s| (s / n).sqrt()),
-    })
 }
 
 /// Largest |calibrated - true| over the 36 joint coordinates (mm); reported, not scored.

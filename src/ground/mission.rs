@@ -24,10 +24,10 @@ use rand_pcg::Pcg64;
 
 use super::calib::{calibrate, CalibConfig, CalibResult, Measurement, SolverKind};
 use super::campaign::Tracker;
-use super::eval::{random_poses, Accuracy};
+use super::eval::{pose_error, random_poses, Accuracy, UM_PER_MM};
 use super::plan::{plan_poses, PlanConfig};
 use crate::controller::{Controller, ControllerConfig, State};
-use crate::kinematics::{Pose, ARCSEC_PER_RAD, LEGS};
+use crate::kinematics::{Pose, LEGS};
 use crate::link::framing::Deframer;
 use crate::link::tc::{encode_telecommand, TcHeader};
 use crate::link::tm::{dump_chunks, parse_tm, TmReport, Verification};
@@ -38,8 +38,6 @@ use crate::sim::{Plant, PlantConfig};
 use crate::table::mock_flash::MockFlash;
 use crate::table::{Provenance, Table, TableStore, DEFAULT_SUPERVISION, FLIGHT_LAYOUT};
 
-/// Micrometres per millimetre.
-const UM_PER_MM: f64 = 1.0e3;
 /// Nanometres per millimetre.
 const NM_PER_MM: f64 = 1.0e6;
 /// Size of the mock flash (bytes): the board's 4 MiB.
@@ -234,32 +232,6 @@ impl Mission {
     }
 }
 
-fn accuracy_of(errors: Vec<[f64; 6]>) -> Accuracy {
-    let mut max_abs = [0.0f64; 6];
-    let mut sum_sq = [0.0f64; 6];
-    for e in &errors {
-        for k in 0..6 {
-            max_abs[k] = max_abs[k].max(e[k].abs());
-            sum_sq[k] += e[k] * e[k];
-        }
-    }
-    let n = errors.len().max(1) as f64;
-    Accuracy {
-        rms: sum_sq.map(|s| (s / n).sqrt()),
-        max_abs,
-        errors,
-    }
-}
-
-fn pose_error(measured: &Pose<f64>, target: &Pose<f64>) -> [f64; 6] {
-    let mut e = [0.0; 6];
-    for k in 0..3 {
-        e[k] = (measured.translation_mm[k] - target.translation_mm[k]) * UM_PER_MM;
-        e[k + 3] = (measured.rotation_rad[k] - target.rotation_rad[k]) * ARCSEC_PER_RAD;
-    }
-    e
-}
-
 fn bar(show: bool, len: u64, msg: &'static str) -> ProgressBar {
     if !show {
         return ProgressBar::hidden();
@@ -292,7 +264,7 @@ fn visit_targets(
         pb.inc(1);
     }
     pb.finish();
-    Ok(accuracy_of(errors))
+    Ok(Accuracy::from_errors(errors))
 }
 
 /// Runs the whole story; `log` receives the narrative lines.
