@@ -1,4 +1,4 @@
-//! The cyclic executive: one [`Controller::tick`] per control cycle ([`CYCLE_S`]).
+//! The cyclic executive: one [`Controller::tick`] per control cycle ([`crate::motion::CYCLE_S`]).
 //!
 //! A tick, in order:
 //! 1. read the six encoders ([`StrokeEncoders`]);
@@ -25,14 +25,14 @@
 use embedded_storage::nor_flash::NorFlash;
 
 use crate::hw::{counts_to_mm, DriveError, SliderDrives, StrokeEncoders};
-use crate::kinematics::{fk, ik, FkConfig, FkError, FkSolution, Geometry, Pose, Refusals, LEGS};
+use crate::kinematics::{fk, ik, FkConfig, FkError, FkSolution, Geometry, Pose, LEGS};
 use crate::link::command::{round_sat_i32, MemoryId, WirePose, TABLE_CHUNK_MAX_LEN};
 use crate::link::tc::{decode_telecommand, AckFlags, RequestId, Telecommand};
 use crate::link::tm::{dump_chunks, EventSeverity, TmTime, TmWriter, Verification};
 use crate::link::{Command, Housekeeping, MAX_TM_FRAME_LEN};
 use crate::motion::{
     DirectStrokeLimits, MotionError, MotionLimits, PlanStart, StrokeMove, Trajectory,
-    TrajectoryPlanner, CYCLE_S,
+    TrajectoryPlanner,
 };
 use crate::supervision::{CycleInputs, FaultFlags, SupervisionConfig, Supervisor};
 use crate::table::{
@@ -45,7 +45,7 @@ pub const HK_PERIOD_CYCLES: u32 = 1000;
 /// ~17 samples of a plan are spread over a few cycles so that no cycle carries them all.
 pub const PLAN_SAMPLES_PER_CYCLE: usize = 4;
 /// Milliseconds per control cycle, for the TM timestamps.
-const MS_PER_CYCLE: u64 = 1;
+const MS_PER_CYCLE: u64 = (crate::motion::CYCLE_S * 1000.0) as u64;
 /// Bytes of the upload-received bitmap (one bit per table byte).
 const UPLOAD_BITMAP_LEN: usize = TABLE_LEN.div_ceil(8);
 /// Nanometres per millimetre (telemetry).
@@ -1067,11 +1067,6 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
         self.supervisor.latched()
     }
 
-    /// Last FK pose (mm, rad) and whether it is from this cycle.
-    pub fn pose_fk(&self) -> (Pose<f32>, bool) {
-        (self.pose_fk, self.fk_valid)
-    }
-
     /// The mechanism (e.g. the simulated plant in host tests, to advance its time).
     pub fn mechanism_mut(&mut self) -> &mut M {
         &mut self.mech
@@ -1080,11 +1075,6 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
     /// The parameter-table store (e.g. the mock flash in host tests).
     pub fn store_mut(&mut self) -> &mut TableStore<F> {
         &mut self.store
-    }
-
-    /// Workspace check of a target pose with the active geometry, without moving.
-    pub fn check_pose(&self, pose: &Pose<f32>) -> Refusals {
-        crate::kinematics::check(&self.active.geom, pose)
     }
 }
 
@@ -1159,6 +1149,3 @@ fn round_nm(v: f32) -> i32 {
         r as i32
     }
 }
-
-/// The control period (s), re-exported for the board loop.
-pub const CONTROL_PERIOD_S: f32 = CYCLE_S;
