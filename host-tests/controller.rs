@@ -5,9 +5,9 @@
 
 mod common;
 
-use common::ground::Tm;
 use common::rig::Rig;
 use m2ctl::controller::{event, State};
+use m2ctl::ground::station::Tm;
 use m2ctl::kinematics::{Pose, ARCSEC_PER_RAD};
 use m2ctl::link::command::{WirePose, TABLE_CHUNK_MAX_LEN};
 use m2ctl::link::tm::{dump_chunks, Verification};
@@ -129,7 +129,8 @@ fn malformed_packets_are_rejected_with_codes_and_change_nothing() {
     r.run(1);
     let hk0 = r.hk();
     let (mut pkt, rid) =
-        r.st.packet(&Command::MoveAbsolute(wire(100.0, 0.0, 0.0, 0.0, 0.0, 0.0)));
+        r.st.packet(&Command::MoveAbsolute(wire(100.0, 0.0, 0.0, 0.0, 0.0, 0.0)))
+            .unwrap();
     let last = pkt.len() - 1;
     pkt[last] ^= 0x5a; // CRC
     r.tick(Some(&pkt));
@@ -141,7 +142,7 @@ fn malformed_packets_are_rejected_with_codes_and_change_nothing() {
         ),
         "{reps:?}"
     );
-    let (pkt, rid) = r.st.packet(&Command::Ping);
+    let (pkt, rid) = r.st.packet(&Command::Ping).unwrap();
     r.tick(Some(&pkt[..pkt.len() - 3])); // truncated
     assert!(matches!(
         r.st.reports(rid)[..],
@@ -404,7 +405,7 @@ fn fuzzed_packets_never_panic_and_rejected_ones_change_nothing() {
         } else {
             // A valid packet with 1..4 bytes mutated (CRC then almost always fails).
             let cmd = &templates[case as usize % templates.len()];
-            let (mut p, _) = r.st.packet(cmd);
+            let (mut p, _) = r.st.packet(cmd).unwrap();
             for _ in 0..1 + byte(&mut rng) % 4 {
                 let at = byte(&mut rng) as usize % p.len();
                 p[at] ^= byte(&mut rng) | 1;

@@ -8,9 +8,9 @@ mod common;
 
 use std::time::{Duration, Instant};
 
-use common::ground::{Station, Tm};
 use common::qemu::Qemu;
 use m2ctl::controller::{event, State};
+use m2ctl::ground::station::{Station, Tm};
 use m2ctl::link::command::WirePose;
 use m2ctl::link::tm::{dump_chunks, Verification};
 use m2ctl::link::{Command, RequestId, TableChunk};
@@ -23,7 +23,7 @@ struct Link {
 
 impl Link {
     fn send(&mut self, cmd: &Command) -> RequestId {
-        let (frame, rid) = self.st.frame(cmd);
+        let (frame, rid) = self.st.frame(cmd).unwrap();
         self.q.send(&frame);
         rid
     }
@@ -88,7 +88,7 @@ fn firmware_in_qemu_answers_telecommands() {
     assert_eq!((hk.state, hk.active_table_id), (State::Idle.code(), 0));
 
     // A malformed packet (bad CRC) is refused with the link's code.
-    let (mut pkt, rid) = l.st.packet(&Command::Ping);
+    let (mut pkt, rid) = l.st.packet(&Command::Ping).unwrap();
     let n = pkt.len();
     pkt[n - 1] ^= 0xff;
     let mut frame = vec![0u8; pkt.len() * 2 + 4];

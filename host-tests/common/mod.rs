@@ -1,7 +1,6 @@
 //! Shared helpers of the host tests.
 #![allow(dead_code)]
 
-pub mod ground;
 pub mod qemu;
 pub mod rig;
 

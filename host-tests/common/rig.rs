@@ -2,8 +2,8 @@
 //! ground station, ticked together one control cycle at a time.
 #![allow(dead_code)]
 
-use super::ground::Station;
 use m2ctl::controller::{Controller, ControllerConfig, State};
+use m2ctl::ground::station::Station;
 use m2ctl::link::{Command, RequestId};
 use m2ctl::motion::CYCLE_S;
 use m2ctl::nominal::PROTOTYPE;
@@ -65,7 +65,7 @@ impl Rig {
 
     /// Sends one telecommand (goes through the framing both ways) and runs one cycle.
     pub fn send(&mut self, cmd: &Command) -> RequestId {
-        let (pkt, rid) = self.st.packet(cmd);
+        let (pkt, rid) = self.st.packet(cmd).unwrap();
         self.tick(Some(&pkt));
         rid
     }

@@ -26,12 +26,12 @@ use super::calib::{calibrate, CalibConfig, CalibResult, Measurement, SolverKind}
 use super::campaign::Tracker;
 use super::eval::{pose_error, random_poses, Accuracy, UM_PER_MM};
 use super::plan::{plan_poses, PlanConfig};
+use super::station::Station;
+use super::tc::upload_commands;
 use crate::controller::{Controller, ControllerConfig, State};
 use crate::kinematics::{Pose, LEGS};
-use crate::link::framing::Deframer;
-use crate::link::tc::{encode_telecommand, TcHeader};
-use crate::link::tm::{dump_chunks, parse_tm, TmReport, Verification};
-use crate::link::{Command, Housekeeping, RequestId, TableChunk, WirePose, MAX_TC_PACKET_LEN};
+use crate::link::tm::Verification;
+use crate::link::{Command, WirePose};
 use crate::motion::CYCLE_S;
 use crate::sim::manufacturing::perturbed;
 use crate::sim::{Plant, PlantConfig};
@@ -127,47 +127,10 @@ pub struct MissionReport {
     pub table_crc32: u32,
 }
 
-/// The ground side of the link: numbers and frames telecommands, parses telemetry.
-struct Ground {
-    seq: u16,
-    deframer: Deframer,
-    reports: Vec<(RequestId, Verification)>,
-    last_hk: Option<Housekeeping>,
-    tm_received: usize,
-    tc_sent: usize,
-    bad_tm: usize,
-}
-
-impl Ground {
-    fn receive(&mut self, frame_bytes: &[u8]) {
-        for &b in frame_bytes {
-            if let Some(frame) = self.deframer.push_byte(b) {
-                let Ok(f) = frame else {
-                    self.bad_tm += 1;
-                    continue;
-                };
-                match parse_tm(f) {
-                    Ok(tm) => {
-                        self.tm_received += 1;
-                        match tm.report {
-                            TmReport::Verification { request_id, report } => {
-                                self.reports.push((request_id, report))
-                            }
-                            TmReport::Housekeeping(h) => self.last_hk = Some(h),
-                            _ => {}
-                        }
-                    }
-                    Err(_) => self.bad_tm += 1,
-                }
-            }
-        }
-    }
-}
-
 /// Controller + plant + ground, ticked together.
 struct Mission {
     ctl: Controller<Plant, MockFlash>,
-    ground: Ground,
+    ground: Station,
     cycles: u64,
 }
 
@@ -181,17 +144,12 @@ impl Mission {
 
     /// Sends a telecommand and runs until its completion report (success or failure).
     fn command(&mut self, cmd: &Command) -> Result<(), String> {
-        let mut buf = [0u8; MAX_TC_PACKET_LEN];
-        let n = encode_telecommand(cmd, TcHeader::new(self.ground.seq), &mut buf)
-            .map_err(|e| format!("encoding {cmd:?}: {e:?}"))?;
-        self.ground.seq = (self.ground.seq + 1) & 0x3fff;
-        let pkt = buf.get(..n).ok_or("encoded length")?.to_vec();
-        let rid = RequestId::from_packet(&pkt).ok_or("request id")?;
-        self.ground.tc_sent += 1;
+        let (pkt, rid) = self.ground.packet(cmd)?;
+        // Only telemetry that arrives from now on can report on this request.
+        let mut seen = self.ground.log.len();
         self.tick(Some(&pkt));
         for _ in 0..MAX_CYCLES_PER_COMMAND {
-            for (r, v) in self.ground.reports.iter().filter(|(r, _)| *r == rid) {
-                let _ = r;
+            for v in self.ground.reports_since(seen, rid) {
                 match v {
                     Verification::CompletionSuccess => return Ok(()),
                     Verification::AcceptanceFailure { code, data }
@@ -202,6 +160,7 @@ impl Mission {
                     _ => {}
                 }
             }
+            seen = self.ground.log.len();
             self.tick(None);
         }
         Err(format!(
@@ -227,7 +186,7 @@ impl Mission {
     /// Strokes from a housekeeping report (what the ground knows of the encoders).
     fn strokes_from_hk(&mut self) -> Result<[f64; LEGS], String> {
         self.command(&Command::HousekeepingOneShot)?;
-        let hk = self.ground.last_hk.ok_or("no housekeeping received")?;
+        let hk = self.ground.last_hk().ok_or("no housekeeping received")?;
         Ok(hk.encoders_nm.map(|v| f64::from(v) / NM_PER_MM))
     }
 }
@@ -291,15 +250,7 @@ pub fn run_mission(
         .map_err(|(_, e)| format!("store: {e:?}"))?;
     let mut m = Mission {
         ctl: Controller::new(plant, store, ControllerConfig::default()),
-        ground: Ground {
-            seq: 0,
-            deframer: Deframer::new(),
-            reports: Vec::new(),
-            last_hk: None,
-            tm_received: 0,
-            tc_sent: 0,
-            bad_tm: 0,
-        },
+        ground: Station::new(),
         cycles: 0,
     };
     m.tick(None);
@@ -375,20 +326,15 @@ pub fn run_mission(
         DEFAULT_SUPERVISION,
     )
     .map_err(|e| format!("table: {e:?}"))?;
-    let bytes = table.to_bytes();
-    let chunks: Vec<(u16, Vec<u8>)> = dump_chunks(&bytes).map(|(o, b)| (o, b.to_vec())).collect();
-    for (off, data) in &chunks {
-        let chunk = TableChunk::new(*off, data).map_err(|e| format!("chunk: {e:?}"))?;
-        m.command(&Command::LoadTableChunk(chunk))?;
+    let upload = upload_commands(&table)?;
+    for cmd in &upload {
+        m.command(cmd)?;
     }
-    m.command(&Command::CommitTable {
-        crc32: table.crc32(),
-    })?;
     m.command(&Command::ActivateTable)?;
     let hk_table = {
         m.command(&Command::HousekeepingOneShot)?;
         m.ground
-            .last_hk
+            .last_hk()
             .map(|h| (h.active_table_id, h.active_table_crc32))
     };
     if hk_table != Some((CALIBRATED_TABLE_ID, table.crc32())) {
@@ -397,7 +343,7 @@ pub fn run_mission(
     log(&format!(
         "5. table {} uploaded in {} chunks, committed (CRC-32 {:#010x}), validated on board, activated",
         CALIBRATED_TABLE_ID,
-        chunks.len(),
+        upload.len() - 1,
         table.crc32()
     ));
 
@@ -412,10 +358,10 @@ pub fn run_mission(
         after.max_um(),
         after.max_arcsec()
     ));
-    if m.ground.bad_tm != 0 {
+    if m.ground.bad_frames != 0 {
         return Err(format!(
             "{} telemetry frames did not parse",
-            m.ground.bad_tm
+            m.ground.bad_frames
         ));
     }
     if let Some(path) = &cfg.plot {
@@ -431,7 +377,7 @@ pub fn run_mission(
         calib,
         n_measurements: meas.len(),
         tc_sent: m.ground.tc_sent,
-        tm_received: m.ground.tm_received,
+        tm_received: m.ground.log.len(),
         sim_time_s: m.cycles as f64 * f64::from(CYCLE_S),
         table_crc32: table.crc32(),
     })

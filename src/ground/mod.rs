@@ -9,4 +9,5 @@ pub mod ikfk;
 pub mod mission;
 pub mod plan;
 pub mod report;
+pub mod station;
 pub mod tc;

@@ -1,0 +1,137 @@
+//! A ground station's side of the link (host): numbers telecommands with the ground
+//! encoder ([`super::tc::TcSequencer`]) and turns the controller's telemetry byte stream
+//! into owned records. Used by the mission demo and the tests.
+
+use super::tc::TcSequencer;
+use crate::link::framing::Deframer;
+use crate::link::tm::{parse_tm, EventSeverity, TmReport, Verification};
+use crate::link::{Command, Housekeeping, MemoryId, RequestId};
+
+/// One telemetry packet, owned.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Tm {
+    /// TM[1,x].
+    Verify(RequestId, Verification),
+    /// TM[3,25].
+    Hk(Housekeeping),
+    /// TM[5,x]: severity, event ID, aux words.
+    Event(EventSeverity, u16, [u32; 2]),
+    /// TM[6,6]: memory, offset (bytes), data.
+    Dump(MemoryId, u16, Vec<u8>),
+    /// TM[17,2].
+    Ping,
+}
+
+/// Sends telecommands, collects telemetry.
+#[derive(Debug)]
+pub struct Station {
+    seq: TcSequencer,
+    deframer: Deframer,
+    /// Every TM packet received, in order.
+    pub log: Vec<Tm>,
+    /// Frames that did not deframe or parse (a healthy link keeps this at 0).
+    pub bad_frames: usize,
+    /// Telecommands encoded so far.
+    pub tc_sent: usize,
+}
+
+impl Default for Station {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Station {
+    /// Sequence count 0, all acknowledgements requested.
+    pub fn new() -> Self {
+        Station {
+            seq: TcSequencer::new(0),
+            deframer: Deframer::new(),
+            log: Vec::new(),
+            bad_frames: 0,
+            tc_sent: 0,
+        }
+    }
+
+    /// The next telecommand as a PUS packet (unframed) and its request ID.
+    pub fn packet(&mut self, cmd: &Command) -> Result<(Vec<u8>, RequestId), String> {
+        let pkt = self.seq.packet(cmd)?;
+        let rid = RequestId::from_packet(&pkt).ok_or("packet shorter than a request ID")?;
+        self.tc_sent += 1;
+        Ok((pkt, rid))
+    }
+
+    /// The next telecommand framed for the byte stream, and its request ID.
+    pub fn frame(&mut self, cmd: &Command) -> Result<(Vec<u8>, RequestId), String> {
+        let (pkt, rid) = self.packet(cmd)?;
+        Ok((super::tc::frame(&pkt), rid))
+    }
+
+    /// Feeds received bytes (any split) through the deframer and parses whole frames.
+    pub fn receive(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            let Some(frame) = self.deframer.push_byte(b) else {
+                continue;
+            };
+            let tm = frame
+                .ok()
+                .and_then(|f| parse_tm(f).ok())
+                .map(|tm| match tm.report {
+                    TmReport::Verification { request_id, report } => Tm::Verify(request_id, report),
+                    TmReport::Housekeeping(h) => Tm::Hk(h),
+                    TmReport::Event {
+                        severity,
+                        event_id,
+                        aux,
+                    } => Tm::Event(severity, event_id, aux),
+                    TmReport::DumpChunk {
+                        memory,
+                        offset_bytes,
+                        bytes,
+                    } => Tm::Dump(memory, offset_bytes, bytes.to_vec()),
+                    TmReport::PingReply => Tm::Ping,
+                });
+            match tm {
+                Some(t) => self.log.push(t),
+                None => self.bad_frames += 1,
+            }
+        }
+    }
+
+    /// Verification reports for one request, in order.
+    pub fn reports(&self, rid: RequestId) -> Vec<Verification> {
+        self.reports_since(0, rid)
+    }
+
+    /// Verification reports for one request among the packets from `log[from..]`.
+    pub fn reports_since(&self, from: usize, rid: RequestId) -> Vec<Verification> {
+        self.log
+            .get(from..)
+            .unwrap_or(&[])
+            .iter()
+            .filter_map(|t| match t {
+                Tm::Verify(r, v) if *r == rid => Some(*v),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// The newest housekeeping report.
+    pub fn last_hk(&self) -> Option<Housekeeping> {
+        self.log.iter().rev().find_map(|t| match t {
+            Tm::Hk(h) => Some(*h),
+            _ => None,
+        })
+    }
+
+    /// Auxiliary words of the events with this ID, in order.
+    pub fn events(&self, id: u16) -> Vec<[u32; 2]> {
+        self.log
+            .iter()
+            .filter_map(|t| match t {
+                Tm::Event(_, e, aux) if *e == id => Some(*aux),
+                _ => None,
+            })
+            .collect()
+    }
+}
