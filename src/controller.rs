@@ -26,7 +26,7 @@ use embedded_storage::nor_flash::NorFlash;
 
 use crate::hw::{counts_to_mm, DriveError, SliderDrives, StrokeEncoders};
 use crate::kinematics::{fk, ik, FkConfig, FkError, FkSolution, Geometry, Pose, LEGS};
-use crate::link::command::{round_sat_i32, MemoryId, WirePose, TABLE_CHUNK_MAX_LEN};
+use crate::link::command::{round_sat_i32, MemoryId, WirePose};
 use crate::link::tc::{decode_telecommand, AckFlags, RequestId, Telecommand};
 use crate::link::tm::{dump_chunks, EventSeverity, TmTime, TmWriter, Verification};
 use crate::link::{Command, Housekeeping, MAX_TM_FRAME_LEN};
@@ -719,7 +719,14 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
                     | Command::ActivateTable
                     | Command::SwitchBank
                     | Command::RevertToNominal => {
-                        let id = Table::decode(&self.upload).map(|t| t.table_id).unwrap_or(0);
+                        // The refused table's ID where there is one: the uploaded table
+                        // of a commit (if it decodes); 0 otherwise.
+                        let id = match tc.command {
+                            Command::CommitTable { .. } => {
+                                Table::decode(&self.upload).map(|t| t.table_id).unwrap_or(0)
+                            }
+                            _ => 0,
+                        };
                         self.event(
                             out,
                             EventSeverity::Medium,
@@ -878,9 +885,6 @@ impl<M: SliderDrives + StrokeEncoders, F: NorFlash> Controller<M, F> {
                 let time = self.time();
                 for (off, chunk) in dump_chunks(&bytes) {
                     let mut buf = [0u8; MAX_TM_FRAME_LEN];
-                    if chunk.len() > TABLE_CHUNK_MAX_LEN {
-                        continue;
-                    }
                     if let Ok(n) = self
                         .tm
                         .emit_table_dump_chunk(time, memory, off, chunk, &mut buf)
