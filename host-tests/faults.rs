@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::rig::Rig;
+use m2ctl::sim::Bench;
 use m2ctl::controller::{event, State};
 use m2ctl::link::command::WirePose;
 use m2ctl::link::tm::Verification;
@@ -26,7 +26,7 @@ struct Outcome {
     stop_cycles: u32,
 }
 
-fn move_and_inject(fault: InjectedFault, expect: FaultFlags, max_latency: u32) -> (Rig, Outcome) {
+fn move_and_inject(fault: InjectedFault, expect: FaultFlags, max_latency: u32) -> (Bench, Outcome) {
     let plant = Plant::new(
         &PROTOTYPE,
         PlantConfig {
@@ -35,7 +35,7 @@ fn move_and_inject(fault: InjectedFault, expect: FaultFlags, max_latency: u32) -
         },
     )
     .unwrap();
-    let mut r = Rig::with_plant(plant);
+    let mut r = Bench::with_plant(plant);
     r.run(2);
     let mv = r.send(&Command::MoveAbsolute(WirePose {
         translation_nm: [1_500_000, -500_000, 300_000],
@@ -44,11 +44,11 @@ fn move_and_inject(fault: InjectedFault, expect: FaultFlags, max_latency: u32) -
     r.run(INJECT_AFTER_CYCLES);
     assert_eq!(r.ctl.state(), State::Moving);
     assert!(r.ctl.faults().is_empty());
-    r.ctl.mechanism_mut().inject(fault);
+    r.plant.with(|p| p.inject(fault));
     // Detection.
     let mut latency = None;
     for n in 1..=max_latency + 50 {
-        r.tick(None);
+        r.tick();
         if !r.ctl.faults().is_empty() {
             latency = Some(n);
             break;
@@ -72,7 +72,7 @@ fn move_and_inject(fault: InjectedFault, expect: FaultFlags, max_latency: u32) -
     let mut prev = r.ctl.housekeeping().strokes_commanded_nm;
     let mut stop_cycles = 0;
     for n in 1..=STOP_BOUND_CYCLES {
-        r.tick(None);
+        r.tick();
         let now = r.ctl.housekeeping().strokes_commanded_nm;
         for i in 0..6 {
             let v_mm_s = (now[i] - prev[i]) as f64 * 1e-6 / f64::from(CYCLE_S);
@@ -115,7 +115,7 @@ fn move_and_inject(fault: InjectedFault, expect: FaultFlags, max_latency: u32) -
         r.st.reports(mv)
     );
     // No motion until cleared.
-    let at_rest = r.ctl.mechanism_mut().strokes_mm();
+    let at_rest = r.plant.with(|p| p.strokes_mm());
     let refused = r.send(&Command::MoveRelative(WirePose {
         translation_nm: [10_000, 0, 0],
         rotation_uas: [0; 3],
@@ -129,7 +129,7 @@ fn move_and_inject(fault: InjectedFault, expect: FaultFlags, max_latency: u32) -
         r.st.reports(refused)
     );
     r.run(500);
-    let still = r.ctl.mechanism_mut().strokes_mm();
+    let still = r.plant.with(|p| p.strokes_mm());
     for i in 0..6 {
         assert!(
             (still[i] - at_rest[i]).abs() < 1e-9,
@@ -147,8 +147,8 @@ fn move_and_inject(fault: InjectedFault, expect: FaultFlags, max_latency: u32) -
 }
 
 /// Repairs the plant, clears by telecommand, and proves a move works again.
-fn recover(r: &mut Rig) {
-    r.ctl.mechanism_mut().clear_faults();
+fn recover(r: &mut Bench) {
+    r.plant.with(|p| p.clear_faults());
     r.run(5);
     let clr = r.send(&Command::ClearFault);
     assert!(
@@ -303,7 +303,7 @@ fn small_noise_and_quantisation_raise_no_false_alarm_over_many_moves() {
         },
     )
     .unwrap();
-    let mut r = Rig::with_plant(plant);
+    let mut r = Bench::with_plant(plant);
     r.run(2);
     let targets = [
         [1_800_000, 0, 0, 0, 0, 0],
@@ -338,7 +338,7 @@ fn small_noise_and_quantisation_raise_no_false_alarm_over_many_moves() {
 }
 
 /// Boots the controller on a plant whose sliders are found at `strokes_mm`.
-fn boot_displaced(strokes_mm: [f64; 6]) -> Rig {
+fn boot_displaced(strokes_mm: [f64; 6]) -> Bench {
     let mut plant = Plant::new(
         &PROTOTYPE,
         PlantConfig {
@@ -348,13 +348,13 @@ fn boot_displaced(strokes_mm: [f64; 6]) -> Rig {
     )
     .unwrap();
     plant.set_strokes_mm(&strokes_mm);
-    Rig::with_plant(plant)
+    Bench::with_plant(plant)
 }
 
 /// Direct-stroke moves of one leg (1-based) back to 0 in steps within the recovery limit.
-fn walk_home(r: &mut Rig, leg: u8) {
+fn walk_home(r: &mut Bench, leg: u8) {
     for _ in 0..40 {
-        let s = r.ctl.mechanism_mut().strokes_mm()[usize::from(leg - 1)];
+        let s = r.plant.with(|p| p.strokes_mm())[usize::from(leg - 1)];
         if s.abs() < 1e-4 {
             return;
         }
@@ -382,7 +382,7 @@ fn slider_found_beyond_its_soft_limit_at_boot_is_recovered_by_direct_stroke() {
     let mut r = boot_displaced([0.0, 0.0, 0.0, 5.2, 0.0, 0.0]);
     let mut detected = None;
     for n in 1..=10 {
-        r.tick(None);
+        r.tick();
         if r.ctl.faults().contains(FaultFlags::SOFT_LIMIT) {
             detected = Some(n);
             break;

@@ -41,7 +41,10 @@ fn all_commands() -> Vec<Command> {
             delta_nm: i32::MAX,
         },
         Command::CommitTable { crc32: 0xdead_beef },
-        Command::ActivateTable,
+        Command::ActivateTable {
+            table_id: 7,
+            crc32: 0x89ab_cdef,
+        },
         Command::SwitchBank,
         Command::RevertToNominal,
         Command::LoadTableChunk(TableChunk::new(0, &[0u8; TABLE_CHUNK_MAX_LEN]).unwrap()),
@@ -327,6 +330,18 @@ fn sample_hk() -> Housekeeping {
         tc_rejected: 3,
         last_failure_code: 0x0505,
         moving_legs: 0b10_1010,
+        fault_legs: 0b01_0101,
+        pending_bank: 1,
+        pending_table_id: 0xfedc_ba98,
+        job: 2,
+        selected_source: 0xff,
+        tm_dropped: 11,
+        tc_frames_dropped: 12,
+        uart_overruns: 13,
+        cycle_overruns: 14,
+        reset_cause: 3,
+        boot_count: 0xabcd,
+        bank_health: 0b10,
     }
 }
 
@@ -638,7 +653,14 @@ fn python_reference_set() -> Vec<(&'static str, Command, u16)> {
             5,
         ),
         ("commit", Command::CommitTable { crc32: 0xdead_beef }, 6),
-        ("activate", Command::ActivateTable, 16383),
+        (
+            "activate",
+            Command::ActivateTable {
+                table_id: 42,
+                crc32: 0x0123_4567,
+            },
+            16383,
+        ),
         (
             "load_chunk",
             Command::LoadTableChunk(TableChunk::new(128, &[0, 1, 2, 0xff]).unwrap()),
@@ -730,6 +752,7 @@ fn ground_tc_upload_reassembles_the_table() {
         geometry: geom.clone(),
         table_id: 77,
         calibration_id: None,
+        activate: false,
     };
     let mut seq = TcSequencer::new(100);
     let text = run_tc(&req, &mut seq, TcOutput::HexLines, false).unwrap();
@@ -813,7 +836,6 @@ fn m2ground_tc_cli_writes_frames() {
     assert_eq!(tc.request_id.seq_count(), 5);
     for (sub, cmd) in [
         ("stop", Command::Stop),
-        ("activate", Command::ActivateTable),
         ("hk", Command::HousekeepingOneShot),
         ("switch-bank", Command::SwitchBank),
         ("revert-nominal", Command::RevertToNominal),
@@ -823,6 +845,18 @@ fn m2ground_tc_cli_writes_frames() {
         let tc = decode_telecommand(deframe_all(&f[0])[0].as_ref().unwrap()).unwrap();
         assert_eq!(tc.command, cmd, "{sub}");
     }
+    let f = parse_hex_lines(&run(&[
+        "tc", "activate", "--table-id", "42", "--crc32", "0x01234567",
+    ]))
+    .unwrap();
+    let tc = decode_telecommand(deframe_all(&f[0])[0].as_ref().unwrap()).unwrap();
+    assert_eq!(
+        tc.command,
+        Command::ActivateTable {
+            table_id: 42,
+            crc32: 0x0123_4567
+        }
+    );
     let unframed = run(&["tc", "--unframed", "ping"]);
     assert_eq!(unframed.trim(), "18b2c00000062f11010000ee7d");
 }

@@ -118,7 +118,10 @@ fn firmware_in_qemu_answers_telecommands() {
         crc32: table.crc32(),
     });
     assert_eq!(l.complete(rid, t), OK3);
-    let rid = l.send(&Command::ActivateTable);
+    let rid = l.send(&Command::ActivateTable {
+        table_id: table.table_id,
+        crc32: table.crc32(),
+    });
     assert_eq!(l.complete(rid, t), OK3);
 
     // A 50 um move: completion on arrival, then housekeeping shows the new table.

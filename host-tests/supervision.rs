@@ -477,6 +477,8 @@ fn fault_flag_bits_are_stable() {
         (FaultFlags::FK_NOT_CONVERGED, 1 << 5),
         (FaultFlags::POSE_OUTSIDE_WORKSPACE, 1 << 6),
         (FaultFlags::DRIVE_FAULT, 1 << 7),
+        (FaultFlags::TABLE_CORRUPT, 1 << 8),
+        (FaultFlags::DEADLINE_MISSED, 1 << 9),
         (FaultFlags::FOLLOWING_WARNING, 1 << 16),
     ];
     let mut all = FaultFlags::empty();

@@ -15,11 +15,7 @@ use proptest::prelude::*;
 /// Mock flash: 4-byte words, 4 KiB sectors, room for two 64 KiB banks.
 type Flash = MockFlash<4, 4096>;
 const TEST_BANK_SIZE: u32 = 0x1_0000;
-const TEST_LAYOUT: BankLayout = BankLayout {
-    bank_a_offset: 0,
-    bank_b_offset: TEST_BANK_SIZE,
-    bank_size: TEST_BANK_SIZE,
-};
+const TEST_LAYOUT: BankLayout = BankLayout::two_banks(0, TEST_BANK_SIZE);
 
 fn flash() -> Flash {
     Flash::new(2 * TEST_BANK_SIZE as usize)
@@ -372,15 +368,23 @@ fn error_codes_unique() {
 
 #[test]
 fn layouts() {
-    // The flight layout fits a 4 MiB flash with 4 KiB sectors.
+    // The simulated board's layout (the QEMU board's: the top 128 KiB of 4 MiB) fits a
+    // 4 MiB flash with 4 KiB sectors.
+    use m2ctl::sim::bench::{SIM_BANK_SIZE, SIM_LAYOUT};
     let big = MockFlash::<4, 4096>::new(4 * 1024 * 1024);
-    let s = TableStore::new(big, FLIGHT_LAYOUT).unwrap();
+    let s = TableStore::new(big, SIM_LAYOUT).unwrap();
     assert_eq!(s.layout().bank_a_offset, 0x3E_0000);
     assert_eq!(s.layout().bank_b_offset, 0x3F_0000);
-    assert_eq!(BANK_SIZE, 0x1_0000);
-    assert_eq!(BANK_A_OFFSET + BANK_SIZE, BANK_B_OFFSET);
-    // Refused: erase sector bigger than the bank, overlap, out of range, misaligned.
-    assert!(TableStore::new(MockFlash::<4, 0x2_0000>::new(0x40_0000), FLIGHT_LAYOUT).is_err());
+    assert_eq!(SIM_BANK_SIZE, 0x1_0000);
+    assert_eq!(SIM_LAYOUT.bank_a_offset + SIM_BANK_SIZE, SIM_LAYOUT.bank_b_offset);
+    // Refused: erase sector bigger than the bank, overlap, out of range, misaligned, a
+    // selection slot inside a record's sectors.
+    assert!(TableStore::new(MockFlash::<4, 0x2_0000>::new(0x40_0000), SIM_LAYOUT).is_err());
+    let slot_in_record = BankLayout {
+        selection_a_offset: 0,
+        ..TEST_LAYOUT
+    };
+    assert!(TableStore::new(flash(), slot_in_record).is_err());
     let overlap = BankLayout {
         bank_b_offset: 0x8000,
         ..TEST_LAYOUT
@@ -395,12 +399,14 @@ fn layouts() {
         bank_a_offset: 0x100,
         bank_b_offset: 0x1_0000,
         bank_size: 0x8000,
+        ..TEST_LAYOUT
     };
     assert!(TableStore::new(flash(), misaligned).is_err());
     let not_pow2 = BankLayout {
         bank_a_offset: 0,
         bank_b_offset: 0x1_0000,
         bank_size: 0x3000,
+        ..TEST_LAYOUT
     };
     assert!(TableStore::new(flash(), not_pow2).is_err());
     // Large write words (32 bytes) and 1-byte words both work.
@@ -439,26 +445,37 @@ fn blank_boots_nominal_and_commits_alternate() {
         assert_eq!(r.sequence, id);
     }
     assert_eq!(banks, [Bank::A, Bank::B, Bank::A, Bank::B, Bank::A]);
-    // After boot the store keeps writing to the bank not holding the active table.
+    // After boot the store keeps writing to the bank not holding the running table.
     let mut s = store(s.into_inner());
     let (_, r) = s.boot(&cfg());
     assert_eq!(r.source, BootSource::BankA);
     assert_eq!(r.bank_b, BankStatus::Standby { sequence: 4 });
-    assert_eq!(s.inactive_bank(), Bank::B);
-    // Switch bank: the older table (B, seq 4) becomes the newest record, in B.
-    let c = s.promote_inactive(&cfg()).unwrap();
-    assert_eq!((c.bank, c.sequence), (Bank::B, 6));
+    assert_eq!(r.selection, None);
+    assert_eq!(s.target_bank(), Bank::B);
+    // Select the older table (B, seq 4): from now on the selection decides what boots.
+    let (hb, tb) = s.read_bank(Bank::B).unwrap();
+    s.select(&Selection::bank(Bank::B, hb.sequence, hb.table_crc))
+        .unwrap();
+    assert_eq!(s.running(), BootSource::BankB);
     let (t, r) = store(s.into_inner()).boot(&cfg());
     assert_eq!(t, calibrated(4, 0.2));
+    assert_eq!(t, tb);
     assert_eq!(r.source, BootSource::BankB);
-    // Revert to nominal, then commit: goes to the bank with the older record.
+    assert_eq!(r.selection.map(|s| s.source), Some(BootSource::BankB));
+    // A commit never changes what boots once a selection exists.
     let mut s = store(flash());
+    s.select(&Selection::nominal()).unwrap();
     s.commit(&calibrated(1, 0.1), &cfg()).unwrap(); // A seq 1
+    let (t, r) = store(s.flash_mut().clone()).boot(&cfg());
+    assert_eq!((t, r.source), (Table::nominal(), BootSource::Nominal));
+    // Nominal running: the next commit goes to the bank without a record.
+    assert_eq!(s.target_bank(), Bank::B);
     s.commit(&calibrated(2, 0.1), &cfg()).unwrap(); // B seq 2
-    s.set_nominal_active();
-    assert_eq!(s.inactive_bank(), Bank::A);
+    // ... then to the bank with the older record (replacing it).
+    assert_eq!(s.target_bank(), Bank::A);
     let c = s.commit(&calibrated(3, 0.1), &cfg()).unwrap();
     assert_eq!((c.bank, c.sequence), (Bank::A, 3));
+    assert_eq!(s.pending(), Some(c));
 }
 
 /// Writes a record by hand with a chosen sequence number.
@@ -524,8 +541,9 @@ fn cut_campaign(prior: &[Table], new: Table, tear: TearMode) -> u64 {
         base.commit(t, &cfg()).unwrap();
     }
     let old = prior.last().copied().unwrap_or(Table::nominal());
-    let old_src = base.active();
     let f0 = base.into_inner();
+    // Without a selection record the newest record boots (the legacy rule).
+    let old_src = store(f0.clone()).boot(&cfg()).1.source;
     // Uncut update: count its steps.
     let mut s = store(f0.clone());
     s.boot(&cfg());
@@ -800,43 +818,81 @@ fn mock_flash_nor_semantics() {
 }
 
 #[test]
-fn power_cut_during_switch_bank() {
-    // A holds t1 (seq 1), B holds t2 (seq 2, active). "Switch bank" re-commits t1 into
-    // A with seq 3; a cut at every step must boot t2 (from B) or t1 (from A).
+fn power_cut_during_a_selection() {
+    // A holds t1 (seq 1), B holds t2 (seq 2). Selecting A writes a selection record;
+    // a cut at every step boots t2 (no valid selection yet: the newest record, B) or
+    // t1 (the selection, A). Then, with that selection in place, selecting B again
+    // (the other slot) boots t1 or t2 at every cut: never neither, never a mixture.
     let t1 = calibrated(1, 0.1);
     let t2 = calibrated(2, -0.2);
     let mut base = store(flash());
     base.commit(&t1, &cfg()).unwrap();
     base.commit(&t2, &cfg()).unwrap();
-    let f0 = base.into_inner();
-    let mut s = store(f0.clone());
-    s.boot(&cfg());
-    let steps0 = s.flash_mut().stats().steps;
-    let c = s.promote_inactive(&cfg()).unwrap();
-    assert_eq!((c.bank, c.sequence), (Bank::A, 3));
-    let total = s.flash_mut().stats().steps - steps0;
-    let mut switched_from = None;
-    for n in 0..total {
+    let sel_a = {
+        let (h, _) = base.read_bank(Bank::A).unwrap();
+        Selection::bank(Bank::A, h.sequence, h.table_crc)
+    };
+    let sel_b = {
+        let (h, _) = base.read_bank(Bank::B).unwrap();
+        Selection::bank(Bank::B, h.sequence, h.table_crc)
+    };
+    let mut total_all = 0;
+    for (from, to, before, after) in [(None, sel_a, t2, t1), (Some(sel_a), sel_b, t1, t2)] {
+        let mut b0 = store(base.flash_mut().clone());
+        b0.boot(&cfg());
+        if let Some(f) = from {
+            b0.select(&f).unwrap();
+        }
+        let f0 = b0.into_inner();
         let mut s = store(f0.clone());
         s.boot(&cfg());
-        s.flash_mut().cut_power_after(n, TearMode::TornByte);
-        assert!(s.promote_inactive(&cfg()).is_err());
-        s.flash_mut().power_cycle();
-        let (t, r) = store(s.into_inner()).boot(&cfg());
-        match r.source {
-            BootSource::BankB => {
-                assert_eq!(t, t2);
-                assert!(switched_from.is_none(), "cut {n}: switch lost");
-            }
-            BootSource::BankA => {
-                assert_eq!(t, t1);
-                assert_eq!(r.sequence, 3);
+        let steps0 = s.flash_mut().stats().steps;
+        s.select(&to).unwrap();
+        let total = s.flash_mut().stats().steps - steps0;
+        total_all += total;
+        let mut switched_from = None;
+        for n in 0..total {
+            let mut s = store(f0.clone());
+            s.boot(&cfg());
+            s.flash_mut().cut_power_after(n, TearMode::TornByte);
+            assert!(s.select(&to).is_err());
+            s.flash_mut().power_cycle();
+            let (t, r) = store(s.into_inner()).boot(&cfg());
+            if t == after {
                 switched_from.get_or_insert(n);
+                assert_eq!(r.source, to.source, "cut {n}");
+            } else {
+                assert_eq!(t, before, "cut {n}: neither table");
+                assert!(switched_from.is_none(), "cut {n}: selection lost");
             }
-            BootSource::Nominal => panic!("cut {n}: no table"),
+            assert!(!r.fell_back, "cut {n}: {r:?}");
         }
+        println!(
+            "power cut during a selection {:?} -> {:?}: {total} cut points, switched from cut {switched_from:?}",
+            from.map(|s| s.source),
+            to.source
+        );
     }
-    println!(
-        "power cut during switch bank: {total} cut points, switched from cut {switched_from:?}"
-    );
+    assert!(total_all > 2 * 4096);
+}
+
+#[test]
+fn a_selected_bank_that_no_longer_holds_the_selected_record_boots_nominal() {
+    // Select A's t1; then overwrite A with another table behind the selection's back
+    // (as a bit flip or a foreign tool would): the selection names sequence 1, A now
+    // holds sequence 3. Boot falls back to nominal and says so.
+    let mut s = store(flash());
+    let c1 = s.commit(&calibrated(1, 0.1), &cfg()).unwrap();
+    s.select(&Selection::bank(c1.bank, c1.sequence, c1.table_crc))
+        .unwrap();
+    let (_, r) = store(s.flash_mut().clone()).boot(&cfg());
+    assert_eq!((r.source, r.fell_back), (BootSource::BankA, false));
+    s.commit(&calibrated(2, 0.1), &cfg()).unwrap(); // B (A runs)
+    let mut f = s.into_inner();
+    put_record(&mut f, 0, &calibrated(3, 0.1), 3);
+    let (t, r) = store(f).boot(&cfg());
+    assert_eq!(t, Table::nominal());
+    assert_eq!(r.source, BootSource::Nominal);
+    assert!(r.fell_back);
+    assert_eq!(r.bank_a, BankStatus::Standby { sequence: 3 });
 }

@@ -41,10 +41,16 @@ pub trait StrokeEncoders {
 /// Position-commanded slider drives.
 pub trait SliderDrives {
     /// Commands every slider to a stroke setpoint (mm, along base z, 0 at home). The
-    /// drives follow within their own speed limits.
+    /// drives follow within their own speed limits. A faulted drive refuses and holds.
     fn command_strokes_mm(&mut self, setpoint_mm: &[f32; LEGS]) -> Result<(), DriveError>;
-    /// Holds every slider where it is now (setpoint := current position).
+    /// Holds every slider where its drive is now (setpoint := the drive's own position).
     fn hold(&mut self);
+    /// The stroke each drive holds or is moving to now (mm, along base z): the drive's
+    /// own count (steps issued for a stepper drive, the setpoint of a position-controlled
+    /// one), independent of the encoders. After [`SliderDrives::hold`] it is where the
+    /// drives stopped. The controller starts every motion from these, so a motion's
+    /// first setpoint is continuous with what the drives hold whatever the encoders say.
+    fn setpoints_mm(&mut self) -> [f32; LEGS];
     /// Health of the drives now (polled while no command is sent, i.e. at rest).
     fn status(&mut self) -> Result<(), DriveError>;
 }

@@ -20,10 +20,12 @@ pub mod kinematics;
 pub mod link;
 pub mod motion;
 pub mod nominal;
-pub mod plant_model;
+#[cfg(any(feature = "host", feature = "firmware"))]
+pub mod plant;
 pub mod selftest;
 pub mod supervision;
 pub mod table;
+pub mod timing;
 
 #[cfg(feature = "firmware")]
 pub mod board;

@@ -2,7 +2,6 @@
 #![allow(dead_code)]
 
 pub mod qemu;
-pub mod rig;
 
 use m2ctl::kinematics::{Pose, ARCSEC_PER_RAD};
 

@@ -26,7 +26,8 @@ TCS = [
     ("stop", 4, 8, 1, struct.pack(">H", 0x0003)),
     ("direct_stroke", 5, 8, 1, struct.pack(">HBi", 0x0005, 6, -12345)),
     ("commit", 6, 8, 1, struct.pack(">HI", 0x0010, 0xDEADBEEF)),
-    ("activate", 16383, 8, 1, struct.pack(">H", 0x0011)),
+    # activate: function 0x0011, expected table ID u32, expected CRC-32 u32
+    ("activate", 16383, 8, 1, struct.pack(">HII", 0x0011, 42, 0x01234567)),
     # table chunk: memory 1, offset 128, length 4, data
     ("load_chunk", 7, 6, 2, struct.pack(">BHH", 1, 128, 4) + bytes([0, 1, 2, 0xFF])),
     ("dump", 8, 6, 5, bytes([2])),

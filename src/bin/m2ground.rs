@@ -169,8 +169,15 @@ enum TcWhat {
     Stop,
     /// TC[8,1] clear latched faults.
     ClearFault,
-    /// TC[8,1] activate the committed table.
-    Activate,
+    /// TC[8,1] activate the pending table, named by its table ID and CRC-32.
+    Activate {
+        /// Table ID of the pending table.
+        #[arg(long)]
+        table_id: u32,
+        /// CRC-32 of the pending table (decimal or 0x hex).
+        #[arg(long, value_parser = parse_u32)]
+        crc32: u32,
+    },
     /// TC[8,1] switch to the other bank's table.
     SwitchBank,
     /// TC[8,1] revert to the nominal table.
@@ -185,6 +192,9 @@ enum TcWhat {
         /// Calibration ID (default: CRC-32 of [provenance] calibration_id).
         #[arg(long)]
         calibration_id: Option<u32>,
+        /// Also activate it (TC[8,1] activate with its ID and CRC) after the commit.
+        #[arg(long)]
+        activate: bool,
     },
     /// TC[6,5] dump of the active table (or --upload-buffer).
     Dump {
@@ -217,22 +227,35 @@ impl TcWhat {
             },
             TcWhat::Stop => TcRequest::Stop,
             TcWhat::ClearFault => TcRequest::ClearFault,
-            TcWhat::Activate => TcRequest::Activate,
+            TcWhat::Activate { table_id, crc32 } => TcRequest::Activate {
+                table_id: *table_id,
+                crc32: *crc32,
+            },
             TcWhat::SwitchBank => TcRequest::SwitchBank,
             TcWhat::RevertNominal => TcRequest::RevertToNominal,
             TcWhat::Upload {
                 geometry,
                 table_id,
                 calibration_id,
+                activate,
             } => TcRequest::Upload {
                 geometry: geometry.clone(),
                 table_id: *table_id,
                 calibration_id: *calibration_id,
+                activate: *activate,
             },
             TcWhat::Dump { upload_buffer } => TcRequest::Dump {
                 upload_buffer: *upload_buffer,
             },
         }
+    }
+}
+
+/// A u32 in decimal or `0x` hexadecimal.
+fn parse_u32(s: &str) -> Result<u32, String> {
+    match s.strip_prefix("0x").or_else(|| s.strip_prefix("0X")) {
+        Some(h) => u32::from_str_radix(h, 16).map_err(|e| format!("{s}: {e}")),
+        None => s.parse().map_err(|e| format!("{s}: {e}")),
     }
 }
 

@@ -26,22 +26,18 @@ use super::calib::{calibrate, CalibConfig, CalibResult, Measurement, SolverKind}
 use super::campaign::Tracker;
 use super::eval::{pose_error, random_poses, Accuracy, UM_PER_MM};
 use super::plan::{plan_poses, PlanConfig};
-use super::station::Station;
-use super::tc::upload_commands;
-use crate::controller::{Controller, ControllerConfig, State};
+use super::tc::{activate_command, upload_commands};
+use crate::controller::State;
 use crate::kinematics::{Pose, LEGS};
 use crate::link::tm::Verification;
 use crate::link::{Command, WirePose};
 use crate::motion::CYCLE_S;
 use crate::sim::manufacturing::perturbed;
-use crate::sim::{Plant, PlantConfig};
-use crate::table::mock_flash::MockFlash;
-use crate::table::{Provenance, Table, TableStore, DEFAULT_SUPERVISION, FLIGHT_LAYOUT};
+use crate::sim::{Bench, Plant, PlantConfig};
+use crate::table::{Provenance, Table, DEFAULT_SUPERVISION};
 
 /// Nanometres per millimetre.
 const NM_PER_MM: f64 = 1.0e6;
-/// Size of the mock flash (bytes): the board's 4 MiB.
-const FLASH_BYTES: usize = 0x40_0000;
 /// Most cycles one telecommand may take to complete (a move across the workspace at
 /// the default 0.2 mm/s is well under this).
 const MAX_CYCLES_PER_COMMAND: u32 = 200_000;
@@ -127,41 +123,25 @@ pub struct MissionReport {
     pub table_crc32: u32,
 }
 
-/// Controller + plant + ground, ticked together.
+/// The bench with the mission's helpers.
 struct Mission {
-    ctl: Controller<Plant, MockFlash>,
-    ground: Station,
-    cycles: u64,
+    bench: Bench,
 }
 
 impl Mission {
-    fn tick(&mut self, packet: Option<&[u8]>) {
-        self.ctl.mechanism_mut().step(f64::from(CYCLE_S));
-        let g = &mut self.ground;
-        self.ctl.tick(packet, &mut |f: &[u8]| g.receive(f));
-        self.cycles += 1;
-    }
-
     /// Sends a telecommand and runs until its completion report (success or failure).
     fn command(&mut self, cmd: &Command) -> Result<(), String> {
-        let (pkt, rid) = self.ground.packet(cmd)?;
-        // Only telemetry that arrives from now on can report on this request.
-        let mut seen = self.ground.log.len();
-        self.tick(Some(&pkt));
-        for _ in 0..MAX_CYCLES_PER_COMMAND {
-            for v in self.ground.reports_since(seen, rid) {
-                match v {
-                    Verification::CompletionSuccess => return Ok(()),
-                    Verification::AcceptanceFailure { code, data }
-                    | Verification::StartFailure { code, data }
-                    | Verification::CompletionFailure { code, data } => {
-                        return Err(format!("{cmd:?} failed: code {code:#06x} data {data:#x}"))
-                    }
-                    _ => {}
+        let reps = self.bench.command(cmd, MAX_CYCLES_PER_COMMAND);
+        for v in &reps {
+            match v {
+                Verification::CompletionSuccess => return Ok(()),
+                Verification::AcceptanceFailure { code, data }
+                | Verification::StartFailure { code, data }
+                | Verification::CompletionFailure { code, data } => {
+                    return Err(format!("{cmd:?} failed: code {code:#06x} data {data:#x}"))
                 }
+                _ => {}
             }
-            seen = self.ground.log.len();
-            self.tick(None);
         }
         Err(format!(
             "{cmd:?}: no completion after {MAX_CYCLES_PER_COMMAND} cycles"
@@ -169,16 +149,17 @@ impl Mission {
     }
 
     fn settle(&mut self) {
-        for _ in 0..SETTLE_CYCLES {
-            self.tick(None);
-        }
+        self.bench.run(SETTLE_CYCLES);
     }
 
     fn move_to(&mut self, target: &Pose<f64>) -> Result<(), String> {
         self.command(&Command::MoveAbsolute(WirePose::from_pose(target)))?;
         self.settle();
-        if self.ctl.state() != State::Idle {
-            return Err(format!("not idle after a move: {:?}", self.ctl.state()));
+        if self.bench.ctl.state() != State::Idle {
+            return Err(format!(
+                "not idle after a move: {:?}",
+                self.bench.ctl.state()
+            ));
         }
         Ok(())
     }
@@ -186,8 +167,15 @@ impl Mission {
     /// Strokes from a housekeeping report (what the ground knows of the encoders).
     fn strokes_from_hk(&mut self) -> Result<[f64; LEGS], String> {
         self.command(&Command::HousekeepingOneShot)?;
-        let hk = self.ground.last_hk().ok_or("no housekeeping received")?;
+        let hk = self.bench.st.last_hk().ok_or("no housekeeping received")?;
         Ok(hk.encoders_nm.map(|v| f64::from(v) / NM_PER_MM))
+    }
+
+    fn true_pose(&mut self) -> Result<Pose<f64>, String> {
+        self.bench
+            .plant
+            .with(|p| p.true_pose())
+            .map_err(|e| format!("true pose: {e:?}"))
     }
 }
 
@@ -214,11 +202,7 @@ fn visit_targets(
     let mut errors = Vec::with_capacity(targets.len());
     for t in targets {
         m.move_to(t)?;
-        let truth = m
-            .ctl
-            .mechanism_mut()
-            .true_pose()
-            .map_err(|e| format!("true pose: {e:?}"))?;
+        let truth = m.true_pose()?;
         errors.push(pose_error(&tracker.measure(&truth, rng), t));
         pb.inc(1);
     }
@@ -246,14 +230,10 @@ pub fn run_mission(
         },
     )
     .map_err(|e| format!("true geometry: {e:?}"))?;
-    let store = TableStore::new(MockFlash::new(FLASH_BYTES), FLIGHT_LAYOUT)
-        .map_err(|(_, e)| format!("store: {e:?}"))?;
     let mut m = Mission {
-        ctl: Controller::new(plant, store, ControllerConfig::default()),
-        ground: Station::new(),
-        cycles: 0,
+        bench: Bench::with_plant(plant),
     };
-    m.tick(None);
+    m.bench.tick();
     let mut rng = Pcg64::seed_from_u64(cfg.seed ^ 0x5eed_7a46_e75a_11ce);
     let targets = random_poses(
         cfg.n_targets,
@@ -283,11 +263,7 @@ pub fn run_mission(
     for (k, p) in plan.iter().enumerate() {
         m.move_to(p)?;
         let strokes_mm = m.strokes_from_hk()?;
-        let truth_pose = m
-            .ctl
-            .mechanism_mut()
-            .true_pose()
-            .map_err(|e| format!("true pose: {e:?}"))?;
+        let truth_pose = m.true_pose()?;
         meas.push(Measurement {
             line: k + 1,
             pose: cfg.tracker.measure(&truth_pose, &mut rng),
@@ -330,10 +306,11 @@ pub fn run_mission(
     for cmd in &upload {
         m.command(cmd)?;
     }
-    m.command(&Command::ActivateTable)?;
+    m.command(&activate_command(&table))?;
     let hk_table = {
         m.command(&Command::HousekeepingOneShot)?;
-        m.ground
+        m.bench
+            .st
             .last_hk()
             .map(|h| (h.active_table_id, h.active_table_crc32))
     };
@@ -358,10 +335,10 @@ pub fn run_mission(
         after.max_um(),
         after.max_arcsec()
     ));
-    if m.ground.bad_frames != 0 {
+    if m.bench.st.bad_frames != 0 {
         return Err(format!(
             "{} telemetry frames did not parse",
-            m.ground.bad_frames
+            m.bench.st.bad_frames
         ));
     }
     if let Some(path) = &cfg.plot {
@@ -376,9 +353,9 @@ pub fn run_mission(
         after,
         calib,
         n_measurements: meas.len(),
-        tc_sent: m.ground.tc_sent,
-        tm_received: m.ground.log.len(),
-        sim_time_s: m.cycles as f64 * f64::from(CYCLE_S),
+        tc_sent: m.bench.st.tc_sent,
+        tm_received: m.bench.st.log.len(),
+        sim_time_s: m.bench.cycles as f64 * f64::from(CYCLE_S),
         table_crc32: table.crc32(),
     })
 }

@@ -116,6 +116,20 @@ impl Station {
             .collect()
     }
 
+    /// The telecommand's reports are complete: a completion (success or failure) or an
+    /// acceptance or start failure has arrived.
+    pub fn finished(&self, rid: RequestId) -> bool {
+        self.reports(rid).iter().any(|v| {
+            matches!(
+                v,
+                Verification::CompletionSuccess
+                    | Verification::CompletionFailure { .. }
+                    | Verification::AcceptanceFailure { .. }
+                    | Verification::StartFailure { .. }
+            )
+        })
+    }
+
     /// The newest housekeeping report.
     pub fn last_hk(&self) -> Option<Housekeeping> {
         self.log.iter().rev().find_map(|t| match t {

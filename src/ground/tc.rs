@@ -169,6 +169,14 @@ pub fn upload_commands(table: &Table) -> Result<Vec<Command>, String> {
     Ok(cmds)
 }
 
+/// TC[8,1] activate naming `table` (its ID and CRC-32).
+pub fn activate_command(table: &Table) -> Command {
+    Command::ActivateTable {
+        table_id: table.table_id,
+        crc32: table.crc32(),
+    }
+}
+
 /// Lowercase hex, one frame per line.
 pub fn hex_lines(frames: &[Vec<u8>]) -> String {
     let mut s = String::new();
@@ -229,8 +237,13 @@ pub enum TcRequest {
     Stop,
     /// TC[8,1] clear fault.
     ClearFault,
-    /// TC[8,1] activate table.
-    Activate,
+    /// TC[8,1] activate the pending table named by its ID and CRC-32.
+    Activate {
+        /// Table ID.
+        table_id: u32,
+        /// CRC-32.
+        crc32: u32,
+    },
     /// TC[8,1] switch bank.
     SwitchBank,
     /// TC[8,1] revert to nominal.
@@ -243,6 +256,8 @@ pub enum TcRequest {
         table_id: u32,
         /// Calibration ID override.
         calibration_id: Option<u32>,
+        /// Append the activation of the committed table.
+        activate: bool,
     },
     /// TC[6,5] dump of the active table (or of the upload buffer).
     Dump {
@@ -282,18 +297,25 @@ impl TcRequest {
             }
             TcRequest::Stop => vec![Command::Stop],
             TcRequest::ClearFault => vec![Command::ClearFault],
-            TcRequest::Activate => vec![Command::ActivateTable],
+            TcRequest::Activate { table_id, crc32 } => vec![Command::ActivateTable {
+                table_id: *table_id,
+                crc32: *crc32,
+            }],
             TcRequest::SwitchBank => vec![Command::SwitchBank],
             TcRequest::RevertToNominal => vec![Command::RevertToNominal],
             TcRequest::Upload {
                 geometry,
                 table_id,
                 calibration_id,
-            } => upload_commands(&table_from_geometry_file(
-                geometry,
-                *table_id,
-                *calibration_id,
-            )?)?,
+                activate,
+            } => {
+                let table = table_from_geometry_file(geometry, *table_id, *calibration_id)?;
+                let mut cmds = upload_commands(&table)?;
+                if *activate {
+                    cmds.push(activate_command(&table));
+                }
+                cmds
+            }
             TcRequest::Dump { upload_buffer } => vec![Command::DumpTable(if *upload_buffer {
                 MemoryId::UploadBuffer
             } else {

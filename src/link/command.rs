@@ -33,19 +33,7 @@ pub struct WirePose {
     pub rotation_uas: [i32; 3],
 }
 
-/// Rounds half away from zero to the nearest i32, saturating; NaN gives 0.
-pub fn round_sat_i32(v: f64) -> i32 {
-    let r = libm::round(v);
-    if r.is_nan() {
-        0
-    } else if r >= f64::from(i32::MAX) {
-        i32::MAX
-    } else if r <= f64::from(i32::MIN) {
-        i32::MIN
-    } else {
-        r as i32
-    }
-}
+pub use super::wire::round_sat_i32;
 
 impl WirePose {
     /// The pose in working units (mm, rad), converted once to `T`.
@@ -197,7 +185,8 @@ pub enum FunctionId {
     DirectStroke = 0x0005,
     /// Commit the uploaded table. Args: CRC-32 u32 of the whole encoded table.
     CommitTable = 0x0010,
-    /// Activate the committed (validated, inactive) table. No args.
+    /// Activate the pending (committed, validated) table. Args: the expected table ID
+    /// u32 and CRC-32 u32; refused unless they are the pending table's.
     ActivateTable = 0x0011,
     /// Switch to the table of the other flash bank (validated first). No args.
     SwitchBank = 0x0012,
@@ -235,9 +224,9 @@ impl FunctionId {
             FunctionId::MoveAbsolute | FunctionId::MoveRelative => WIRE_POSE_LEN,
             FunctionId::DirectStroke => 1 + 4,
             FunctionId::CommitTable => 4,
+            FunctionId::ActivateTable => 4 + 4,
             FunctionId::Stop
             | FunctionId::ClearFault
-            | FunctionId::ActivateTable
             | FunctionId::SwitchBank
             | FunctionId::RevertToNominal => 0,
         }
@@ -274,8 +263,14 @@ pub enum Command {
         /// the value in the table's last four bytes.
         crc32: u32,
     },
-    /// TC[8,1] fn 0x0011: activate the committed table (between motions only).
-    ActivateTable,
+    /// TC[8,1] fn 0x0011: activate the pending table (between motions only), which
+    /// must be the one named.
+    ActivateTable {
+        /// Expected table ID of the pending table.
+        table_id: u32,
+        /// Expected CRC-32 of the pending table.
+        crc32: u32,
+    },
     /// TC[8,1] fn 0x0012: switch to the other bank's table.
     SwitchBank,
     /// TC[8,1] fn 0x0013: revert to the compiled-in nominal table.
@@ -329,7 +324,7 @@ impl Command {
             Command::ClearFault => Some(FunctionId::ClearFault),
             Command::DirectStroke { .. } => Some(FunctionId::DirectStroke),
             Command::CommitTable { .. } => Some(FunctionId::CommitTable),
-            Command::ActivateTable => Some(FunctionId::ActivateTable),
+            Command::ActivateTable { .. } => Some(FunctionId::ActivateTable),
             Command::SwitchBank => Some(FunctionId::SwitchBank),
             Command::RevertToNominal => Some(FunctionId::RevertToNominal),
             Command::Ping
@@ -405,6 +400,10 @@ impl Command {
                         w.put(&delta_nm.to_be_bytes())?;
                     }
                     Command::CommitTable { crc32 } => w.put(&crc32.to_be_bytes())?,
+                    Command::ActivateTable { table_id, crc32 } => {
+                        w.put(&table_id.to_be_bytes())?;
+                        w.put(&crc32.to_be_bytes())?;
+                    }
                     _ => {}
                 }
             }
@@ -482,7 +481,10 @@ fn parse_function(app_data: &[u8]) -> Result<Command, LinkError> {
         FunctionId::CommitTable => Command::CommitTable {
             crc32: be_u32(args, 0).ok_or(LinkError::InvalidArgument { index: 0 })?,
         },
-        FunctionId::ActivateTable => Command::ActivateTable,
+        FunctionId::ActivateTable => Command::ActivateTable {
+            table_id: be_u32(args, 0).ok_or(LinkError::InvalidArgument { index: 0 })?,
+            crc32: be_u32(args, 4).ok_or(LinkError::InvalidArgument { index: 1 })?,
+        },
         FunctionId::SwitchBank => Command::SwitchBank,
         FunctionId::RevertToNominal => Command::RevertToNominal,
     })

@@ -24,14 +24,29 @@
 //! |    128 |    2 | u16     | telecommands rejected (wrapping)                             |
 //! |    130 |    2 | u16     | last failure code (0: none)                                  |
 //! |    132 |    1 | u8      | moving legs mask (bit i = leg i+1)                           |
+//! |    133 |    1 | u8      | legs named by the latched faults (bit i = leg i+1)           |
+//! |    134 |    1 | u8      | bank of the pending (committed, not activated) table: 0 none, 1 A, 2 B |
+//! |    135 |    4 | u32     | pending table ID (0 if none)                                 |
+//! |    139 |    1 | u8      | table job running: 0 none, 1 commit, 2 selection, 3 reload   |
+//! |    140 |    1 | u8      | selected table (what boots): 0 nominal, 1 A, 2 B, 255 no selection record |
+//! |    141 |    2 | u16     | telemetry records dropped (queue full; wrapping)             |
+//! |    143 |    2 | u16     | telecommand frames dropped (too long or bad COBS; wrapping)  |
+//! |    145 |    2 | u16     | UART receive overruns and RX queue overflows (wrapping)      |
+//! |    147 |    2 | u16     | control-cycle overruns (wrapping)                            |
+//! |    149 |    1 | u8      | reset cause: 0 power-on, 1 watchdog, 2 software, 3 HardFault, 4 panic |
+//! |    150 |    2 | u16     | boot count (wrapping)                                        |
+//! |    152 |    1 | u8      | flash bank health: bit 0 bank A, bit 1 bank B record corrupt |
 
-use super::command::{WirePose, WIRE_POSE_LEN};
+use super::command::WirePose;
+use super::wire::{Order, Reader, Writer};
 use crate::kinematics::LEGS;
 
 /// Structure ID of the one housekeeping report.
 pub const HK_STRUCTURE_ID: u8 = 1;
 /// Length of the TM[3,25] source data (bytes).
-pub const HK_REPORT_LEN: usize = 133;
+pub const HK_REPORT_LEN: usize = 153;
+/// `selected_source` when no selection record exists.
+pub const NO_SELECTION: u8 = 0xFF;
 
 /// One housekeeping sample, filled by the controller.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -74,62 +89,41 @@ pub struct Housekeeping {
     pub last_failure_code: u16,
     /// Legs currently commanded to move (bit i = leg i+1).
     pub moving_legs: u8,
-}
-
-/// Sequential big-endian writer over a fixed array.
-struct W<'a> {
-    buf: &'a mut [u8; HK_REPORT_LEN],
-    pos: usize,
-}
-
-impl W<'_> {
-    fn put(&mut self, b: &[u8]) {
-        let end = self.pos.saturating_add(b.len());
-        if let Some(dst) = self.buf.get_mut(self.pos..end) {
-            dst.copy_from_slice(b);
-        }
-        self.pos = end;
-    }
-}
-
-/// Sequential big-endian reader; `None` past the end.
-struct R<'a> {
-    buf: &'a [u8],
-    pos: usize,
-}
-
-impl R<'_> {
-    fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
-        let end = self.pos.checked_add(N)?;
-        let out: [u8; N] = self.buf.get(self.pos..end)?.try_into().ok()?;
-        self.pos = end;
-        Some(out)
-    }
-    fn u8(&mut self) -> Option<u8> {
-        self.take().map(u8::from_be_bytes)
-    }
-    fn u16(&mut self) -> Option<u16> {
-        self.take().map(u16::from_be_bytes)
-    }
-    fn u32(&mut self) -> Option<u32> {
-        self.take().map(u32::from_be_bytes)
-    }
-    fn i32s(&mut self) -> Option<[i32; LEGS]> {
-        let mut v = [0i32; LEGS];
-        for x in v.iter_mut() {
-            *x = self.take().map(i32::from_be_bytes)?;
-        }
-        Some(v)
-    }
-    fn pose(&mut self) -> Option<WirePose> {
-        self.take::<WIRE_POSE_LEN>().map(|b| WirePose::parse(&b))
-    }
+    /// Legs named by the latched faults (bit i = leg i+1).
+    pub fault_legs: u8,
+    /// Bank of the pending table (0 none, 1 A, 2 B).
+    pub pending_bank: u8,
+    /// Pending table ID (0 if none).
+    pub pending_table_id: u32,
+    /// Table job running (0 none, 1 commit, 2 selection, 3 reload).
+    pub job: u8,
+    /// What boots (0 nominal, 1 A, 2 B; [`NO_SELECTION`] without a selection record).
+    pub selected_source: u8,
+    /// Telemetry records dropped (wrapping).
+    pub tm_dropped: u16,
+    /// Telecommand frames dropped by the deframer (wrapping).
+    pub tc_frames_dropped: u16,
+    /// UART receive overruns and RX queue overflows (wrapping).
+    pub uart_overruns: u16,
+    /// Control-cycle overruns (wrapping).
+    pub cycle_overruns: u16,
+    /// Reset cause (0 power-on, 1 watchdog, 2 software, 3 HardFault, 4 panic).
+    pub reset_cause: u8,
+    /// Boot count (wrapping).
+    pub boot_count: u16,
+    /// Flash bank health (bit 0 bank A, bit 1 bank B record corrupt).
+    pub bank_health: u8,
 }
 
 impl Housekeeping {
     /// Writes the TM[3,25] source data.
     pub fn emit(&self, out: &mut [u8; HK_REPORT_LEN]) {
-        let mut w = W { buf: out, pos: 0 };
+        let mut w = Writer::new(out, Order::Big);
+        // The buffer has exactly the layout's length: every put fits.
+        let _ = self.write(&mut w);
+    }
+
+    fn write(&self, w: &mut Writer<'_>) -> Option<()> {
         w.put(&[
             HK_STRUCTURE_ID,
             self.state,
@@ -137,7 +131,7 @@ impl Housekeeping {
             self.active_bank,
             self.fk_iterations,
             u8::from(self.fk_valid),
-        ]);
+        ])?;
         for v in [
             self.cycle_counter,
             self.fault_flags,
@@ -146,20 +140,29 @@ impl Housekeeping {
             self.active_table_id,
             self.active_table_crc32,
         ] {
-            w.put(&v.to_be_bytes());
+            w.u32(v)?;
         }
-        let mut pose = [0u8; WIRE_POSE_LEN];
-        self.pose_fk.emit(&mut pose);
-        w.put(&pose);
-        self.pose_commanded.emit(&mut pose);
-        w.put(&pose);
-        for v in self.strokes_commanded_nm.iter().chain(&self.encoders_nm) {
-            w.put(&v.to_be_bytes());
-        }
+        w.pose(&self.pose_fk)?;
+        w.pose(&self.pose_commanded)?;
+        w.i32s(&self.strokes_commanded_nm)?;
+        w.i32s(&self.encoders_nm)?;
         for v in [self.tc_accepted, self.tc_rejected, self.last_failure_code] {
-            w.put(&v.to_be_bytes());
+            w.u16(v)?;
         }
-        w.put(&[self.moving_legs]);
+        w.put(&[self.moving_legs, self.fault_legs, self.pending_bank])?;
+        w.u32(self.pending_table_id)?;
+        w.put(&[self.job, self.selected_source])?;
+        for v in [
+            self.tm_dropped,
+            self.tc_frames_dropped,
+            self.uart_overruns,
+            self.cycle_overruns,
+        ] {
+            w.u16(v)?;
+        }
+        w.u8(self.reset_cause)?;
+        w.u16(self.boot_count)?;
+        w.u8(self.bank_health)
     }
 
     /// Checked parse of the TM[3,25] source data (exact length, structure ID 1).
@@ -167,7 +170,7 @@ impl Housekeeping {
         if bytes.len() != HK_REPORT_LEN {
             return None;
         }
-        let mut r = R { buf: bytes, pos: 0 };
+        let mut r = Reader::new(bytes, Order::Big);
         if r.u8()? != HK_STRUCTURE_ID {
             return None;
         }
@@ -191,6 +194,18 @@ impl Housekeeping {
             tc_rejected: r.u16()?,
             last_failure_code: r.u16()?,
             moving_legs: r.u8()?,
+            fault_legs: r.u8()?,
+            pending_bank: r.u8()?,
+            pending_table_id: r.u32()?,
+            job: r.u8()?,
+            selected_source: r.u8()?,
+            tm_dropped: r.u16()?,
+            tc_frames_dropped: r.u16()?,
+            uart_overruns: r.u16()?,
+            cycle_overruns: r.u16()?,
+            reset_cause: r.u8()?,
+            boot_count: r.u16()?,
+            bank_health: r.u8()?,
         })
     }
 }

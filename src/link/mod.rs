@@ -30,6 +30,7 @@ pub mod framing;
 pub mod hk;
 pub mod tc;
 pub mod tm;
+pub mod wire;
 
 pub use command::{Command, FunctionId, MemoryId, TableChunk, WirePose};
 pub use error::LinkError;

@@ -41,6 +41,8 @@ pub const EVENT_REPORT_LEN: usize = 10;
 pub const TIME_FRACTIONS_PER_SECOND: u64 = 1 << 16;
 /// Milliseconds per second.
 const MS_PER_S: u64 = 1000;
+/// Microseconds per millisecond.
+const US_PER_MS: u64 = 1000;
 
 /// The TM timestamp: CCSDS unsegmented time code (CUC) with implicit P-field, 4 bytes of
 /// seconds and 2 bytes of 1/65536 s, big-endian, counted from controller boot (the
@@ -56,9 +58,16 @@ pub struct TmTime {
 impl TmTime {
     /// From milliseconds since boot (seconds wrap after 2^32 s).
     pub const fn from_millis(ms: u64) -> TmTime {
+        TmTime::from_micros(ms * US_PER_MS)
+    }
+
+    /// From microseconds since boot (seconds wrap after 2^32 s; the fraction is
+    /// truncated to 1/65536 s).
+    pub const fn from_micros(us: u64) -> TmTime {
+        let us_per_s = US_PER_MS * MS_PER_S;
         TmTime {
-            seconds: (ms / MS_PER_S) as u32,
-            fraction: ((ms % MS_PER_S) * TIME_FRACTIONS_PER_SECOND / MS_PER_S) as u16,
+            seconds: (us / us_per_s) as u32,
+            fraction: ((us % us_per_s) * TIME_FRACTIONS_PER_SECOND / us_per_s) as u16,
         }
     }
 
@@ -195,11 +204,12 @@ impl EventSeverity {
 pub mod event_id {
     /// Controller state changed. aux0: old state, aux1: new state.
     pub const STATE_CHANGED: u16 = 0x0001;
-    /// A fault latched. aux0: all latched fault flags, aux1: the newly latched ones.
+    /// A fault latched. aux0: all latched fault flags, aux1: the newly latched ones
+    /// (bits 0..23) and the legs they name (bits 24..29, bit i = leg i+1).
     pub const FAULT_LATCHED: u16 = 0x0002;
     /// Faults cleared. aux0: flags cleared, aux1: 0.
     pub const FAULTS_CLEARED: u16 = 0x0003;
-    /// Warning flags changed. aux0: warning flags, aux1: 0.
+    /// Warning flags changed. aux0: warning flags, aux1: legs of the warnings.
     pub const WARNING_CHANGED: u16 = 0x0004;
     /// A move was refused. aux0: refusal bits, aux1: failure code.
     pub const MOVE_REFUSED: u16 = 0x0005;
@@ -212,8 +222,20 @@ pub mod event_id {
     pub const TABLE_REJECTED: u16 = 0x0011;
     /// A table was committed to flash. aux0: table ID, aux1: bank (1 A, 2 B).
     pub const TABLE_COMMITTED: u16 = 0x0012;
+    /// A table was re-read from its source after a RAM upset. aux0: table ID, aux1:
+    /// source (0 nominal, 1 A, 2 B).
+    pub const TABLE_RELOADED: u16 = 0x0013;
+    /// The flash banks' health changed. aux0: bit 0 bank A, bit 1 bank B corrupt; aux1: 0.
+    pub const BANK_HEALTH: u16 = 0x0014;
     /// Boot finished. aux0: boot source (0 nominal, 1 A, 2 B), aux1: active table ID.
     pub const BOOT: u16 = 0x0020;
+    /// Boot details. aux0: boot flags (bank A bits 0..7, fell back bit 7, bank B bits
+    /// 8..15, selection bits 16..18); aux1: reset cause (bits 0..7), boot count (bits
+    /// 16..31).
+    pub const BOOT_DETAIL: u16 = 0x0021;
+    /// Control cycles overran their period several times in a row: motion stopped.
+    /// aux0: consecutive overruns, aux1: overruns since boot.
+    pub const DEADLINE_MISSED: u16 = 0x0030;
 }
 
 /// Why telemetry could not be emitted.

@@ -27,7 +27,7 @@
 use crate::kinematics::Real;
 
 /// Control period (s): the controller calls the trajectory once per cycle.
-pub const CYCLE_S: f32 = 1.0e-3;
+pub use crate::timing::CYCLE_S;
 
 /// Longest move (control cycles): `2^24`, the largest count an `f32` holds exactly
 /// (4.6 h at 1 kHz). Longer plans are refused.

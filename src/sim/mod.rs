@@ -5,7 +5,12 @@
 //!   noise, implementing the same [`crate::hw`] traits the board glue implements on the
 //!   target; everything is deterministic from a seed.
 
+//! * [`bench`]: the one test bench: controller + link service + worker + plant + flash
+//!   + ground station, one tick per control cycle.
+
+pub mod bench;
 pub mod manufacturing;
 pub mod plant;
 
-pub use plant::{InjectedFault, Plant, PlantConfig};
+pub use bench::{Bench, BenchConfig};
+pub use plant::{InjectedFault, Plant, PlantConfig, SharedPlant};

@@ -1,11 +1,24 @@
 //! Six sliders with finite speed, absolute encoders with quantisation and noise, and the
 //! true geometry: the mechanism the controller drives in host tests.
+//!
+//! The sliders and the encoder quantisation are the `no_std` core in [`crate::plant`]
+//! (the same code the QEMU board runs); this module adds what only a simulation has: the
+//! true geometry, encoder noise, missed steps and the other injected faults.
+//!
+//! The controller owns its hardware; the simulation's test bench must still advance the
+//! plant's time and inject faults. [`SharedPlant`] is that: a cheap handle onto one
+//! plant, one copy given to the controller as its drives and encoders, one kept by the
+//! bench.
+
+use std::cell::RefCell;
+use std::rc::Rc;
 
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use rand_pcg::Pcg64;
 
-use crate::hw::{DriveError, EncoderError, SliderDrives, StrokeEncoders, ENCODER_MM_PER_COUNT};
+use crate::hw::{DriveError, EncoderError, SliderDrives, StrokeEncoders};
+use crate::plant::{nearest_count, Sliders};
 use crate::kinematics::{
     fk, FkConfig, FkError, Geometry, GeometryError, GeometryParams, Pose, LEGS,
 };
@@ -110,10 +123,8 @@ impl InjectedFault {
 pub struct Plant {
     truth: Geometry<f64>,
     cfg: PlantConfig,
-    /// True slider positions (mm, stroke along base z).
-    stroke_mm: [f64; LEGS],
-    /// Drive setpoints (mm).
-    setpoint_mm: [f64; LEGS],
+    /// The drives: position = where each drive believes its slider is (mm).
+    sliders: Sliders<f64>,
     rng: Pcg64,
     noise: Option<Normal<f64>>,
     /// Simulated time (s).
@@ -136,8 +147,7 @@ impl Plant {
         Ok(Self {
             truth: Geometry::new(&g)?,
             cfg,
-            stroke_mm: [0.0; LEGS],
-            setpoint_mm: [0.0; LEGS],
+            sliders: Sliders::default(),
             rng: Pcg64::seed_from_u64(cfg.seed),
             noise: Normal::new(0.0, cfg.encoder_noise_mm)
                 .ok()
@@ -153,12 +163,9 @@ impl Plant {
     pub fn inject(&mut self, fault: InjectedFault) {
         let leg = fault.leg();
         let frozen = self
-            .stroke_mm
+            .strokes_mm()
             .get(leg)
-            .map(|s| {
-                ((s - self.loss_mm.get(leg).copied().unwrap_or(0.0)) / ENCODER_MM_PER_COUNT).round()
-                    as i32
-            })
+            .map(|s| nearest_count(*s))
             .unwrap_or(0);
         if let InjectedFault::MissedSteps { lost_mm, .. } = fault {
             if let Some(l) = self.loss_mm.get_mut(leg) {
@@ -171,8 +178,7 @@ impl Plant {
     /// Places the sliders (drive positions and setpoints) at these strokes (mm), e.g.
     /// where they were found at power-on.
     pub fn set_strokes_mm(&mut self, strokes_mm: &[f64; LEGS]) {
-        self.stroke_mm = *strokes_mm;
-        self.setpoint_mm = *strokes_mm;
+        self.sliders = Sliders::at(*strokes_mm);
     }
 
     /// Removes every injected fault (a repaired mechanism). Drives that missed steps
@@ -180,43 +186,47 @@ impl Plant {
     /// the drive's position and setpoint are corrected by the lost travel).
     pub fn clear_faults(&mut self) {
         self.faults.clear();
-        for ((s, sp), l) in self
-            .stroke_mm
-            .iter_mut()
-            .zip(self.setpoint_mm.iter_mut())
-            .zip(self.loss_mm.iter_mut())
-        {
-            *s -= *l;
-            *sp -= *l;
+        for (leg, l) in self.loss_mm.iter_mut().enumerate() {
+            self.sliders.shift(leg, -*l);
             *l = 0.0;
         }
+    }
+
+    /// The injected faults still active.
+    pub fn faults(&self) -> impl Iterator<Item = &InjectedFault> {
+        self.faults.iter().map(|(f, _)| f)
     }
 
     fn has(&self, leg: usize, pred: impl Fn(&InjectedFault) -> bool) -> bool {
         self.faults.iter().any(|(f, _)| f.leg() == leg && pred(f))
     }
 
+    fn jammed(&self, leg: usize) -> bool {
+        self.has(leg, |f| matches!(f, InjectedFault::StuckSlider { .. }))
+    }
+
     /// Advances time by `dt_s`: every slider moves toward its setpoint at most
     /// `max_speed * dt`.
     pub fn step(&mut self, dt_s: f64) {
         let max_step = self.cfg.max_speed_mm_per_s * dt_s.max(0.0);
-        for leg in 0..LEGS {
-            if self.has(leg, |f| matches!(f, InjectedFault::StuckSlider { .. })) {
-                continue;
-            }
-            let d = (self.setpoint_mm[leg] - self.stroke_mm[leg]).clamp(-max_step, max_step);
-            self.stroke_mm[leg] += d;
-        }
+        let jammed: [bool; LEGS] = core::array::from_fn(|leg| self.jammed(leg));
+        self.sliders
+            .step(max_step, |leg| jammed.get(leg).copied().unwrap_or(false));
         self.time_s += dt_s.max(0.0);
     }
 
     /// True slider positions (mm): the drive positions less any travel lost.
     pub fn strokes_mm(&self) -> [f64; LEGS] {
-        let mut s = self.stroke_mm;
+        let mut s = self.sliders.positions_mm();
         for (v, l) in s.iter_mut().zip(self.loss_mm.iter()) {
             *v -= l;
         }
         s
+    }
+
+    /// The drives' setpoints (mm): what each drive holds or is moving to.
+    pub fn drive_setpoints_mm(&self) -> [f64; LEGS] {
+        self.sliders.setpoints_mm()
     }
 
     /// Simulated time (s).
@@ -227,10 +237,7 @@ impl Plant {
     /// Whether every slider has reached its setpoint (a jammed slider counts as
     /// settled: it will not move).
     pub fn settled(&self) -> bool {
-        (0..LEGS).all(|leg| {
-            self.stroke_mm[leg] == self.setpoint_mm[leg]
-                || self.has(leg, |f| matches!(f, InjectedFault::StuckSlider { .. }))
-        })
+        self.sliders.settled(|leg| self.jammed(leg))
     }
 
     /// The mirror's true pose: FK of the true geometry at the true strokes (f64).
@@ -247,6 +254,11 @@ impl Plant {
     /// The true geometry.
     pub fn truth(&self) -> &Geometry<f64> {
         &self.truth
+    }
+
+    /// Shares this plant: see [`SharedPlant`].
+    pub fn shared(self) -> SharedPlant {
+        SharedPlant(Rc::new(RefCell::new(self)))
     }
 }
 
@@ -283,7 +295,7 @@ impl StrokeEncoders for Plant {
                 }
             }
             // Quantisation: the encoder reports the nearest count.
-            *o = frozen.unwrap_or(((s + offset + noise) / ENCODER_MM_PER_COUNT).round() as i32);
+            *o = frozen.unwrap_or(nearest_count(s + offset + noise));
         }
         Ok(out)
     }
@@ -293,14 +305,16 @@ impl SliderDrives for Plant {
     fn command_strokes_mm(&mut self, setpoint_mm: &[f32; LEGS]) -> Result<(), DriveError> {
         // A faulted drive holds and refuses.
         self.status()?;
-        for (sp, c) in self.setpoint_mm.iter_mut().zip(setpoint_mm.iter()) {
-            *sp = f64::from(*c);
-        }
+        self.sliders.command(setpoint_mm);
         Ok(())
     }
 
     fn hold(&mut self) {
-        self.setpoint_mm = self.stroke_mm;
+        self.sliders.hold();
+    }
+
+    fn setpoints_mm(&mut self) -> [f32; LEGS] {
+        self.sliders.setpoints_f32()
     }
 
     fn status(&mut self) -> Result<(), DriveError> {
@@ -312,5 +326,39 @@ impl SliderDrives for Plant {
             Some((f, _)) => Err(DriveError::DriveFault { leg: f.leg() as u8 }),
             None => Ok(()),
         }
+    }
+}
+
+/// A shared handle onto one [`Plant`]: the controller gets one as its hardware, the
+/// test bench keeps one to advance time, inject faults and look at the truth. Single
+/// threaded, like the control cycle it stands in for.
+#[derive(Clone, Debug)]
+pub struct SharedPlant(Rc<RefCell<Plant>>);
+
+impl SharedPlant {
+    /// Runs `f` on the plant.
+    pub fn with<R>(&self, f: impl FnOnce(&mut Plant) -> R) -> R {
+        f(&mut self.0.borrow_mut())
+    }
+}
+
+impl StrokeEncoders for SharedPlant {
+    fn read_counts(&mut self) -> Result<[i32; LEGS], EncoderError> {
+        self.0.borrow_mut().read_counts()
+    }
+}
+
+impl SliderDrives for SharedPlant {
+    fn command_strokes_mm(&mut self, setpoint_mm: &[f32; LEGS]) -> Result<(), DriveError> {
+        self.0.borrow_mut().command_strokes_mm(setpoint_mm)
+    }
+    fn hold(&mut self) {
+        self.0.borrow_mut().hold()
+    }
+    fn setpoints_mm(&mut self) -> [f32; LEGS] {
+        self.0.borrow_mut().setpoints_mm()
+    }
+    fn status(&mut self) -> Result<(), DriveError> {
+        self.0.borrow_mut().status()
     }
 }

@@ -10,7 +10,9 @@
 //! | 5 | [`FaultFlags::FK_NOT_CONVERGED`] | fault |
 //! | 6 | [`FaultFlags::POSE_OUTSIDE_WORKSPACE`] | fault |
 //! | 7 | [`FaultFlags::DRIVE_FAULT`] | fault |
-//! | 8..15 | reserved for faults | |
+//! | 8 | [`FaultFlags::TABLE_CORRUPT`] | fault (raised by the RAM scrub) |
+//! | 9 | [`FaultFlags::DEADLINE_MISSED`] | fault (raised by consecutive cycle overruns) |
+//! | 10..15 | reserved for faults | |
 //! | 16 | [`FaultFlags::FOLLOWING_WARNING`] | warning (not latched) |
 //! | 17..31 | reserved for warnings | |
 //!
@@ -39,15 +41,20 @@ impl FaultFlags {
     pub const POSE_OUTSIDE_WORKSPACE: Self = Self(1 << 6);
     /// Bit 7: a drive reported a fault.
     pub const DRIVE_FAULT: Self = Self(1 << 7);
+    /// Bit 8: the RAM image of the running table, its geometry or the supervision
+    /// thresholds no longer match their CRC/derivation (a memory upset).
+    pub const TABLE_CORRUPT: Self = Self(1 << 8);
+    /// Bit 9: control cycles overran their period several times in a row.
+    pub const DEADLINE_MISSED: Self = Self(1 << 9);
     /// Bit 16 (warning): following error above the warning threshold.
     pub const FOLLOWING_WARNING: Self = Self(1 << 16);
 
-    /// Every fault bit in use (bits 0..7).
-    pub const ALL_FAULTS: Self = Self(0x0000_00FF);
+    /// Every fault bit in use (bits 0..9).
+    pub const ALL_FAULTS: Self = Self(0x0000_03FF);
     /// Every warning bit in use (bit 16).
     pub const ALL_WARNINGS: Self = Self(1 << 16);
     /// Bit positions of the faults, in bit order (index = bit).
-    pub const FAULT_BITS: usize = 8;
+    pub const FAULT_BITS: usize = 10;
 
     /// No flag.
     pub const fn empty() -> Self {

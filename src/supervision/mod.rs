@@ -25,4 +25,4 @@ pub mod supervisor;
 
 pub use config::{Debounce, SupervisionConfig};
 pub use flags::FaultFlags;
-pub use supervisor::{CycleInputs, Supervisor, Verdict};
+pub use supervisor::{CycleInputs, Supervisor, Verdict, ALL_LEGS};

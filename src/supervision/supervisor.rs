@@ -134,6 +134,9 @@ pub struct Supervisor {
     present: FaultFlags,
     /// Fault checks that could not be evaluated in the last check.
     unverified: FaultFlags,
+    /// Conditions of faults raised outside the per-cycle checks (RAM scrub, deadline):
+    /// present until their owner says they are gone.
+    external_present: FaultFlags,
 }
 
 /// What one check pass found.
@@ -184,8 +187,8 @@ fn debounce_legs(counts: &mut LegCounts, conditions: u8, n: u16) -> u8 {
     raised
 }
 
-/// Every leg (bits 0..5).
-const ALL_LEGS: u8 = (1u8 << LEGS) - 1;
+/// Every leg (bits 0..5): the leg mask of telemetry.
+pub const ALL_LEGS: u8 = (1u8 << LEGS) - 1;
 
 /// The leg mask of a 0-based leg index from a hardware error; an index out of range
 /// blames every leg (the failure must not go unreported).
@@ -227,7 +230,24 @@ impl Supervisor {
             latched_legs: [0; FaultFlags::FAULT_BITS],
             present: FaultFlags::empty(),
             unverified: FaultFlags::empty(),
+            external_present: FaultFlags::empty(),
         }
+    }
+
+    /// Latches a fault found outside the per-cycle checks (e.g. the RAM scrub), with
+    /// its condition present (`present`) until [`Supervisor::set_external_condition`]
+    /// says it is gone. Returns whether it was newly latched.
+    pub fn raise_external(&mut self, flag: FaultFlags, present: bool) -> bool {
+        let new = !self.latched.contains(flag);
+        self.latched |= flag;
+        self.external_present.set(flag, present);
+        new
+    }
+
+    /// Whether the condition of an externally raised fault is still present (a latched
+    /// fault can only be cleared once it is not).
+    pub fn set_external_condition(&mut self, flag: FaultFlags, present: bool) {
+        self.external_present.set(flag, present);
     }
 
     /// The configuration in use.
@@ -256,9 +276,10 @@ impl Supervisor {
         legs
     }
 
-    /// Fault conditions present (before debounce) in the last check.
+    /// Fault conditions present (before debounce) in the last check, and those of
+    /// externally raised faults.
     pub fn present(&self) -> FaultFlags {
-        self.present
+        self.present | self.external_present
     }
 
     /// True when no latched fault's condition was present or unverifiable in the last
@@ -269,7 +290,7 @@ impl Supervisor {
 
     /// Latched faults that prevent clearing (condition present or unverifiable).
     pub fn blocking(&self) -> FaultFlags {
-        self.latched & (self.present | self.unverified)
+        self.latched & (self.present | self.unverified | self.external_present)
     }
 
     /// Clears every latch if [`Supervisor::can_clear`]; otherwise changes nothing and

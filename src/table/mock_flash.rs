@@ -12,7 +12,14 @@
 //! half-done (a write clears only some of its bits, an erase sets only some). After a
 //! cut every operation fails with [`MockFlashError::PowerLoss`] until
 //! [`MockFlash::power_cycle`].
+//!
+//! Time: a real NOR device erases a sector in 0.5-2 s and programs a few hundred bytes
+//! in about a millisecond, while the CPU goes on. With [`MockFlash::set_timing`] the mock
+//! answers [`FlashStatus::busy`] for a number of calls after each erase or write (the
+//! simulated bench calls the store once per control cycle, so that number is the
+//! operation's duration in cycles); by default it is never busy.
 
+use super::store::FlashStatus;
 use embedded_storage::nor_flash::{
     check_erase, check_read, check_write, ErrorType, NorFlash, NorFlashError, NorFlashErrorKind,
     ReadNorFlash,
@@ -77,6 +84,11 @@ pub struct MockFlash<const W: usize = 4, const E: usize = 4096> {
     powered: bool,
     tear: TearMode,
     stats: MockStats,
+    /// Busy answers after an erase / a write ([`MockFlash::set_timing`]).
+    erase_busy_polls: u32,
+    write_busy_polls: u32,
+    /// Busy answers left for the operation in progress.
+    busy_left: u32,
 }
 
 impl<const W: usize, const E: usize> MockFlash<W, E> {
@@ -89,7 +101,17 @@ impl<const W: usize, const E: usize> MockFlash<W, E> {
             powered: true,
             tear: TearMode::Clean,
             stats: MockStats::default(),
+            erase_busy_polls: 0,
+            write_busy_polls: 0,
+            busy_left: 0,
         }
+    }
+
+    /// Models operation times: after an erase [`FlashStatus::busy`] answers `true`
+    /// `erase_polls` times, after a write `write_polls` times.
+    pub fn set_timing(&mut self, erase_polls: u32, write_polls: u32) {
+        self.erase_busy_polls = erase_polls;
+        self.write_busy_polls = write_polls;
     }
 
     /// Arms a power cut after `steps` more byte steps (0: the next step is cut).
@@ -191,6 +213,7 @@ impl<const W: usize, const E: usize> NorFlash for MockFlash<W, E> {
         self.check_power()?;
         check_erase(self, from, to).map_err(MockFlashError::Kind)?;
         self.stats.erases += 1;
+        self.busy_left = self.erase_busy_polls;
         for i in from as usize..to as usize {
             if !self.step() {
                 if self.tear == TearMode::TornByte {
@@ -228,6 +251,7 @@ impl<const W: usize, const E: usize> NorFlash for MockFlash<W, E> {
             }
         }
         self.stats.writes += 1;
+        self.busy_left = self.write_busy_polls;
         for (k, new) in bytes.iter().enumerate() {
             let i = start + k;
             if i % W == 0 {
@@ -248,5 +272,16 @@ impl<const W: usize, const E: usize> NorFlash for MockFlash<W, E> {
             }
         }
         Ok(())
+    }
+}
+
+impl<const W: usize, const E: usize> FlashStatus for MockFlash<W, E> {
+    fn busy(&mut self) -> bool {
+        if self.busy_left > 0 {
+            self.busy_left -= 1;
+            true
+        } else {
+            false
+        }
     }
 }

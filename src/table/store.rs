@@ -1,13 +1,14 @@
-//! A/B storage of the table in NOR flash, power-cut safe.
+//! A/B storage of the table in NOR flash, power-cut safe, with the operator's selection.
 //!
 //! # Banks
-//! Two banks of [`BANK_SIZE`] bytes at [`BANK_A_OFFSET`] and [`BANK_B_OFFSET`]. Offsets
+//! Two banks of `bank_size` bytes ([`BankLayout`], chosen by the board next to its
+//! linker script: on QEMU mps2-an386 the top 128 KiB of the 4 MiB code flash). Offsets
 //! are **relative to the start of the flash device** the [`NorFlash`] implementation
-//! drives; the board maps them onto the region `memory.x` keeps out of the image (on QEMU
-//! mps2-an386: the top 128 KiB of the 4 MiB code flash). A different board passes its own
-//! [`BankLayout`].
+//! drives. Each bank holds one table record at its start; each bank also carries one
+//! selection slot at `selection_*_offset` (its own erase sector, never erased with the
+//! record).
 //!
-//! # Record (one per bank, at the bank start)
+//! # Table record (one per bank, at the bank start)
 //!
 //! | bank offset | size | content                                                        |
 //! |------------:|-----:|----------------------------------------------------------------|
@@ -19,39 +20,49 @@
 //! the table (equal to its trailing CRC), `20` u32 CRC-32 of header bytes 0..20, `24..32`
 //! `0xFF`. Every padding byte must read `0xFF`, so every bit of the record is checked.
 //!
+//! # Selection record (one slot in each bank, 32 bytes)
+//!
+//! What the operator selected to run: the compiled-in nominal table, or bank A's or B's
+//! record (named by its sequence number and table CRC). Little-endian: `0` magic
+//! `"M2SL"`, `4` u16 format (1), `6` u8 choice ([`BootSource::code`]: 0 nominal, 1 A, 2 B),
+//! `7` u8 reserved 0, `8` u32 selection sequence, `12` u32 record sequence of the chosen
+//! bank (0 for nominal), `16` u32 table CRC-32 of the chosen table (nominal: its CRC),
+//! `20` u32 CRC-32 of bytes 0..20, `24..32` `0xFF`. A new selection goes to the slot not
+//! holding the newest one (erase, write, read back), so a power cut leaves the old or
+//! the new selection, never neither.
+//!
 //! # Update order (power-cut safety)
-//! A new table goes to the bank **not** holding the active table:
+//! A new table goes to the bank **not** holding the running table ([`TableStore::target_bank`]):
 //! 1. erase the record's sectors of that bank (the header bytes come first, so a
 //!    partial erase already invalidates the bank);
 //! 2. write the table and its padding, read back and compare;
 //! 3. write the commit header with sequence = newest sequence + 1, read back and compare.
 //!
-//! Until step 3 completes the bank has no valid header and boot takes the other bank
-//! (the old table). A header is valid only if its own CRC matches, and a body only if
-//! its CRC matches the header's copy, so a torn header or body can never be taken. After
-//! step 3 both banks are valid and the higher sequence (serial-number arithmetic, so the
-//! wrap at 2^32 is harmless) wins. Each word is written once after the erase, as
-//! [`NorFlash`] requires.
+//! Until step 3 completes the bank has no valid header. A header is valid only if its
+//! own CRC matches, and a body only if its CRC matches the header's copy, so a torn
+//! header or body can never be taken. Each word is written once after the erase, as
+//! [`NorFlash`] requires. Committing does not change what boots: only a selection does.
+//!
+//! # Non-blocking operation
+//! Erasing and programming NOR flash takes milliseconds to seconds. Writes are steps of
+//! a state machine ([`TableStore::start_commit`], [`TableStore::start_select`],
+//! [`TableStore::poll`]): each poll issues at most one erase (one sector) or one program
+//! (one [`RECORD_ALIGN`] chunk, read back at the next poll) and returns at once while the
+//! device is busy ([`FlashStatus::busy`]). The blocking [`TableStore::commit`] and
+//! [`TableStore::select`] run the same state machine to completion.
 //!
 //! # Boot
-//! [`TableStore::boot`] reads both banks, tries the newest complete, CRC-valid record
-//! first, then the other, re-validating each against the [`ValidationConfig`]; if neither
-//! passes it returns the compiled-in [`Table::nominal`]. The [`BootReport`] says which
-//! and why, for telemetry.
+//! [`TableStore::boot`] follows the newest valid selection record: nominal, or the
+//! named bank if its record is complete, CRC-valid, the one named (sequence and CRC) and
+//! passes validation; otherwise it falls back to the nominal table (never to a table the
+//! operator did not select). Without any valid selection record (flash written before
+//! selections existed, or programmed on the ground) it takes the newest complete valid
+//! bank, else the other, else nominal. The [`BootReport`] says which and why.
 
 use embedded_storage::nor_flash::{NorFlash, NorFlashError, NorFlashErrorKind};
 
 use super::layout::{stored_crc, Table, TableError, CRC32, TABLE_LEN};
 use super::validate::{validate, ValidationConfig, ValidationError};
-
-/// Size of the flash the flight layout assumes (bytes; QEMU mps2-an386 code flash).
-pub const FLASH_SIZE: u32 = 0x40_0000;
-/// Size of one bank (bytes; a power of two, a multiple of the erase size).
-pub const BANK_SIZE: u32 = 0x1_0000;
-/// Bank A offset from the flash start: the second-highest [`BANK_SIZE`] block.
-pub const BANK_A_OFFSET: u32 = FLASH_SIZE - 2 * BANK_SIZE;
-/// Bank B offset from the flash start: the highest [`BANK_SIZE`] block.
-pub const BANK_B_OFFSET: u32 = FLASH_SIZE - BANK_SIZE;
 
 /// Magic of a commit header.
 pub const COMMIT_MAGIC: [u8; 4] = *b"M2CR";
@@ -77,9 +88,19 @@ const fn round_up(v: usize, to: usize) -> usize {
     v.div_ceil(to) * to
 }
 
-const _: () = assert!(RECORD_LEN as u32 <= BANK_SIZE && BANK_SIZE.is_power_of_two());
+/// Magic of a selection record.
+pub const SELECTION_MAGIC: [u8; 4] = *b"M2SL";
+/// Selection record format version.
+pub const SELECTION_FORMAT_VERSION: u16 = 1;
+/// Bytes of a selection record: the fields and their CRC-32.
+pub const SELECTION_LEN: usize = 24;
+/// Bytes of the selection record covered by its CRC.
+const SELECTION_CRC_OFFSET: usize = SELECTION_LEN - 4;
+/// Selection slot (bytes): the record padded to [`RECORD_ALIGN`].
+pub const SELECTION_SLOT_LEN: usize = round_up(SELECTION_LEN, RECORD_ALIGN);
 
-/// Where the two banks are.
+/// Where the two banks and the two selection slots are (a board fact: the board
+/// chooses it next to its linker script).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BankLayout {
     /// Bank A offset from the flash start (bytes).
@@ -88,14 +109,26 @@ pub struct BankLayout {
     pub bank_b_offset: u32,
     /// Size of each bank (bytes).
     pub bank_size: u32,
+    /// Offset of the selection slot of bank A's side from the flash start (bytes): its
+    /// own erase sector, outside both records' sectors.
+    pub selection_a_offset: u32,
+    /// Offset of the second selection slot (bytes).
+    pub selection_b_offset: u32,
 }
 
-/// The flight layout: two 64 KiB banks at the top of the 4 MiB flash.
-pub const FLIGHT_LAYOUT: BankLayout = BankLayout {
-    bank_a_offset: BANK_A_OFFSET,
-    bank_b_offset: BANK_B_OFFSET,
-    bank_size: BANK_SIZE,
-};
+impl BankLayout {
+    /// Two banks of `bank_size` bytes from `base`, A then B, with each selection slot
+    /// half-way into its bank (the record takes the first sectors).
+    pub const fn two_banks(base: u32, bank_size: u32) -> Self {
+        Self {
+            bank_a_offset: base,
+            bank_b_offset: base + bank_size,
+            bank_size,
+            selection_a_offset: base + bank_size / 2,
+            selection_b_offset: base + bank_size + bank_size / 2,
+        }
+    }
+}
 
 /// One of the two banks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -203,6 +236,8 @@ pub mod boot_flags {
 }
 /// Shift of bank B's flags in [`BootReport::flags`].
 pub const BOOT_FLAGS_BANK_B_SHIFT: u32 = 8;
+/// Shift of the selection bits in [`BootReport::flags_word`].
+pub const BOOT_FLAGS_SELECTION_SHIFT: u32 = 16;
 
 impl BankStatus {
     /// This status as [`boot_flags`] bits (unshifted).
@@ -222,6 +257,8 @@ impl BankStatus {
 /// What boot chose and why (for housekeeping/events).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BootReport {
+    /// The newest valid selection record (`None`: no valid selection record found).
+    pub selection: Option<Selection>,
     /// Where the active table came from.
     pub source: BootSource,
     /// Sequence number of the active record (0 for the nominal table).
@@ -230,13 +267,14 @@ pub struct BootReport {
     pub bank_a: BankStatus,
     /// Bank B's state.
     pub bank_b: BankStatus,
-    /// A newer complete record was refused and an older one (or nominal) used.
+    /// The selected table could not be booted (or, without a selection, a newer
+    /// complete record was refused) and an older one or nominal was used.
     pub fell_back: bool,
 }
 
 impl BootReport {
     /// Packed flags: bank A in bits 0..7, [`boot_flags::FELL_BACK`] in bit 7, bank B in
-    /// bits 8..15.
+    /// bits 8..15 (see [`BootReport::flags_word`] for the selection bits).
     pub const fn flags(&self) -> u16 {
         let fb = if self.fell_back {
             boot_flags::FELL_BACK
@@ -244,6 +282,16 @@ impl BootReport {
             0
         };
         self.bank_a.flag() | fb | (self.bank_b.flag() << BOOT_FLAGS_BANK_B_SHIFT)
+    }
+
+    /// The boot flags with the selection in bits 16..23: bit 16 a valid selection
+    /// record was found, bits 17..18 its choice ([`BootSource::code`]).
+    pub const fn flags_word(&self) -> u32 {
+        let sel = match self.selection {
+            Some(s) => (1 | ((s.source.code() as u32) << 1)) << BOOT_FLAGS_SELECTION_SHIFT,
+            None => 0,
+        };
+        self.flags() as u32 | sel
     }
 
     /// Validation code of the first rejected bank (0 if none), for telemetry.
@@ -268,6 +316,10 @@ pub enum StoreError {
     VerifyFailed,
     /// The bank holds no complete, CRC-valid record.
     NoRecord(BankStatus),
+    /// A write is already in progress (one at a time).
+    Busy,
+    /// The bank's record is not the one expected (sequence or CRC differ).
+    NotExpected,
 }
 
 impl StoreError {
@@ -279,6 +331,19 @@ impl StoreError {
             StoreError::Invalid(_) => 0x0432,
             StoreError::VerifyFailed => 0x0433,
             StoreError::NoRecord(_) => 0x0434,
+            StoreError::Busy => 0x0435,
+            StoreError::NotExpected => 0x0436,
+        }
+    }
+
+    /// Failure datum for telemetry: the validation error's own code and detail for
+    /// [`StoreError::Invalid`] (`code << 16 | detail`), the bank status flag for
+    /// [`StoreError::NoRecord`], 0 otherwise.
+    pub const fn data(&self) -> u32 {
+        match self {
+            StoreError::Invalid(v) => ((v.code() as u32) << 16) | v.detail() as u32,
+            StoreError::NoRecord(s) => s.flag() as u32,
+            _ => 0,
         }
     }
 }
@@ -371,10 +436,10 @@ pub const fn seq_newer(a: u32, b: u32) -> bool {
     d != 0 && d < (1 << 31)
 }
 
-/// Result of a successful [`TableStore::commit`].
+/// Result of a successful commit: where the table went.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CommitReport {
-    /// The bank written (now active).
+    /// The bank written (now holding the pending table).
     pub bank: Bank,
     /// Its sequence number.
     pub sequence: u32,
@@ -382,51 +447,281 @@ pub struct CommitReport {
     pub table_crc: u32,
 }
 
-/// The table store: a [`NorFlash`] and where the banks are, plus which bank is active.
+/// What the operator selected to run (the content of a selection record).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Selection {
+    /// The table source: nominal, or a bank.
+    pub source: BootSource,
+    /// Record sequence number of the chosen bank's table (0 for nominal).
+    pub record_sequence: u32,
+    /// CRC-32 of the chosen table.
+    pub table_crc: u32,
+}
+
+impl Selection {
+    /// The compiled-in nominal table.
+    pub fn nominal() -> Self {
+        Self {
+            source: BootSource::Nominal,
+            record_sequence: 0,
+            table_crc: Table::nominal().crc32(),
+        }
+    }
+
+    /// The table of `bank` committed with `sequence` and `table_crc`.
+    pub const fn bank(bank: Bank, sequence: u32, table_crc: u32) -> Self {
+        Self {
+            source: match bank {
+                Bank::A => BootSource::BankA,
+                Bank::B => BootSource::BankB,
+            },
+            record_sequence: sequence,
+            table_crc,
+        }
+    }
+
+    /// Encodes a selection slot with selection sequence `sequence`.
+    pub fn encode(&self, sequence: u32) -> [u8; SELECTION_SLOT_LEN] {
+        let mut out = [ERASED; SELECTION_SLOT_LEN];
+        let mut w = [0u8; SELECTION_LEN];
+        let fields = SELECTION_MAGIC
+            .iter()
+            .copied()
+            .chain(SELECTION_FORMAT_VERSION.to_le_bytes())
+            .chain([self.source.code(), 0])
+            .chain(sequence.to_le_bytes())
+            .chain(self.record_sequence.to_le_bytes())
+            .chain(self.table_crc.to_le_bytes());
+        for (d, s) in w.iter_mut().zip(fields) {
+            *d = s;
+        }
+        let crc = w
+            .get(..SELECTION_CRC_OFFSET)
+            .map_or(0, |b| CRC32.checksum(b));
+        for (d, s) in w.iter_mut().skip(SELECTION_CRC_OFFSET).zip(crc.to_le_bytes()) {
+            *d = s;
+        }
+        for (d, s) in out.iter_mut().zip(w.iter()) {
+            *d = *s;
+        }
+        out
+    }
+
+    /// Parses a selection slot: the selection and its sequence, or `None` unless magic,
+    /// format, choice, reserved byte, CRC and padding are all right.
+    pub fn decode(slot: &[u8; SELECTION_SLOT_LEN]) -> Option<(Selection, u32)> {
+        let word = |at: usize| -> Option<u32> {
+            let b: [u8; 4] = slot.get(at..at + 4)?.try_into().ok()?;
+            Some(u32::from_le_bytes(b))
+        };
+        let covered = slot.get(..SELECTION_CRC_OFFSET)?;
+        if CRC32.checksum(covered) != word(SELECTION_CRC_OFFSET)? {
+            return None;
+        }
+        let padding_ok = slot
+            .get(SELECTION_LEN..)
+            .is_some_and(|p| p.iter().all(|b| *b == ERASED));
+        let version = u16::from_le_bytes([*slot.get(4)?, *slot.get(5)?]);
+        let source = match *slot.get(6)? {
+            0 => BootSource::Nominal,
+            1 => BootSource::BankA,
+            2 => BootSource::BankB,
+            _ => return None,
+        };
+        if slot.get(..4) != Some(&SELECTION_MAGIC[..])
+            || version != SELECTION_FORMAT_VERSION
+            || *slot.get(7)? != 0
+            || !padding_ok
+        {
+            return None;
+        }
+        Some((
+            Selection {
+                source,
+                record_sequence: word(12)?,
+                table_crc: word(16)?,
+            },
+            word(8)?,
+        ))
+    }
+}
+
+/// Whether a flash device is still erasing or programming. A device whose
+/// [`NorFlash::erase`]/[`NorFlash::write`] return when the operation is done answers
+/// `false` always; one that starts the operation and returns (QEMU's modelled flash,
+/// the host mock in timed mode, a real NOR controller) answers `true` until it is done,
+/// and the store issues nothing meanwhile.
+pub trait FlashStatus {
+    /// The last erase or program has not finished yet.
+    fn busy(&mut self) -> bool;
+}
+
+/// One of the two selection slots.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Slot {
+    A,
+    B,
+}
+
+/// What a write in progress is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum WriteKind {
+    /// A table record into `bank`.
+    Commit(CommitReport),
+    /// A selection record into `slot` with selection sequence `sequence`.
+    Select {
+        selection: Selection,
+        slot: Slot,
+        sequence: u32,
+    },
+}
+
+/// The phase of a write in progress.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Phase {
+    /// Erasing; the next sector starts at this offset.
+    Erase(u32),
+    /// Programming chunk `index` of the image next; `verify` = chunk `index - 1` was
+    /// programmed and must be read back first.
+    Program { index: usize, verify: bool },
+}
+
+/// A record being written: the image (body chunks first, header chunk last), where it
+/// goes and how far it got.
+#[derive(Clone, Copy, Debug)]
+struct Write {
+    kind: WriteKind,
+    /// Flash offset of the image's first byte (the header slot).
+    base: u32,
+    /// End of the erase range (exclusive).
+    erase_end: u32,
+    /// The image: header slot then body, exactly as it lands in flash.
+    image: [u8; RECORD_LEN],
+    /// Bytes of `image` in use.
+    len: usize,
+    phase: Phase,
+}
+
+impl Write {
+    /// Chunks of the image in programming order: the body chunks (1..), then the header
+    /// chunk (0) last.
+    fn chunks(&self) -> usize {
+        self.len.div_ceil(RECORD_ALIGN)
+    }
+
+    /// Image chunk programmed at step `index` (the header chunk last).
+    fn chunk_at(&self, index: usize) -> Option<usize> {
+        let n = self.chunks();
+        if index + 1 < n {
+            Some(index + 1)
+        } else if index + 1 == n {
+            Some(0)
+        } else {
+            None
+        }
+    }
+}
+
+/// What a finished write did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WriteDone {
+    /// A table record was committed (now pending).
+    Committed(CommitReport),
+    /// A selection was persisted (now running).
+    Selected(Selection),
+}
+
+/// Progress of [`TableStore::poll`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WritePoll {
+    /// Nothing in progress.
+    Idle,
+    /// In progress: poll again.
+    Pending,
+    /// Finished with this outcome (reported once).
+    Done(Result<WriteDone, StoreError>),
+}
+
+/// The table store: a [`NorFlash`] and where the banks are, which table runs, which is
+/// pending, and the write in progress.
 #[derive(Debug)]
 pub struct TableStore<F> {
     flash: F,
     layout: BankLayout,
-    active: BootSource,
-    active_sequence: u32,
+    /// Where the running table came from.
+    running: BootSource,
+    /// Record sequence of the running table (0 when nominal).
+    running_sequence: u32,
+    /// A committed table not selected yet: its bank and commit report.
+    pending: Option<CommitReport>,
+    /// The newest valid selection record and its slot and sequence.
+    selection: Option<(Selection, Slot, u32)>,
+    write: Option<Write>,
 }
 
-impl<F: NorFlash> TableStore<F> {
+impl<F: NorFlash + FlashStatus> TableStore<F> {
     /// Checks the layout against the flash: bank size a power of two and a multiple of
-    /// the erase size, offsets erase-aligned, banks disjoint and inside the flash, the
-    /// record fits, write/read sizes divide [`RECORD_ALIGN`].
+    /// the erase size, offsets erase-aligned, banks and selection sectors disjoint and
+    /// inside the flash, the record fits, write/read sizes divide [`RECORD_ALIGN`].
     pub fn new(flash: F, layout: BankLayout) -> Result<Self, (F, StoreError)> {
         if Self::layout_ok(&flash, &layout) {
             Ok(Self {
                 flash,
                 layout,
-                active: BootSource::Nominal,
-                active_sequence: 0,
+                running: BootSource::Nominal,
+                running_sequence: 0,
+                pending: None,
+                selection: None,
+                write: None,
             })
         } else {
             Err((flash, StoreError::BadLayout))
         }
     }
 
+    fn record_erase_len() -> u64 {
+        round_up(RECORD_LEN, F::ERASE_SIZE.max(1)) as u64
+    }
+
     fn layout_ok(flash: &F, l: &BankLayout) -> bool {
         let erase = F::ERASE_SIZE as u64;
         let size = u64::from(l.bank_size);
         let (a, b) = (u64::from(l.bank_a_offset), u64::from(l.bank_b_offset));
+        let (sa, sb) = (
+            u64::from(l.selection_a_offset),
+            u64::from(l.selection_b_offset),
+        );
         let cap = flash.capacity() as u64;
         let sizes_ok = F::WRITE_SIZE > 0
             && F::READ_SIZE > 0
             && RECORD_ALIGN % F::WRITE_SIZE == 0
             && RECORD_ALIGN % F::READ_SIZE == 0
             && erase > 0;
-        sizes_ok
-            && l.bank_size.is_power_of_two()
+        if !sizes_ok {
+            return false;
+        }
+        let rec = Self::record_erase_len();
+        // Erase ranges: two records, two selection sectors; pairwise disjoint.
+        let ranges = [(a, a + rec), (b, b + rec), (sa, sa + erase), (sb, sb + erase)];
+        let disjoint = ranges.iter().enumerate().all(|(i, r)| {
+            ranges
+                .iter()
+                .skip(i + 1)
+                .all(|q| r.1 <= q.0 || q.1 <= r.0)
+        });
+        l.bank_size.is_power_of_two()
             && size % erase == 0
             && size >= RECORD_LEN as u64
             && a % erase == 0
             && b % erase == 0
+            && sa % erase == 0
+            && sb % erase == 0
             && a + size <= cap
             && b + size <= cap
+            && sa + erase <= cap
+            && sb + erase <= cap
             && (a + size <= b || b + size <= a)
+            && disjoint
     }
 
     /// The layout in use.
@@ -434,21 +729,29 @@ impl<F: NorFlash> TableStore<F> {
         self.layout
     }
 
-    /// Where the active table is.
-    pub fn active(&self) -> BootSource {
-        self.active
+    /// Where the running table came from.
+    pub fn running(&self) -> BootSource {
+        self.running
     }
 
-    /// Sequence number of the active record (0 when nominal).
-    pub fn active_sequence(&self) -> u32 {
-        self.active_sequence
+    /// Record sequence number of the running table (0 when nominal).
+    pub fn running_sequence(&self) -> u32 {
+        self.running_sequence
     }
 
-    /// Marks the nominal table active (e.g. "revert to nominal"); flash is unchanged,
-    /// so the next commit goes to the bank with the older record.
-    pub fn set_nominal_active(&mut self) {
-        self.active = BootSource::Nominal;
-        self.active_sequence = 0;
+    /// The committed table waiting to be selected, if any.
+    pub fn pending(&self) -> Option<CommitReport> {
+        self.pending
+    }
+
+    /// The newest valid selection record, if any.
+    pub fn selection(&self) -> Option<Selection> {
+        self.selection.map(|(s, _, _)| s)
+    }
+
+    /// A write is in progress.
+    pub fn writing(&self) -> bool {
+        self.write.is_some()
     }
 
     /// The flash (tests: power cuts, bit flips).
@@ -465,6 +768,13 @@ impl<F: NorFlash> TableStore<F> {
         match bank {
             Bank::A => self.layout.bank_a_offset,
             Bank::B => self.layout.bank_b_offset,
+        }
+    }
+
+    fn slot_offset(&self, slot: Slot) -> u32 {
+        match slot {
+            Slot::A => self.layout.selection_a_offset,
+            Slot::B => self.layout.selection_b_offset,
         }
     }
 
@@ -498,9 +808,53 @@ impl<F: NorFlash> TableStore<F> {
         Ok((header, table))
     }
 
-    /// Selects the table to run with: the newest complete, CRC-valid, validated record,
-    /// else the other bank's, else [`Table::nominal`]. Never fails.
+    /// Reads the table selected by `sel` if it is still there, exactly (its bank's
+    /// record complete, CRC-valid, with the named sequence and CRC). Not validated.
+    pub fn read_selected(&mut self, sel: &Selection) -> Result<Table, StoreError> {
+        match sel.source.bank() {
+            None => Ok(Table::nominal()),
+            Some(bank) => {
+                let (h, t) = self.read_bank(bank).map_err(StoreError::NoRecord)?;
+                if h.sequence == sel.record_sequence && h.table_crc == sel.table_crc {
+                    Ok(t)
+                } else {
+                    Err(StoreError::NotExpected)
+                }
+            }
+        }
+    }
+
+    fn read_slot(&mut self, slot: Slot) -> Option<(Selection, u32)> {
+        let mut buf = [0u8; SELECTION_SLOT_LEN];
+        let at = self.slot_offset(slot);
+        self.flash.read(at, &mut buf).ok()?;
+        Selection::decode(&buf)
+    }
+
+    /// Reads both selection slots; remembers and returns the newest valid one.
+    fn load_selection(&mut self) -> Option<Selection> {
+        let a = self.read_slot(Slot::A);
+        let b = self.read_slot(Slot::B);
+        self.selection = match (a, b) {
+            (Some((sa, qa)), Some((sb, qb))) => {
+                if seq_newer(qb, qa) {
+                    Some((sb, Slot::B, qb))
+                } else {
+                    Some((sa, Slot::A, qa))
+                }
+            }
+            (Some((sa, qa)), None) => Some((sa, Slot::A, qa)),
+            (None, Some((sb, qb))) => Some((sb, Slot::B, qb)),
+            (None, None) => None,
+        };
+        self.selection()
+    }
+
+    /// Selects the table to run with (module documentation, "Boot"). Never fails.
     pub fn boot(&mut self, cfg: &ValidationConfig) -> (Table, BootReport) {
+        self.write = None;
+        self.pending = None;
+        let selection = self.load_selection();
         let newest_header = match (self.read_header(Bank::A), self.read_header(Bank::B)) {
             (Ok(ha), Ok(hb)) if seq_newer(hb.sequence, ha.sequence) => Some(Bank::B),
             (Ok(_), _) => Some(Bank::A),
@@ -513,15 +867,19 @@ impl<F: NorFlash> TableStore<F> {
             Ok((h, _)) => Some(h.sequence),
             Err(_) => None,
         };
-        let order = match (seq_of(&a), seq_of(&b)) {
-            (Some(sa), Some(sb)) if seq_newer(sb, sa) => [Bank::B, Bank::A],
-            (None, Some(_)) => [Bank::B, Bank::A],
-            _ => [Bank::A, Bank::B],
+        // Which banks may run, in preference order.
+        let candidates: [Option<Bank>; 2] = match selection {
+            Some(sel) => [sel.source.bank(), None],
+            None => match (seq_of(&a), seq_of(&b)) {
+                (Some(sa), Some(sb)) if seq_newer(sb, sa) => [Some(Bank::B), Some(Bank::A)],
+                (None, Some(_)) => [Some(Bank::B), Some(Bank::A)],
+                _ => [Some(Bank::A), Some(Bank::B)],
+            },
         };
         let mut status_a = a.as_ref().err().copied().unwrap_or(BankStatus::Blank);
         let mut status_b = b.as_ref().err().copied().unwrap_or(BankStatus::Blank);
         let mut chosen: Option<(Bank, u32, Table)> = None;
-        for bank in order {
+        for bank in candidates.into_iter().flatten() {
             let (rec, status) = match bank {
                 Bank::A => (&a, &mut status_a),
                 Bank::B => (&b, &mut status_b),
@@ -529,11 +887,13 @@ impl<F: NorFlash> TableStore<F> {
             let Ok((h, t)) = rec else {
                 continue;
             };
-            if chosen.is_some() {
-                *status = BankStatus::Standby {
-                    sequence: h.sequence,
-                };
-                continue;
+            if let Some(sel) = selection {
+                if h.sequence != sel.record_sequence || h.table_crc != sel.table_crc {
+                    *status = BankStatus::Standby {
+                        sequence: h.sequence,
+                    };
+                    continue;
+                }
             }
             match validate(t, cfg) {
                 Ok(()) => {
@@ -541,22 +901,35 @@ impl<F: NorFlash> TableStore<F> {
                         sequence: h.sequence,
                     };
                     chosen = Some((bank, h.sequence, *t));
+                    break;
                 }
                 Err(e) => *status = BankStatus::Rejected(e),
+            }
+        }
+        // Every other complete record is standby.
+        for (rec, status) in [(&a, &mut status_a), (&b, &mut status_b)] {
+            if let (Ok((h, _)), BankStatus::Blank) = (rec, *status) {
+                *status = BankStatus::Standby {
+                    sequence: h.sequence,
+                };
             }
         }
         let (source, sequence, table) = match chosen {
             Some((bank, seq, t)) => (BootSource::from(bank), seq, t),
             None => (BootSource::Nominal, 0, Table::nominal()),
         };
-        // The newest valid commit header was not the one booted: its body was corrupt or
-        // its table was refused.
-        let fell_back = newest_header.is_some() && newest_header != source.bank();
-        self.active = source;
-        self.active_sequence = sequence;
+        let fell_back = match selection {
+            // The selected bank could not be booted.
+            Some(sel) => sel.source != source,
+            // The newest valid commit header was not the one booted.
+            None => newest_header.is_some() && newest_header != source.bank(),
+        };
+        self.running = source;
+        self.running_sequence = sequence;
         (
             table,
             BootReport {
+                selection,
                 source,
                 sequence,
                 bank_a: status_a,
@@ -566,10 +939,11 @@ impl<F: NorFlash> TableStore<F> {
         )
     }
 
-    /// The bank the next commit writes: the one not holding the active table; when the
-    /// nominal table is active, the bank without a valid header or with the older one.
-    pub fn inactive_bank(&mut self) -> Bank {
-        if let Some(bank) = self.active.bank() {
+    /// The bank the next commit writes: never the running table's; with the nominal
+    /// table running, the bank without a valid header, else the one with the older
+    /// record (a pending table there is replaced).
+    pub fn target_bank(&mut self) -> Bank {
+        if let Some(bank) = self.running.bank() {
             return bank.other();
         }
         match (self.read_header(Bank::A), self.read_header(Bank::B)) {
@@ -591,29 +965,203 @@ impl<F: NorFlash> TableStore<F> {
         }
         match newest {
             Some(n) => n.wrapping_add(1),
-            None => self.active_sequence.wrapping_add(1),
+            None => self.running_sequence.wrapping_add(1),
         }
     }
 
-    fn write_verified(&mut self, at: u32, data: &[u8]) -> Result<(), StoreError> {
-        self.flash.write(at, data).map_err(flash_err)?;
-        let mut back = [0u8; RECORD_ALIGN];
-        for (k, chunk) in data.chunks(RECORD_ALIGN).enumerate() {
-            let off = at + (k * RECORD_ALIGN) as u32;
-            let dst = back
-                .get_mut(..chunk.len())
-                .ok_or(StoreError::VerifyFailed)?;
-            self.flash.read(off, dst).map_err(flash_err)?;
-            if dst != chunk {
-                return Err(StoreError::VerifyFailed);
+    /// Starts writing `table` into [`TableStore::target_bank`] **without validating
+    /// it** (the caller has; tests use it to store deliberately bad tables). Any pending
+    /// table is forgotten (its bank may be the one overwritten).
+    pub fn start_commit(&mut self, table: &Table) -> Result<CommitReport, StoreError> {
+        if self.write.is_some() {
+            return Err(StoreError::Busy);
+        }
+        let bank = self.target_bank();
+        let sequence = self.next_sequence();
+        let base = self.bank_offset(bank);
+        let mut image = [ERASED; RECORD_LEN];
+        let mut encoded = [0u8; TABLE_LEN];
+        table.encode(&mut encoded);
+        let table_crc = stored_crc(&encoded).unwrap_or(0);
+        let header = CommitHeader {
+            sequence,
+            table_crc,
+        }
+        .encode();
+        for (d, s) in image.iter_mut().zip(header.iter().chain(encoded.iter())) {
+            *d = *s;
+        }
+        let report = CommitReport {
+            bank,
+            sequence,
+            table_crc,
+        };
+        self.pending = None;
+        self.write = Some(Write {
+            kind: WriteKind::Commit(report),
+            base,
+            erase_end: base.saturating_add(Self::record_erase_len() as u32),
+            image,
+            len: RECORD_LEN,
+            phase: Phase::Erase(base),
+        });
+        Ok(report)
+    }
+
+    /// Starts persisting `selection` into the slot not holding the newest selection.
+    pub fn start_select(&mut self, selection: &Selection) -> Result<(), StoreError> {
+        if self.write.is_some() {
+            return Err(StoreError::Busy);
+        }
+        let (slot, sequence) = match self.selection {
+            Some((_, Slot::A, q)) => (Slot::B, q.wrapping_add(1)),
+            Some((_, Slot::B, q)) => (Slot::A, q.wrapping_add(1)),
+            None => (Slot::A, 1),
+        };
+        let base = self.slot_offset(slot);
+        let mut image = [ERASED; RECORD_LEN];
+        for (d, s) in image.iter_mut().zip(selection.encode(sequence).iter()) {
+            *d = *s;
+        }
+        self.write = Some(Write {
+            kind: WriteKind::Select {
+                selection: *selection,
+                slot,
+                sequence,
+            },
+            base,
+            erase_end: base.saturating_add(F::ERASE_SIZE as u32),
+            image,
+            len: SELECTION_SLOT_LEN,
+            phase: Phase::Erase(base),
+        });
+        Ok(())
+    }
+
+    /// Advances the write in progress by at most one flash operation (module
+    /// documentation, "Non-blocking operation").
+    pub fn poll(&mut self) -> WritePoll {
+        let Some(mut w) = self.write else {
+            return WritePoll::Idle;
+        };
+        if self.flash.busy() {
+            return WritePoll::Pending;
+        }
+        match self.advance(&mut w) {
+            Ok(false) => {
+                self.write = Some(w);
+                WritePoll::Pending
             }
+            Ok(true) => {
+                self.write = None;
+                WritePoll::Done(Ok(self.finish(&w.kind)))
+            }
+            Err(e) => {
+                self.write = None;
+                WritePoll::Done(Err(e))
+            }
+        }
+    }
+
+    /// One flash operation of `w`; `Ok(true)` when the write is complete and verified.
+    fn advance(&mut self, w: &mut Write) -> Result<bool, StoreError> {
+        match w.phase {
+            Phase::Erase(at) => {
+                let sector = F::ERASE_SIZE.max(1) as u32;
+                if at < w.erase_end {
+                    let end = at.saturating_add(sector).min(w.erase_end);
+                    self.flash.erase(at, end).map_err(flash_err)?;
+                    w.phase = Phase::Erase(end);
+                } else {
+                    w.phase = Phase::Program {
+                        index: 0,
+                        verify: false,
+                    };
+                }
+                Ok(false)
+            }
+            Phase::Program { index, verify } => {
+                if verify {
+                    let chunk = w.chunk_at(index.wrapping_sub(1));
+                    if let Some(c) = chunk {
+                        self.verify_chunk(w, c)?;
+                    }
+                }
+                match w.chunk_at(index) {
+                    Some(c) => {
+                        let at = c * RECORD_ALIGN;
+                        let end = (at + RECORD_ALIGN).min(w.len);
+                        let data = w.image.get(at..end).ok_or(StoreError::VerifyFailed)?;
+                        self.flash
+                            .write(w.base + at as u32, data)
+                            .map_err(flash_err)?;
+                        w.phase = Phase::Program {
+                            index: index + 1,
+                            verify: true,
+                        };
+                        Ok(false)
+                    }
+                    None => Ok(true),
+                }
+            }
+        }
+    }
+
+    fn verify_chunk(&mut self, w: &Write, chunk: usize) -> Result<(), StoreError> {
+        let at = chunk * RECORD_ALIGN;
+        let end = (at + RECORD_ALIGN).min(w.len);
+        let want = w.image.get(at..end).ok_or(StoreError::VerifyFailed)?;
+        let mut back = [0u8; RECORD_ALIGN];
+        let dst = back
+            .get_mut(..want.len())
+            .ok_or(StoreError::VerifyFailed)?;
+        self.flash
+            .read(w.base + at as u32, dst)
+            .map_err(flash_err)?;
+        if dst != want {
+            return Err(StoreError::VerifyFailed);
         }
         Ok(())
     }
 
-    /// Validates `table` and writes it, with a new sequence number, into the inactive
-    /// bank (erase, body, header last; each read back). On success that bank is active.
-    /// On any error the previously active record is untouched.
+    fn finish(&mut self, kind: &WriteKind) -> WriteDone {
+        match *kind {
+            WriteKind::Commit(report) => {
+                self.pending = Some(report);
+                WriteDone::Committed(report)
+            }
+            WriteKind::Select {
+                selection,
+                slot,
+                sequence,
+            } => {
+                self.selection = Some((selection, slot, sequence));
+                self.running = selection.source;
+                self.running_sequence = selection.record_sequence;
+                if let (Some(p), Some(bank)) = (self.pending, selection.source.bank()) {
+                    if p.bank == bank {
+                        self.pending = None;
+                    }
+                }
+                WriteDone::Selected(selection)
+            }
+        }
+    }
+
+    /// Runs the write in progress to completion (blocking: tests, boot-time tools).
+    fn complete(&mut self) -> Result<WriteDone, StoreError> {
+        loop {
+            match self.poll() {
+                WritePoll::Pending => {}
+                WritePoll::Done(r) => return r,
+                WritePoll::Idle => return Err(StoreError::Busy),
+            }
+        }
+    }
+
+    /// Validates `table` and writes it into [`TableStore::target_bank`], blocking. On
+    /// success it is the pending table (what boots does not change); on any error the
+    /// running table's record is untouched.
     pub fn commit(
         &mut self,
         table: &Table,
@@ -623,44 +1171,18 @@ impl<F: NorFlash> TableStore<F> {
         self.write_record(table)
     }
 
-    /// Writes `table` into the inactive bank **without validating it** (the caller has;
-    /// tests use it to store deliberately bad tables).
+    /// Writes `table` into the target bank **without validating it**, blocking.
     pub fn write_record(&mut self, table: &Table) -> Result<CommitReport, StoreError> {
-        let bank = self.inactive_bank();
-        let sequence = self.next_sequence();
-        let base = self.bank_offset(bank);
-        let erase_len = round_up(RECORD_LEN, F::ERASE_SIZE.max(1)) as u32;
-        self.flash
-            .erase(base, base + erase_len)
-            .map_err(flash_err)?;
-        let mut body = [ERASED; BODY_SLOT_LEN];
-        let mut encoded = [0u8; TABLE_LEN];
-        table.encode(&mut encoded);
-        for (dst, src) in body.iter_mut().zip(encoded.iter()) {
-            *dst = *src;
+        let report = self.start_commit(table)?;
+        match self.complete()? {
+            WriteDone::Committed(r) => Ok(r),
+            WriteDone::Selected(_) => Ok(report),
         }
-        let table_crc = stored_crc(&encoded).unwrap_or(0);
-        self.write_verified(base + HEADER_SLOT_LEN as u32, &body)?;
-        let header = CommitHeader {
-            sequence,
-            table_crc,
-        }
-        .encode();
-        self.write_verified(base, &header)?;
-        self.active = BootSource::from(bank);
-        self.active_sequence = sequence;
-        Ok(CommitReport {
-            bank,
-            sequence,
-            table_crc,
-        })
     }
 
-    /// Re-commits the inactive bank's own (older) table as the newest record, i.e.
-    /// "switch bank". The table is validated first; a power cut leaves the active bank.
-    pub fn promote_inactive(&mut self, cfg: &ValidationConfig) -> Result<CommitReport, StoreError> {
-        let bank = self.inactive_bank();
-        let (_, table) = self.read_bank(bank).map_err(StoreError::NoRecord)?;
-        self.commit(&table, cfg)
+    /// Persists `selection`, blocking. On success it is what boots and runs.
+    pub fn select(&mut self, selection: &Selection) -> Result<(), StoreError> {
+        self.start_select(selection)?;
+        self.complete().map(|_| ())
     }
 }

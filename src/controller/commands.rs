@@ -1,0 +1,252 @@
+//! Telecommand dispatch: checked decode, acceptance, execution, start/completion.
+
+use super::error::CommandError;
+use super::jobs::{JobKind, JobRequest};
+use super::verification::{Outcome, PendingKind, PendingTc};
+use super::{event, Controller, TmRecord};
+use crate::hw::{SliderDrives, StrokeEncoders};
+use crate::link::command::{NM_PER_MM, TABLE_CHUNK_MAX_LEN};
+use crate::link::tc::{decode_telecommand, Telecommand};
+use crate::link::tm::{EventSeverity, Verification};
+use crate::link::{Command, MemoryId};
+use crate::table::TABLE_LEN;
+
+/// Nanometres per millimetre, in the f32 the flight code converts with.
+const NM_PER_MM_F32: f32 = NM_PER_MM as f32;
+
+impl<M: SliderDrives + StrokeEncoders> Controller<M> {
+    /// One telecommand packet (the bytes of one deframed frame): decode, report,
+    /// execute. A refused telecommand changes nothing but the counters and the reports.
+    pub fn handle_telecommand(&mut self, packet: &[u8]) {
+        let tc = match decode_telecommand(packet) {
+            Ok(tc) => tc,
+            Err(rej) => {
+                self.tc_rejected = self.tc_rejected.wrapping_add(1);
+                match rej.request_id {
+                    Some(rid) => self.verify(rid, Verification::acceptance_failure(&rej.error)),
+                    None => self.last_failure_code = rej.error.code(),
+                }
+                return;
+            }
+        };
+        self.tc_accepted = self.tc_accepted.wrapping_add(1);
+        if tc.ack.acceptance() {
+            self.verify(tc.request_id, Verification::AcceptanceSuccess);
+        }
+        let result = self.execute(&tc);
+        self.report_outcome(&tc, result);
+        self.publish_state();
+    }
+
+    fn report_outcome(&mut self, tc: &Telecommand, result: Result<Outcome, CommandError>) {
+        let rid = tc.request_id;
+        match result {
+            Ok(Outcome::Done) => {
+                if tc.ack.start() {
+                    self.verify(rid, Verification::StartSuccess);
+                }
+                if tc.ack.completion() {
+                    self.verify(rid, Verification::CompletionSuccess);
+                }
+            }
+            Ok(Outcome::Planning) => {
+                // Start success or failure is reported when the plan is done.
+                self.tc_pending = Some(PendingTc {
+                    request_id: rid,
+                    ack: tc.ack,
+                    kind: PendingKind::Motion,
+                    started: false,
+                });
+            }
+            Ok(Outcome::Started) | Ok(Outcome::JobStarted) => {
+                if tc.ack.start() {
+                    self.verify(rid, Verification::StartSuccess);
+                }
+                let kind = if matches!(result, Ok(Outcome::Started)) {
+                    PendingKind::Motion
+                } else {
+                    PendingKind::Job
+                };
+                // A newer long-running TC cannot start while one is pending (busy), so
+                // no report is lost here.
+                self.tc_pending = Some(PendingTc {
+                    request_id: rid,
+                    ack: tc.ack,
+                    kind,
+                    started: true,
+                });
+            }
+            Err(e) => {
+                self.refusal_event(&tc.command, &e);
+                self.verify(
+                    rid,
+                    Verification::StartFailure {
+                        code: e.code(),
+                        data: e.data(),
+                    },
+                );
+            }
+        }
+    }
+
+    /// The event that accompanies a refused move or table command.
+    fn refusal_event(&mut self, command: &Command, e: &CommandError) {
+        match command {
+            Command::MoveAbsolute(_) | Command::MoveRelative(_) => {
+                let refusal = match e {
+                    CommandError::Motion(_) => e.data(),
+                    _ => 0,
+                };
+                self.event(
+                    EventSeverity::Low,
+                    event::MOVE_REFUSED,
+                    [refusal, u32::from(e.code())],
+                );
+            }
+            Command::CommitTable { .. } => {
+                let id = self.upload.table_id().unwrap_or(0);
+                self.table_rejected(e, id);
+            }
+            Command::ActivateTable { .. } | Command::SwitchBank | Command::RevertToNominal => {
+                self.table_rejected(e, 0)
+            }
+            _ => {}
+        }
+    }
+
+    /// Event 0x0011: a table command refused or failed.
+    pub(super) fn table_rejected(&mut self, e: &CommandError, table_id: u32) {
+        self.event(
+            EventSeverity::Medium,
+            event::TABLE_REJECTED,
+            [u32::from(e.code()), table_id],
+        );
+    }
+
+    fn execute(&mut self, tc: &Telecommand) -> Result<Outcome, CommandError> {
+        match tc.command {
+            Command::Ping => {
+                self.tm.push(self.cycle, TmRecord::PingReply);
+                Ok(Outcome::Done)
+            }
+            Command::HousekeepingOneShot => {
+                self.tm.push(self.cycle, TmRecord::Housekeeping);
+                Ok(Outcome::Done)
+            }
+            Command::MoveAbsolute(target) => self.start_move(target.to_pose()),
+            Command::MoveRelative(delta) => {
+                let target = self.relative_target(delta.to_pose())?;
+                self.start_move(target)
+            }
+            Command::Stop => {
+                // A pending move's completion failure is reported when it comes to rest.
+                self.begin_stop();
+                Ok(Outcome::Done)
+            }
+            Command::ClearFault => {
+                self.require_idle()?;
+                let latched = self.supervisor.latched();
+                self.supervisor
+                    .clear()
+                    .map_err(CommandError::FaultPersists)?;
+                if !latched.is_empty() {
+                    self.event(
+                        EventSeverity::Info,
+                        event::FAULTS_CLEARED,
+                        [latched.bits(), 0],
+                    );
+                }
+                // Resume from where the drives hold.
+                self.hold_here();
+                Ok(Outcome::Done)
+            }
+            Command::DirectStroke { leg, delta_nm } => {
+                self.start_direct_stroke(leg, delta_nm as f32 / NM_PER_MM_F32)
+            }
+            Command::LoadTableChunk(chunk) => {
+                self.upload.load(chunk.offset_bytes(), chunk.bytes());
+                Ok(Outcome::Done)
+            }
+            Command::CommitTable { crc32 } => {
+                // Commits happen at rest only (a flash erase can stall a single-bank
+                // device for seconds); moves wait until the job is done.
+                self.require_idle()?;
+                let table = self.upload.check(crc32)?;
+                self.upload.clear_received();
+                self.pending_table = None;
+                self.start_job(JobRequest::Commit(table))
+            }
+            Command::ActivateTable { table_id, crc32 } => {
+                self.require_idle()?;
+                let p = self.pending_table.ok_or(CommandError::NoPending)?;
+                if p.table_id != table_id || p.report.table_crc != crc32 {
+                    return Err(CommandError::PendingMismatch {
+                        pending_id: p.table_id,
+                    });
+                }
+                self.start_job(JobRequest::ActivatePending(p.report))
+            }
+            Command::SwitchBank => {
+                self.require_idle()?;
+                self.start_job(JobRequest::SwitchBank)
+            }
+            Command::RevertToNominal => {
+                self.require_idle()?;
+                self.start_job(JobRequest::RevertToNominal)
+            }
+            Command::DumpTable(memory) => {
+                for offset in (0..TABLE_LEN).step_by(TABLE_CHUNK_MAX_LEN) {
+                    self.tm.push(
+                        self.cycle,
+                        TmRecord::DumpChunk {
+                            memory,
+                            offset_bytes: offset as u16,
+                        },
+                    );
+                }
+                Ok(Outcome::Done)
+            }
+        }
+    }
+
+    fn start_job(&mut self, request: JobRequest) -> Result<Outcome, CommandError> {
+        self.jobs
+            .submit(request)
+            .map_err(|kind: JobKind| CommandError::JobBusy(kind.code()))?;
+        Ok(Outcome::JobStarted)
+    }
+
+    /// The bytes of a dump chunk (the link service reads them when it encodes the
+    /// chunk's record). `None` outside the image.
+    pub fn dump_chunk(&self, memory: MemoryId, offset_bytes: u16) -> Option<DumpChunk> {
+        let image = match memory {
+            MemoryId::ActiveTable => self.active.table.to_bytes(),
+            MemoryId::UploadBuffer => *self.upload.bytes(),
+        };
+        let start = usize::from(offset_bytes);
+        let end = start
+            .saturating_add(TABLE_CHUNK_MAX_LEN)
+            .min(image.len());
+        let bytes = image.get(start..end)?;
+        let mut chunk = DumpChunk {
+            len: bytes.len(),
+            bytes: [0; TABLE_CHUNK_MAX_LEN],
+        };
+        chunk.bytes.get_mut(..bytes.len())?.copy_from_slice(bytes);
+        Some(chunk)
+    }
+}
+
+/// One table-dump chunk's bytes, copied out of the controller.
+#[derive(Clone, Copy, Debug)]
+pub struct DumpChunk {
+    len: usize,
+    bytes: [u8; TABLE_CHUNK_MAX_LEN],
+}
+
+impl DumpChunk {
+    /// The chunk's bytes.
+    pub fn bytes(&self) -> &[u8] {
+        self.bytes.get(..self.len).unwrap_or(&[])
+    }
+}

@@ -1,0 +1,253 @@
+//! The link service: between the UART byte queues and the controller, below the
+//! control task's priority.
+//!
+//! One [`LinkService::pass`] (run after every control cycle):
+//! 1. **receive**: takes bytes from the RX queue through the deframer; each complete
+//!    frame is one telecommand for [`Controller::handle_telecommand`]; at most
+//!    [`MAX_TC_PER_PASS`] telecommands per pass (the rest of the bytes wait in the
+//!    queue for the next pass). A frame too long for the deframer (longer than the
+//!    largest telecommand's frame) or not valid COBS is dropped and counted
+//!    (`tc_frames_dropped`): it carries no request ID to report on. A frame that
+//!    decodes into a packet longer than [`crate::link::MAX_TC_PACKET_LEN`] still
+//!    reaches the controller, which refuses it with TM[1,2] 0x0503.
+//! 2. **transmit**: encodes queued telemetry records into framed PUS packets while the
+//!    TX queue has room for the whole frame (frames are never split or truncated; a
+//!    record waits in the telemetry queue until its frame fits).
+//!
+//! The controller is reached through [`Exclusive`]: on the target an RTIC resource
+//! lock, held only for one telecommand or one record at a time; on the host a plain
+//! `&mut`. Encoding happens outside the lock.
+
+use super::telemetry::{Stamped, TmRecord};
+use super::{Controller, JobRequest, JobResult};
+use crate::hw::{SliderDrives, StrokeEncoders};
+use crate::link::framing::{max_cobs_len, Deframer};
+use crate::link::tm::{TmTime, TmWriter};
+use crate::link::{Housekeeping, MAX_TC_PACKET_LEN, MAX_TM_FRAME_LEN};
+use crate::timing::cycle_to_us;
+
+/// Telecommands handled per pass (per control cycle): a table upload's five chunks and
+/// its commit arrive within two cycles; the budget per telecommand is measured by the
+/// cycle benchmark.
+pub const MAX_TC_PER_PASS: usize = 4;
+/// Deframer buffer (bytes): one byte more than the COBS encoding of the largest
+/// telecommand, so an oversized packet (up to 255 + 2 bytes) still reaches the decoder
+/// and gets its TM[1,2] 0x0503; longer frames are dropped and counted.
+pub const RX_FRAME_BUFFER_LEN: usize = max_cobs_len(MAX_TC_PACKET_LEN + 1);
+
+/// Exclusive access to a `T` for a short section.
+pub trait Exclusive<T> {
+    /// Runs `f` with `&mut T`.
+    fn lock<R>(&mut self, f: impl FnOnce(&mut T) -> R) -> R;
+}
+
+impl<T> Exclusive<T> for &mut T {
+    fn lock<R>(&mut self, f: impl FnOnce(&mut T) -> R) -> R {
+        f(self)
+    }
+}
+
+/// Received bytes (the UART RX queue).
+pub trait RxBytes {
+    /// The next received byte, if any.
+    fn pop(&mut self) -> Option<u8>;
+}
+
+/// Bytes to send (the UART TX queue).
+pub trait TxBytes {
+    /// Bytes that can be queued now.
+    fn free(&self) -> usize;
+    /// Queues a whole frame (called only when it fits).
+    fn push(&mut self, frame: &[u8]);
+}
+
+/// The background worker as the link service sees it (two bounded queues on the
+/// target, the worker itself on the host).
+pub trait JobPort {
+    /// Hands a request over; gives it back if there is no room.
+    fn send(&mut self, request: JobRequest) -> Result<(), JobRequest>;
+    /// The next result, if any.
+    fn recv(&mut self) -> Option<JobResult>;
+}
+
+/// Counters of the link that the controller does not see.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LinkCounters {
+    /// Frames the deframer dropped (too long, bad COBS).
+    pub frames_dropped: u16,
+    /// UART receive overruns and RX queue overflows (reported by the board).
+    pub uart_overruns: u16,
+}
+
+/// The link service (module documentation).
+#[derive(Clone, Debug)]
+pub struct LinkService {
+    deframer: Deframer<RX_FRAME_BUFFER_LEN>,
+    tm: TmWriter,
+    counters: LinkCounters,
+    /// A job request the port had no room for.
+    held_request: Option<JobRequest>,
+}
+
+impl Default for LinkService {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// What one record needs from the controller to be encoded.
+enum Content {
+    Plain(TmRecord),
+    Hk(Housekeeping),
+    Dump(crate::link::MemoryId, u16, super::commands::DumpChunk),
+    Nothing,
+}
+
+impl LinkService {
+    /// A fresh link (TM counters at 0).
+    pub const fn new() -> Self {
+        Self {
+            deframer: Deframer::new(),
+            tm: TmWriter::new(),
+            counters: LinkCounters {
+                frames_dropped: 0,
+                uart_overruns: 0,
+            },
+            held_request: None,
+        }
+    }
+
+    /// Adds UART overruns the board counted.
+    pub fn add_uart_overruns(&mut self, n: u16) {
+        self.counters.uart_overruns = self.counters.uart_overruns.wrapping_add(n);
+    }
+
+    /// The link's own counters.
+    pub fn counters(&self) -> LinkCounters {
+        self.counters
+    }
+
+    /// One pass: receive, then transmit (module documentation).
+    pub fn pass<M, C>(&mut self, ctl: &mut C, rx: &mut impl RxBytes, tx: &mut impl TxBytes)
+    where
+        M: SliderDrives + StrokeEncoders,
+        C: Exclusive<Controller<M>>,
+    {
+        self.receive(ctl, rx);
+        self.transmit(ctl, tx);
+    }
+
+    /// Step 1: at most [`MAX_TC_PER_PASS`] telecommands from the RX bytes.
+    pub fn receive<M, C>(&mut self, ctl: &mut C, rx: &mut impl RxBytes)
+    where
+        M: SliderDrives + StrokeEncoders,
+        C: Exclusive<Controller<M>>,
+    {
+        let mut handled = 0;
+        while handled < MAX_TC_PER_PASS {
+            let Some(byte) = rx.pop() else { break };
+            match self.deframer.push_byte(byte) {
+                None => {}
+                Some(Ok(packet)) => {
+                    ctl.lock(|c| c.handle_telecommand(packet));
+                    handled += 1;
+                }
+                Some(Err(_)) => {
+                    self.counters.frames_dropped = self.counters.frames_dropped.wrapping_add(1);
+                }
+            }
+        }
+    }
+
+    /// Step 2: encode queued records while their frames fit in the TX queue.
+    pub fn transmit<M, C>(&mut self, ctl: &mut C, tx: &mut impl TxBytes)
+    where
+        M: SliderDrives + StrokeEncoders,
+        C: Exclusive<Controller<M>>,
+    {
+        loop {
+            let counters = self.counters;
+            let peeked = ctl.lock(|c| {
+                let stamped = *c.tm_queue().peek()?;
+                let content = match stamped.record {
+                    TmRecord::Housekeeping => {
+                        let mut hk = c.housekeeping();
+                        hk.tc_frames_dropped = counters.frames_dropped;
+                        hk.uart_overruns = counters.uart_overruns;
+                        Content::Hk(hk)
+                    }
+                    TmRecord::DumpChunk {
+                        memory,
+                        offset_bytes,
+                    } => match c.dump_chunk(memory, offset_bytes) {
+                        Some(chunk) => Content::Dump(memory, offset_bytes, chunk),
+                        None => Content::Nothing,
+                    },
+                    other => Content::Plain(other),
+                };
+                Some((stamped, content))
+            });
+            let Some((stamped, content)) = peeked else {
+                return;
+            };
+            let mut frame = [0u8; MAX_TM_FRAME_LEN];
+            let len = self.encode(&stamped, &content, &mut frame);
+            match (len, frame.get(..len.unwrap_or(0))) {
+                (Some(n), Some(f)) if n > 0 => {
+                    if tx.free() < n {
+                        return;
+                    }
+                    tx.push(f);
+                }
+                // Not encodable (a defect guard): drop it rather than block the queue.
+                _ => {}
+            }
+            ctl.lock(|c| c.tm_queue().pop());
+        }
+    }
+
+    fn encode(&mut self, stamped: &Stamped, content: &Content, out: &mut [u8]) -> Option<usize> {
+        let time = TmTime::from_micros(cycle_to_us(u64::from(stamped.cycle)));
+        match content {
+            Content::Plain(TmRecord::Verification { request_id, report }) => self
+                .tm
+                .emit_verification(time, *request_id, *report, out)
+                .ok(),
+            Content::Plain(TmRecord::Event { severity, id, aux }) => {
+                self.tm.emit_event(time, *severity, *id, *aux, out).ok()
+            }
+            Content::Plain(TmRecord::PingReply) => self.tm.emit_ping_reply(time, out).ok(),
+            Content::Hk(hk) => self.tm.emit_housekeeping(time, hk, out).ok(),
+            Content::Dump(memory, offset, chunk) => self
+                .tm
+                .emit_table_dump_chunk(time, *memory, *offset, chunk.bytes(), out)
+                .ok(),
+            Content::Plain(TmRecord::Housekeeping | TmRecord::DumpChunk { .. })
+            | Content::Nothing => None,
+        }
+    }
+
+    /// Moves job requests from the controller to the worker and results back.
+    pub fn exchange_jobs<M, C>(&mut self, ctl: &mut C, port: &mut impl JobPort)
+    where
+        M: SliderDrives + StrokeEncoders,
+        C: Exclusive<Controller<M>>,
+    {
+        while let Some(result) = port.recv() {
+            ctl.lock(|c| c.job_finished(result));
+        }
+        loop {
+            let request = match self.held_request.take() {
+                Some(r) => r,
+                None => match ctl.lock(|c| c.take_job_request()) {
+                    Some(r) => r,
+                    None => return,
+                },
+            };
+            if let Err(r) = port.send(request) {
+                self.held_request = Some(r);
+                return;
+            }
+        }
+    }
+}

@@ -1,0 +1,630 @@
+//! Table jobs: what the controller asks of the background worker, and the worker.
+//!
+//! The controller never touches flash and never validates a table in its control
+//! cycle: a telecommand that needs it (commit, activate, switch bank, revert to nominal)
+//! becomes a [`JobRequest`]; the [`Worker`], at the lowest priority, does the work in
+//! steps ([`Worker::step`]: one validation, or one flash operation of the non-blocking
+//! store, or one scrub check) and answers with a [`JobResult`], which the controller
+//! applies between motions. The two talk only through these messages (on the target
+//! two bounded single-producer queues), so the worker never blocks the control task.
+//!
+//! The worker also scrubs: every [`SCRUB_PERIOD_CYCLES`] the controller sends a
+//! [`ScrubImage`] of its running table, derived geometry and supervision thresholds;
+//! the worker re-derives them from the table, checks the table's CRC and compares bit
+//! for bit. And every [`SCRUB_PERIOD_CYCLES`] the worker reads both flash banks and
+//! reports a change of their health.
+//!
+//! ## Job semantics (what the operator sees)
+//! * **Commit**: validate, then write the table into the bank not holding the running
+//!   table; it becomes the *pending* table. What boots does not change: before the first
+//!   commit on a flash without a selection record, the worker records the running
+//!   table as the selection, so a commit can never make a table boot that the operator
+//!   did not select.
+//! * **Activate (pending)**: persist a selection naming the pending record (bank,
+//!   sequence, CRC), then the controller runs it.
+//! * **Switch bank**: the table of the bank not running (with the nominal table
+//!   running: the bank with the newest record): read, validate, persist its selection,
+//!   run it. A pending table in that bank is thereby activated.
+//! * **Revert to nominal**: persist the nominal selection, run the nominal table; it
+//!   stays selected across resets.
+//! * **Reload**: re-read the running table from its bank (after a RAM upset); CRC-checked,
+//!   it is the validated table byte for byte.
+
+use super::{ActiveTable, Controller};
+use crate::hw::{SliderDrives, StrokeEncoders};
+use crate::link::tm::EventSeverity;
+use crate::supervision::{FaultFlags, SupervisionConfig};
+use crate::table::{
+    validate, Bank, BootSource, CommitReport, FlashStatus, Selection, StoreError, Table,
+    TableStore, ValidationConfig, WriteDone, WritePoll,
+};
+use crate::timing::SCRUB_PERIOD_CYCLES;
+use embedded_storage::nor_flash::NorFlash;
+
+/// The kinds of operator job (housekeeping `job` byte).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum JobKind {
+    /// Validate and write a table (1).
+    Commit,
+    /// Persist a selection and run it: activate, switch bank, revert (2).
+    Select,
+    /// Re-read the running table after a RAM upset (3).
+    Reload,
+}
+
+impl JobKind {
+    /// Wire code (0 is "no job").
+    pub const fn code(self) -> u8 {
+        match self {
+            JobKind::Commit => 1,
+            JobKind::Select => 2,
+            JobKind::Reload => 3,
+        }
+    }
+}
+
+/// A snapshot of the controller's running configuration, for the RAM scrub.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScrubImage {
+    /// The table generation the snapshot was taken of.
+    pub generation: u32,
+    /// The running table with its CRC and derived geometry.
+    pub active: ActiveTable,
+    /// The supervisor's thresholds.
+    pub supervision: SupervisionConfig,
+}
+
+impl ScrubImage {
+    /// True when the image is self-consistent: the table's CRC is the recorded one, and
+    /// the geometry and thresholds are exactly what the table derives.
+    pub fn consistent(&self) -> bool {
+        let a = &self.active;
+        a.table.crc32() == a.crc32
+            && ActiveTable::new(a.table, a.source).is_ok_and(|d| d == *a)
+            && SupervisionConfig::from_table(&a.table) == self.supervision
+    }
+}
+
+/// What the controller asks of the worker.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum JobRequest {
+    /// Validate and write the table (pending afterwards).
+    Commit(Table),
+    /// Select the pending table committed as in this report.
+    ActivatePending(CommitReport),
+    /// Select the other bank's table.
+    SwitchBank,
+    /// Select the nominal table.
+    RevertToNominal,
+    /// Re-read the running table from its source.
+    Reload,
+    /// Check this snapshot of the running configuration.
+    Scrub(ScrubImage),
+}
+
+impl JobRequest {
+    /// The operator-job kind (`None` for a scrub).
+    pub const fn kind(&self) -> Option<JobKind> {
+        match self {
+            JobRequest::Commit(_) => Some(JobKind::Commit),
+            JobRequest::ActivatePending(_) | JobRequest::SwitchBank | JobRequest::RevertToNominal => {
+                Some(JobKind::Select)
+            }
+            JobRequest::Reload => Some(JobKind::Reload),
+            JobRequest::Scrub(_) => None,
+        }
+    }
+}
+
+/// What the worker answers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum JobResult {
+    /// The table was validated and written: it is pending.
+    Committed {
+        /// Where.
+        report: CommitReport,
+        /// Its table ID.
+        table_id: u32,
+    },
+    /// A selection was persisted: run this table.
+    Selected {
+        /// The table.
+        table: Table,
+        /// What was selected.
+        selection: Selection,
+    },
+    /// The running table, re-read from its source.
+    Reloaded {
+        /// The table.
+        table: Table,
+        /// Its source.
+        source: BootSource,
+    },
+    /// An operator job failed; nothing in RAM changed (a failed commit leaves the
+    /// target bank without a valid record, never the running one).
+    Failed {
+        /// Which job.
+        kind: JobKind,
+        /// Why.
+        error: StoreError,
+    },
+    /// The RAM scrub of a generation: consistent or not.
+    Scrubbed {
+        /// The generation checked.
+        generation: u32,
+        /// The image was consistent.
+        ok: bool,
+    },
+    /// The flash banks' health changed: bit 0 bank A, bit 1 bank B holds a header but
+    /// its record no longer reads back CRC-valid.
+    Banks {
+        /// The health bits.
+        corrupt: u8,
+    },
+}
+
+/// Bank-health bit of bank A ([`JobResult::Banks`]).
+pub const BANK_A_CORRUPT: u8 = 1 << 0;
+/// Bank-health bit of bank B.
+pub const BANK_B_CORRUPT: u8 = 1 << 1;
+
+/// The controller's side: at most one operator job and one scrub outstanding.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct JobLane {
+    outbox: Option<JobRequest>,
+    scrub: Option<ScrubImage>,
+    running: Option<JobKind>,
+    scrub_outstanding: bool,
+}
+
+impl JobLane {
+    pub const fn new() -> Self {
+        Self {
+            outbox: None,
+            scrub: None,
+            running: None,
+            scrub_outstanding: false,
+        }
+    }
+
+    /// Queues an operator job; refused with the running job's kind while one runs.
+    pub fn submit(&mut self, request: JobRequest) -> Result<(), JobKind> {
+        if let Some(k) = self.running {
+            return Err(k);
+        }
+        self.running = request.kind();
+        self.outbox = Some(request);
+        Ok(())
+    }
+
+    /// Queues a scrub snapshot unless one is still outstanding.
+    pub fn request_scrub(&mut self, image: ScrubImage) {
+        if !self.scrub_outstanding {
+            self.scrub = Some(image);
+            self.scrub_outstanding = true;
+        }
+    }
+
+    /// The running operator job's code (0: none).
+    pub fn running_code(&self) -> u8 {
+        self.running.map_or(0, JobKind::code)
+    }
+}
+
+impl<M: SliderDrives + StrokeEncoders> Controller<M> {
+    /// The next request for the worker (an operator job first, then a scrub snapshot).
+    pub fn take_job_request(&mut self) -> Option<JobRequest> {
+        if let Some(r) = self.jobs.outbox.take() {
+            return Some(r);
+        }
+        self.jobs.scrub.take().map(JobRequest::Scrub)
+    }
+
+    /// Applies the worker's answer (between motions: no motion starts while a job runs).
+    pub fn job_finished(&mut self, result: JobResult) {
+        match result {
+            JobResult::Committed { report, table_id } => {
+                self.jobs.running = None;
+                self.pending_table = Some(super::PendingTable { report, table_id });
+                self.event(
+                    EventSeverity::Info,
+                    super::event::TABLE_COMMITTED,
+                    [table_id, u32::from(BootSource::from(report.bank).code())],
+                );
+                self.complete_pending(Ok(()));
+            }
+            JobResult::Selected { table, selection } => {
+                self.jobs.running = None;
+                match self.run_table(table, selection.source) {
+                    Ok(()) => {
+                        if let (Some(p), Some(bank)) = (self.pending_table, selection.source.bank())
+                        {
+                            if p.report.bank == bank {
+                                self.pending_table = None;
+                            }
+                        }
+                        self.selection_source = Some(selection.source);
+                        self.complete_pending(Ok(()));
+                    }
+                    Err(e) => {
+                        self.table_rejected(&e, table.table_id);
+                        self.complete_pending(Err(e));
+                    }
+                }
+            }
+            JobResult::Reloaded { table, source } => {
+                self.jobs.running = None;
+                if self.run_table(table, source).is_ok() {
+                    self.supervisor
+                        .set_external_condition(FaultFlags::TABLE_CORRUPT, false);
+                    self.event(
+                        EventSeverity::Medium,
+                        super::event::TABLE_RELOADED,
+                        [table.table_id, u32::from(source.code())],
+                    );
+                }
+            }
+            JobResult::Failed { kind, error } => {
+                self.jobs.running = None;
+                let e = super::CommandError::Store(error);
+                if kind == JobKind::Commit {
+                    let id = self.upload.table_id().unwrap_or(0);
+                    self.table_rejected(&e, id);
+                } else {
+                    self.table_rejected(&e, 0);
+                }
+                self.complete_pending(Err(e));
+            }
+            JobResult::Scrubbed { generation, ok } => {
+                self.jobs.scrub_outstanding = false;
+                if generation == self.generation && !ok {
+                    self.ram_upset();
+                }
+            }
+            JobResult::Banks { corrupt } => {
+                self.bank_health = corrupt;
+                self.event(
+                    if corrupt == 0 {
+                        EventSeverity::Info
+                    } else {
+                        EventSeverity::Medium
+                    },
+                    super::event::BANK_HEALTH,
+                    [u32::from(corrupt), 0],
+                );
+            }
+        }
+        self.publish_state();
+    }
+
+    /// The RAM image of the running table is corrupt: latch the fault, hold at once (no
+    /// ramp computed with a corrupt geometry), and reload the table from its source.
+    fn ram_upset(&mut self) {
+        self.supervisor
+            .raise_external(FaultFlags::TABLE_CORRUPT, true);
+        self.event(
+            EventSeverity::High,
+            super::event::FAULT_LATCHED,
+            [
+                self.supervisor.latched().bits(),
+                FaultFlags::TABLE_CORRUPT.bits(),
+            ],
+        );
+        self.hold_now();
+        if self.jobs.running.is_none() {
+            self.jobs.running = Some(JobKind::Reload);
+            self.jobs.outbox = Some(JobRequest::Reload);
+        }
+    }
+
+    /// Runs `table` from `source` at rest: derive, swap, hold, report (event 0x0010).
+    fn run_table(&mut self, table: Table, source: BootSource) -> Result<(), super::CommandError> {
+        let act = ActiveTable::new(table, source)
+            .map_err(|_| super::CommandError::Store(StoreError::NotExpected))?;
+        self.active = act;
+        self.geometry_ok = true;
+        self.generation = self.generation.wrapping_add(1);
+        self.jobs.scrub_outstanding = false;
+        self.supervisor
+            .set_config(SupervisionConfig::from_table(&act.table));
+        // The same strokes are a (slightly) different pose under the new geometry:
+        // hold and re-derive the commanded pose.
+        self.hold_here();
+        self.event(
+            EventSeverity::Info,
+            super::event::TABLE_ACTIVATED,
+            [act.table.table_id, act.crc32],
+        );
+        Ok(())
+    }
+}
+
+/// An operator job in the worker.
+#[derive(Clone, Copy, Debug)]
+enum Op {
+    /// Commit: first make sure a selection record exists, then validate, then write.
+    Commit { table: Table, phase: CommitPhase },
+    /// A selection being written; `table` runs when it is done.
+    Select { table: Table },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum CommitPhase {
+    /// Writing the running table's selection (no selection record existed).
+    Anchor,
+    /// Validate (one step), then start the write.
+    Validate,
+    /// The record is being written.
+    Write,
+}
+
+/// The background worker: owns the table store (and so the flash).
+#[derive(Debug)]
+pub struct Worker<F> {
+    store: TableStore<F>,
+    validation: ValidationConfig,
+    op: Option<Op>,
+    scrub: Option<ScrubImage>,
+    /// The table of the pending record (what an activation will run).
+    pending_table: Option<(CommitReport, Table)>,
+    /// A job that failed before any flash work, reported at the next step.
+    failed: Option<(JobKind, StoreError)>,
+    /// A reload's table, reported at the next step.
+    reloaded: Option<(Table, BootSource)>,
+    last_bank_check: Option<u32>,
+    corrupt: u8,
+}
+
+impl<F: NorFlash + FlashStatus> Worker<F> {
+    /// The worker of `store` (after boot), validating against `validation`.
+    pub fn new(store: TableStore<F>, validation: ValidationConfig) -> Self {
+        Self {
+            store,
+            validation,
+            op: None,
+            scrub: None,
+            pending_table: None,
+            failed: None,
+            reloaded: None,
+            last_bank_check: None,
+            corrupt: 0,
+        }
+    }
+
+    /// The store (tests: the flash, power cuts).
+    pub fn store_mut(&mut self) -> &mut TableStore<F> {
+        &mut self.store
+    }
+
+    /// Gives the store back.
+    pub fn into_store(self) -> TableStore<F> {
+        self.store
+    }
+
+    /// Nothing to do until the next request or bank check.
+    pub fn is_idle(&self) -> bool {
+        self.op.is_none() && self.scrub.is_none() && self.failed.is_none() && self.reloaded.is_none()
+    }
+
+    /// Takes a request; refused (handed back) while an operator job runs, or a scrub is
+    /// still queued, for a request of that kind.
+    pub fn submit(&mut self, request: JobRequest) -> Result<(), JobRequest> {
+        match request {
+            JobRequest::Scrub(img) => {
+                if self.scrub.is_some() {
+                    return Err(request);
+                }
+                self.scrub = Some(img);
+                Ok(())
+            }
+            _ if self.op.is_some() => Err(request),
+            JobRequest::Commit(table) => {
+                let phase = if self.store.selection().is_none() {
+                    CommitPhase::Anchor
+                } else {
+                    CommitPhase::Validate
+                };
+                self.op = Some(Op::Commit { table, phase });
+                Ok(())
+            }
+            _ => {
+                self.op = None;
+                // Selections start at once; a refusal is a result, given at the next step.
+                self.start_selection(request);
+                Ok(())
+            }
+        }
+    }
+
+    /// Holds a failure to report at the next step.
+    fn fail_later(&mut self, kind: JobKind, error: StoreError) {
+        self.failed = Some((kind, error));
+    }
+
+    fn start_selection(&mut self, request: JobRequest) {
+        let kind = request.kind().unwrap_or(JobKind::Select);
+        let chosen: Result<(Selection, Table), StoreError> = match request {
+            JobRequest::ActivatePending(report) => match self.pending_table {
+                Some((r, t)) if r == report && self.store.pending() == Some(report) => {
+                    Ok((Selection::bank(r.bank, r.sequence, r.table_crc), t))
+                }
+                _ => Err(StoreError::NotExpected),
+            },
+            JobRequest::SwitchBank => self.other_bank_table(),
+            JobRequest::RevertToNominal => Ok((Selection::nominal(), Table::nominal())),
+            JobRequest::Reload => {
+                let sel = self.running_selection();
+                self.store.read_selected(&sel).map(|t| (sel, t))
+            }
+            _ => Err(StoreError::NotExpected),
+        };
+        match chosen {
+            Ok((sel, table)) if kind == JobKind::Reload => {
+                self.reloaded = Some((table, sel.source));
+            }
+            Ok((sel, table)) => match self.store.start_select(&sel) {
+                Ok(()) => self.op = Some(Op::Select { table }),
+                Err(e) => self.fail_later(kind, e),
+            },
+            Err(e) => self.fail_later(kind, e),
+        }
+    }
+
+    /// The selection describing the running table.
+    fn running_selection(&mut self) -> Selection {
+        match self.store.running().bank() {
+            None => Selection::nominal(),
+            Some(bank) => match self.store.read_header(bank) {
+                Ok(h) => Selection::bank(bank, h.sequence, h.table_crc),
+                Err(_) => Selection::bank(bank, self.store.running_sequence(), 0),
+            },
+        }
+    }
+
+    /// The table switch-bank selects: the bank not running (with nominal running, the
+    /// newest record), validated.
+    fn other_bank_table(&mut self) -> Result<(Selection, Table), StoreError> {
+        let bank = match self.store.running().bank() {
+            Some(b) => b.other(),
+            None => match (self.store.read_header(Bank::A), self.store.read_header(Bank::B)) {
+                (Ok(ha), Ok(hb)) if crate::table::store::seq_newer(hb.sequence, ha.sequence) => {
+                    Bank::B
+                }
+                (Ok(_), _) => Bank::A,
+                (Err(_), Ok(_)) => Bank::B,
+                (Err(s), Err(_)) => return Err(StoreError::NoRecord(s)),
+            },
+        };
+        let (h, t) = self.store.read_bank(bank).map_err(StoreError::NoRecord)?;
+        validate(&t, &self.validation).map_err(StoreError::Invalid)?;
+        Ok((Selection::bank(bank, h.sequence, h.table_crc), t))
+    }
+
+    /// One unit of work; returns a result when something finished. `now_cycle` is the
+    /// controller's cycle counter (for the bank-check period).
+    pub fn step(&mut self, now_cycle: u32) -> Option<JobResult> {
+        if let Some((kind, error)) = self.failed.take() {
+            return Some(JobResult::Failed { kind, error });
+        }
+        if let Some((table, source)) = self.reloaded.take() {
+            return Some(JobResult::Reloaded { table, source });
+        }
+        if let Some(img) = self.scrub.take() {
+            return Some(JobResult::Scrubbed {
+                generation: img.generation,
+                ok: img.consistent(),
+            });
+        }
+        if let Some(op) = self.op {
+            return self.step_op(op);
+        }
+        let due = self
+            .last_bank_check
+            .is_none_or(|t| now_cycle.wrapping_sub(t) >= SCRUB_PERIOD_CYCLES);
+        if due {
+            self.last_bank_check = Some(now_cycle);
+            let corrupt = self.check_banks();
+            if corrupt != self.corrupt {
+                self.corrupt = corrupt;
+                return Some(JobResult::Banks { corrupt });
+            }
+        }
+        None
+    }
+
+    /// Reads both banks: a bank with a header whose record does not read back valid is
+    /// corrupt (a blank bank is not).
+    fn check_banks(&mut self) -> u8 {
+        let mut corrupt = 0;
+        for (bank, bit) in [(Bank::A, BANK_A_CORRUPT), (Bank::B, BANK_B_CORRUPT)] {
+            match self.store.read_bank(bank) {
+                Ok(_) | Err(crate::table::BankStatus::Blank) => {}
+                Err(_) => corrupt |= bit,
+            }
+        }
+        corrupt
+    }
+
+    fn step_op(&mut self, op: Op) -> Option<JobResult> {
+        match op {
+            Op::Commit { table, phase } => match phase {
+                CommitPhase::Anchor => {
+                    if !self.store.writing() {
+                        let sel = self.running_selection();
+                        if let Err(e) = self.store.start_select(&sel) {
+                            return self.op_failed(JobKind::Commit, e);
+                        }
+                    }
+                    match self.store.poll() {
+                        WritePoll::Pending => None,
+                        WritePoll::Done(Err(e)) => self.op_failed(JobKind::Commit, e),
+                        WritePoll::Done(Ok(_)) | WritePoll::Idle => {
+                            self.op = Some(Op::Commit {
+                                table,
+                                phase: CommitPhase::Validate,
+                            });
+                            None
+                        }
+                    }
+                }
+                CommitPhase::Validate => {
+                    if let Err(v) = validate(&table, &self.validation) {
+                        return self.op_failed(JobKind::Commit, StoreError::Invalid(v));
+                    }
+                    self.pending_table = None;
+                    match self.store.start_commit(&table) {
+                        Ok(_) => {
+                            self.op = Some(Op::Commit {
+                                table,
+                                phase: CommitPhase::Write,
+                            });
+                            None
+                        }
+                        Err(e) => self.op_failed(JobKind::Commit, e),
+                    }
+                }
+                CommitPhase::Write => match self.store.poll() {
+                    WritePoll::Pending => None,
+                    WritePoll::Done(Ok(WriteDone::Committed(report))) => {
+                        self.op = None;
+                        self.pending_table = Some((report, table));
+                        Some(JobResult::Committed {
+                            report,
+                            table_id: table.table_id,
+                        })
+                    }
+                    WritePoll::Done(Err(e)) => self.op_failed(JobKind::Commit, e),
+                    WritePoll::Done(Ok(WriteDone::Selected(_))) | WritePoll::Idle => {
+                        self.op_failed(JobKind::Commit, StoreError::Busy)
+                    }
+                },
+            },
+            Op::Select { table } => match self.store.poll() {
+                WritePoll::Pending => None,
+                WritePoll::Done(Ok(WriteDone::Selected(selection))) => {
+                    self.op = None;
+                    if selection.source.bank().is_some()
+                        && self.pending_table.is_some_and(|(r, _)| {
+                            Some(r.bank) == selection.source.bank()
+                        })
+                    {
+                        self.pending_table = None;
+                    }
+                    Some(JobResult::Selected { table, selection })
+                }
+                WritePoll::Done(Err(e)) => self.op_failed(JobKind::Select, e),
+                WritePoll::Done(Ok(WriteDone::Committed(_))) | WritePoll::Idle => {
+                    self.op_failed(JobKind::Select, StoreError::Busy)
+                }
+            },
+        }
+    }
+
+    fn op_failed(&mut self, kind: JobKind, error: StoreError) -> Option<JobResult> {
+        self.op = None;
+        if kind == JobKind::Commit {
+            self.pending_table = None;
+        }
+        Some(JobResult::Failed { kind, error })
+    }
+}

@@ -1,0 +1,654 @@
+//! The controller: the mechanism's state, its control cycle and its telecommands.
+//!
+//! # Who calls what, at which priority
+//! The firmware runs three kinds of work (`main.rs`, RTIC); the host bench
+//! (`sim::Bench`) calls the same functions in the same order, one control cycle at a
+//! time:
+//! 1. **Control task** (highest priority, 1 kHz timer): [`Controller::control_cycle`]
+//!    reads the encoders, runs FK, supervision and the motion, commands the drives,
+//!    and queues telemetry records. Bounded: it never waits for I/O, never decodes or
+//!    encodes packets, never touches flash.
+//! 2. **Link service** (below it): [`comms::LinkService`] deframes received bytes,
+//!    hands each telecommand to [`Controller::handle_telecommand`] (at most
+//!    [`comms::MAX_TC_PER_PASS`] per pass), encodes queued telemetry records into
+//!    frames, and moves job requests and results between the controller and the
+//!    background worker.
+//! 3. **Background** (lowest priority): [`jobs::Worker`] validates tables, writes
+//!    flash through the non-blocking store, scrubs the flash banks and checks the RAM
+//!    image of the running table.
+//!
+//! # A control cycle, in order
+//! 1. encoders ([`StrokeEncoders`]); 2. FK warm-started from the last pose;
+//! 3. supervision ([`Supervisor`]): a new fault stops any motion at the acceleration
+//!    limit (a corrupted running table holds at once), latches, and is reported;
+//! 4. motion: the active trajectory's setpoint pose -> IK -> six strokes -> drives
+//!    ([`SliderDrives`]), or a direct-stroke move; at rest the drives are polled;
+//! 5. periodic work: housekeeping every [`HK_PERIOD_CYCLES`], a RAM-scrub snapshot every
+//!    [`SCRUB_PERIOD_CYCLES`];
+//! 6. the state event if the state changed.
+//!
+//! # Rules an operator can rely on (each has a test)
+//! * a rejected telecommand changes nothing (acceptance or start failure, with a code);
+//! * a move is all-or-nothing: refused with every workspace reason unless every leg can
+//!   make the whole path; no move while a fault is latched, while moving or while a
+//!   table job runs;
+//! * every motion starts from the strokes the drives hold ([`SliderDrives::setpoints_mm`]),
+//!   so its first setpoint is continuous with them; a direct-stroke move moves one leg
+//!   from its own held setpoint and every other leg keeps exactly its setpoint;
+//! * tables change between motions only; a commit never changes what boots; what the
+//!   operator last selected (activate, switch bank, revert to nominal) is what boots;
+//! * completion of a move is reported when the mirror has arrived (TM[1,7]) or, if a
+//!   stop or a fault ended it, as a completion failure (TM[1,8]).
+
+pub mod comms;
+pub mod error;
+pub mod jobs;
+pub mod telemetry;
+
+mod commands;
+mod motion;
+mod verification;
+
+use crate::hw::{counts_to_mm, DriveError, SliderDrives, StrokeEncoders};
+use crate::kinematics::{fk, FkConfig, FkError, FkSolution, Geometry, GeometryError, Pose, LEGS};
+use crate::link::tm::EventSeverity;
+use crate::link::Housekeeping;
+use crate::motion::{MotionLimits, DEFAULT_DIRECT_ACCEL_MM_PER_S2, DEFAULT_DIRECT_MAX_DELTA_MM,
+    DEFAULT_DIRECT_SPEED_MM_PER_S};
+use crate::supervision::{CycleInputs, FaultFlags, SupervisionConfig, Supervisor};
+use crate::table::upload::UploadBuffer;
+use crate::table::{BootReport, BootSource, CommitReport, Table, ValidationConfig};
+use crate::timing::{cycle_to_us, HK_PERIOD_CYCLES, SCRUB_PERIOD_CYCLES};
+
+pub use error::CommandError;
+pub use jobs::{JobRequest, JobResult, Worker};
+pub use telemetry::{Stamped, TmQueue, TmRecord};
+
+/// Event IDs of service 5 (the ICD's table; aux words in the link's `event_id` docs).
+pub use crate::link::tm::event_id as event;
+
+use motion::Motion;
+use verification::PendingTc;
+
+/// Path samples (IK evaluations) a move's planning may use per control cycle: the
+/// ~17 samples of a plan are spread over a few cycles so that no cycle carries them all.
+pub const PLAN_SAMPLES_PER_CYCLE: usize = 4;
+/// Consecutive control-cycle overruns after which motion stops and
+/// [`FaultFlags::DEADLINE_MISSED`] latches ([`Controller::note_overrun`]).
+pub const OVERRUN_HOLD_LIMIT: u16 = 3;
+
+/// Controller state, as reported in housekeeping (`code()`). Derived from the motion
+/// and the latched faults ([`Controller::state`]), never stored separately.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum State {
+    /// Holding position, ready for commands.
+    Idle,
+    /// Following a trajectory (or planning one).
+    Moving,
+    /// Decelerating to rest after a stop or a fault.
+    Stopping,
+    /// A direct-stroke (recovery) move.
+    StrokeMoving,
+    /// At rest with a latched fault: moves refused until cleared.
+    Faulted,
+}
+
+impl State {
+    /// Wire code.
+    pub const fn code(self) -> u8 {
+        match self {
+            State::Idle => 0,
+            State::Moving => 1,
+            State::Stopping => 2,
+            State::StrokeMoving => 3,
+            State::Faulted => 4,
+        }
+    }
+}
+
+/// Why the board reset the controller last (kept in no-init RAM by the board, reported
+/// in the boot event and in housekeeping).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ResetCause {
+    /// Power-on (no valid reset record found), or a host run.
+    #[default]
+    PowerOn,
+    /// The watchdog expired (a control cycle did not complete in time).
+    Watchdog,
+    /// A commanded software reset.
+    Software,
+    /// A HardFault (including a stack overflow into the guard).
+    HardFault,
+    /// A panic (a defect: the flight image proves at link time it has none).
+    Panic,
+}
+
+impl ResetCause {
+    /// Wire code.
+    pub const fn code(self) -> u8 {
+        match self {
+            ResetCause::PowerOn => 0,
+            ResetCause::Watchdog => 1,
+            ResetCause::Software => 2,
+            ResetCause::HardFault => 3,
+            ResetCause::Panic => 4,
+        }
+    }
+
+    /// From the wire code.
+    pub const fn from_code(code: u8) -> Option<ResetCause> {
+        Some(match code {
+            0 => ResetCause::PowerOn,
+            1 => ResetCause::Watchdog,
+            2 => ResetCause::Software,
+            3 => ResetCause::HardFault,
+            4 => ResetCause::Panic,
+            _ => return None,
+        })
+    }
+}
+
+/// The reset cause and the boot counter, from the board.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ResetInfo {
+    /// Why the last reset happened.
+    pub cause: ResetCause,
+    /// Boots since the no-init record was created (wrapping).
+    pub boot_count: u16,
+}
+
+/// Controller settings that are not in the parameter table.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ControllerConfig {
+    /// Slider limits of coordinated moves.
+    pub motion: MotionLimits,
+    /// Direct-stroke move speed limit (mm/s).
+    pub direct_speed_mm_per_s: f32,
+    /// Direct-stroke move acceleration limit (mm/s^2).
+    pub direct_accel_mm_per_s2: f32,
+    /// Largest direct-stroke move (mm).
+    pub direct_max_delta_mm: f32,
+    /// What uploaded tables are validated against.
+    pub validation: ValidationConfig,
+}
+
+impl Default for ControllerConfig {
+    fn default() -> Self {
+        Self {
+            motion: MotionLimits::default(),
+            direct_speed_mm_per_s: DEFAULT_DIRECT_SPEED_MM_PER_S,
+            direct_accel_mm_per_s2: DEFAULT_DIRECT_ACCEL_MM_PER_S2,
+            direct_max_delta_mm: DEFAULT_DIRECT_MAX_DELTA_MM,
+            validation: ValidationConfig::flight(),
+        }
+    }
+}
+
+/// The running table and everything derived from it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ActiveTable {
+    /// The table.
+    pub table: Table,
+    /// Its CRC-32.
+    pub crc32: u32,
+    /// The working geometry (f32) derived from it.
+    pub geom: Geometry<f32>,
+    /// Where it came from.
+    pub source: BootSource,
+}
+
+impl ActiveTable {
+    /// Derives the working geometry of `table`.
+    pub fn new(table: Table, source: BootSource) -> Result<Self, GeometryError> {
+        let geom = Geometry::new(&table.geometry_params())?;
+        Ok(Self {
+            crc32: table.crc32(),
+            table,
+            geom,
+            source,
+        })
+    }
+}
+
+/// A committed table waiting for activation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PendingTable {
+    /// Where it was written.
+    pub report: CommitReport,
+    /// Its table ID.
+    pub table_id: u32,
+}
+
+/// The M2 mechanism controller.
+pub struct Controller<M> {
+    /// The six slider drives and encoders (drivers on the target, the simulated plant
+    /// on the host); owned: nothing else commands them.
+    mech: M,
+    cfg: ControllerConfig,
+    active: ActiveTable,
+    /// The running geometry is usable; `false` only after a defect (the compiled-in
+    /// nominal table failed to derive): every motion is refused.
+    geometry_ok: bool,
+    /// Counts activations and reloads; scrub results name the generation they checked.
+    generation: u32,
+    boot: BootReport,
+    reset: ResetInfo,
+    pending_table: Option<PendingTable>,
+    /// What the operator's last completed selection chose (`None`: none made since
+    /// boot and no selection record found at boot).
+    selection_source: Option<BootSource>,
+    upload: UploadBuffer,
+    supervisor: Supervisor,
+    motion: Motion,
+    /// The state last reported by event (the derived state is [`Controller::state`]).
+    reported_state: State,
+    /// The telecommand whose start or completion report is still to come.
+    tc_pending: Option<PendingTc>,
+    jobs: jobs::JobLane,
+    fk_cfg: FkConfig<f32>,
+    /// Last good FK pose (warm start and telemetry).
+    pose_fk: Pose<f32>,
+    fk_valid: bool,
+    fk_iterations: u8,
+    /// The pose of the commanded/held strokes: the last path setpoint, or FK of the
+    /// strokes the drives hold.
+    pose_commanded: Pose<f32>,
+    /// The strokes commanded to the drives in the last cycle, or (at rest) the strokes
+    /// they hold.
+    strokes_commanded_mm: [f32; LEGS],
+    /// Last encoder reading and whether it is this cycle's.
+    encoders_mm: [f32; LEGS],
+    encoders_valid: bool,
+    last_drive: Result<(), DriveError>,
+    moving_prev: bool,
+    warnings: FaultFlags,
+    /// Control cycles run since boot: the motion time base and the telemetry clock.
+    cycle: u32,
+    tm: TmQueue,
+    tc_accepted: u16,
+    tc_rejected: u16,
+    last_failure_code: u16,
+    refusal_bits: u32,
+    overruns: u16,
+    consecutive_overruns: u16,
+    /// Flash-bank health from the background scrub: bit 0 bank A, bit 1 bank B corrupt.
+    bank_health: u8,
+    boot_event_sent: bool,
+    /// A stop or a fault ended a move while it was being planned.
+    plan_aborted: bool,
+}
+
+impl<M: SliderDrives + StrokeEncoders> Controller<M> {
+    /// Starts on the table boot selected (`table`, `boot`: [`crate::table::TableStore::boot`]),
+    /// holds the sliders where their drives are, and takes the first reading.
+    pub fn new(mech: M, table: Table, boot: BootReport, cfg: ControllerConfig) -> Self {
+        let (active, geometry_ok) = match ActiveTable::new(table, boot.source) {
+            Ok(a) => (a, true),
+            // A booted table was validated, so this is a defect guard: fall back to the
+            // nominal table; if even that fails, run without motion.
+            Err(_) => match ActiveTable::new(Table::nominal(), BootSource::Nominal) {
+                Ok(a) => (a, true),
+                Err(_) => (nominal_placeholder(), false),
+            },
+        };
+        let supervisor = Supervisor::new(SupervisionConfig::from_table(&active.table));
+        let mut c = Self {
+            mech,
+            cfg,
+            active,
+            geometry_ok,
+            generation: 0,
+            boot,
+            reset: ResetInfo::default(),
+            pending_table: None,
+            selection_source: boot.selection.map(|s| s.source),
+            upload: UploadBuffer::new(),
+            supervisor,
+            motion: Motion::Hold,
+            reported_state: State::Idle,
+            tc_pending: None,
+            jobs: jobs::JobLane::new(),
+            fk_cfg: FkConfig::default(),
+            pose_fk: Pose::home(),
+            fk_valid: false,
+            fk_iterations: 0,
+            pose_commanded: Pose::home(),
+            strokes_commanded_mm: [0.0; LEGS],
+            encoders_mm: [0.0; LEGS],
+            encoders_valid: false,
+            last_drive: Ok(()),
+            moving_prev: false,
+            warnings: FaultFlags::empty(),
+            cycle: 0,
+            tm: TmQueue::new(),
+            tc_accepted: 0,
+            tc_rejected: 0,
+            last_failure_code: 0,
+            refusal_bits: 0,
+            overruns: 0,
+            consecutive_overruns: 0,
+            bank_health: 0,
+            boot_event_sent: false,
+            plan_aborted: false,
+        };
+        c.hold_here();
+        if let Ok(counts) = c.mech.read_counts() {
+            c.encoders_mm = counts_to_mm(&counts);
+            c.encoders_valid = true;
+            if let Ok(sol) = fk(&c.active.geom, &c.encoders_mm, &c.pose_fk, &c.fk_cfg) {
+                c.pose_fk = sol.pose;
+                c.fk_valid = true;
+            }
+        }
+        c
+    }
+
+    /// Records the board's reset cause and boot counter (call once, before the first
+    /// cycle: the boot event reports them).
+    pub fn set_reset_info(&mut self, info: ResetInfo) {
+        self.reset = info;
+    }
+
+    /// Holds every drive where it is, takes the held strokes as the commanded ones and
+    /// their pose as the commanded pose.
+    fn hold_here(&mut self) {
+        self.mech.hold();
+        self.sync_to_drives();
+    }
+
+    /// Takes the strokes the drives hold as the commanded strokes and derives their pose
+    /// (FK, warm-started from the last commanded pose). The pose is kept if FK fails.
+    fn sync_to_drives(&mut self) {
+        let held = self.mech.setpoints_mm();
+        self.strokes_commanded_mm = held;
+        if let Ok(sol) = fk(&self.active.geom, &held, &self.pose_commanded, &self.fk_cfg) {
+            self.pose_commanded = sol.pose;
+        }
+    }
+
+    /// One control cycle (the module documentation lists its steps). Bounded: no I/O
+    /// wait, no packet work, no flash.
+    pub fn control_cycle(&mut self) {
+        if !self.boot_event_sent {
+            self.boot_event_sent = true;
+            self.emit_boot_events();
+        }
+        // 1. Encoders.
+        let readings = self.mech.read_counts().map(|c| counts_to_mm(&c));
+        // 2. Forward kinematics, warm-started.
+        let fk_result: Option<Result<FkSolution<f32>, FkError>> = match &readings {
+            Ok(s) => {
+                self.encoders_mm = *s;
+                self.encoders_valid = true;
+                Some(fk(&self.active.geom, s, &self.pose_fk, &self.fk_cfg))
+            }
+            Err(_) => {
+                self.encoders_valid = false;
+                None
+            }
+        };
+        match &fk_result {
+            Some(Ok(sol)) => {
+                self.pose_fk = sol.pose;
+                self.fk_valid = true;
+                self.fk_iterations = sol.iterations;
+            }
+            _ => self.fk_valid = false,
+        }
+        // 3. Supervision. At rest the reference is what the drives hold now (a drive
+        //    re-referenced after missed steps holds a corrected setpoint).
+        if matches!(self.motion, Motion::Hold) {
+            let held = self.mech.setpoints_mm();
+            if held != self.strokes_commanded_mm {
+                self.strokes_commanded_mm = held;
+                if let Ok(sol) = fk(&self.active.geom, &held, &self.pose_commanded, &self.fk_cfg) {
+                    self.pose_commanded = sol.pose;
+                }
+            }
+        }
+        let verdict = self.supervisor.check(&CycleInputs {
+            encoders: readings,
+            commanded_prev_mm: self.strokes_commanded_mm,
+            motion_commanded: self.moving_prev,
+            fk: fk_result,
+            drive: self.last_drive,
+        });
+        if verdict.warnings != self.warnings {
+            self.warnings = verdict.warnings;
+            self.event(
+                EventSeverity::Low,
+                event::WARNING_CHANGED,
+                [verdict.warnings.bits(), u32::from(verdict.warning_legs)],
+            );
+        }
+        if !verdict.new_faults.is_empty() {
+            self.event(
+                EventSeverity::High,
+                event::FAULT_LATCHED,
+                [
+                    verdict.latched.bits(),
+                    verdict.new_faults.bits() | (u32::from(verdict.new_fault_legs) << 24),
+                ],
+            );
+            self.begin_stop();
+        }
+        // 4. Motion.
+        self.step_motion();
+        // 5. Periodic work.
+        if self.cycle % HK_PERIOD_CYCLES == 0 {
+            self.tm.push(self.cycle, TmRecord::Housekeeping);
+        }
+        if self.cycle % SCRUB_PERIOD_CYCLES == 0 {
+            self.jobs.request_scrub(jobs::ScrubImage {
+                generation: self.generation,
+                active: self.active,
+                supervision: *self.supervisor.config(),
+            });
+        }
+        // 6. State.
+        self.publish_state();
+        self.cycle = self.cycle.wrapping_add(1);
+    }
+
+    /// The board saw this control cycle overrun its period (the timer fired again before
+    /// the cycle ended). Counted; [`OVERRUN_HOLD_LIMIT`] consecutive overruns stop any
+    /// motion and raise [`event::DEADLINE_MISSED`]. A cycle that met its deadline is
+    /// reported with [`Controller::note_deadline_met`].
+    pub fn note_overrun(&mut self) {
+        self.overruns = self.overruns.wrapping_add(1);
+        self.consecutive_overruns = self.consecutive_overruns.saturating_add(1);
+        if self.consecutive_overruns == OVERRUN_HOLD_LIMIT {
+            self.supervisor
+                .raise_external(FaultFlags::DEADLINE_MISSED, true);
+            self.event(
+                EventSeverity::High,
+                event::DEADLINE_MISSED,
+                [u32::from(self.consecutive_overruns), u32::from(self.overruns)],
+            );
+            self.begin_stop();
+        }
+    }
+
+    /// The last control cycle finished within its period (a latched deadline fault
+    /// becomes clearable).
+    pub fn note_deadline_met(&mut self) {
+        if self.consecutive_overruns > 0 {
+            self.consecutive_overruns = 0;
+            self.supervisor
+                .set_external_condition(FaultFlags::DEADLINE_MISSED, false);
+        }
+    }
+
+    fn emit_boot_events(&mut self) {
+        let sev = if self.boot.fell_back || !self.geometry_ok {
+            EventSeverity::Low
+        } else {
+            EventSeverity::Info
+        };
+        self.event(
+            sev,
+            event::BOOT,
+            [u32::from(self.boot.source.code()), self.active.table.table_id],
+        );
+        self.event(
+            EventSeverity::Info,
+            event::BOOT_DETAIL,
+            [
+                self.boot.flags_word(),
+                u32::from(self.reset.cause.code()) | (u32::from(self.reset.boot_count) << 16),
+            ],
+        );
+    }
+
+    /// The state as derived from the motion and the latched faults.
+    pub fn state(&self) -> State {
+        match &self.motion {
+            Motion::Hold => {
+                if self.supervisor.latched().is_empty() {
+                    State::Idle
+                } else {
+                    State::Faulted
+                }
+            }
+            Motion::Planning(_) => State::Moving,
+            Motion::Path { stopping: true, .. } | Motion::Stroke { stopping: true, .. } => {
+                State::Stopping
+            }
+            Motion::Path { .. } => State::Moving,
+            Motion::Stroke { .. } => State::StrokeMoving,
+        }
+    }
+
+    /// Reports a state change (event 0x0001) if the derived state differs from the one
+    /// last reported.
+    fn publish_state(&mut self) {
+        let now = self.state();
+        if now != self.reported_state {
+            let old = self.reported_state;
+            self.reported_state = now;
+            self.event(
+                EventSeverity::Info,
+                event::STATE_CHANGED,
+                [u32::from(old.code()), u32::from(now.code())],
+            );
+        }
+    }
+
+    fn event(&mut self, severity: EventSeverity, id: u16, aux: [u32; 2]) {
+        self.tm
+            .push(self.cycle, TmRecord::Event { severity, id, aux });
+    }
+
+    /// The housekeeping sample of now (the link service adds its own counters).
+    pub fn housekeeping(&self) -> Housekeeping {
+        let moving_legs = match &self.motion {
+            Motion::Hold | Motion::Planning(_) => 0,
+            Motion::Path { .. } => crate::supervision::ALL_LEGS,
+            Motion::Stroke { mv, .. } => 1u8.checked_shl(u32::from(mv.leg())).unwrap_or(0),
+        };
+        let latched = self.supervisor.latched();
+        Housekeeping {
+            state: self.state().code(),
+            boot_source: self.boot.source.code(),
+            active_bank: self.active.source.code(),
+            fk_iterations: self.fk_iterations,
+            fk_valid: self.fk_valid,
+            cycle_counter: self.cycle,
+            fault_flags: latched.bits(),
+            warning_flags: self.warnings.bits(),
+            refusal_bits: self.refusal_bits,
+            active_table_id: self.active.table.table_id,
+            active_table_crc32: self.active.crc32,
+            pose_fk: crate::link::wire::pose_to_wire_f32(&self.pose_fk),
+            pose_commanded: crate::link::wire::pose_to_wire_f32(&self.pose_commanded),
+            strokes_commanded_nm: self.strokes_commanded_mm.map(crate::link::wire::mm_to_nm_f32),
+            encoders_nm: self.encoders_mm.map(crate::link::wire::mm_to_nm_f32),
+            tc_accepted: self.tc_accepted,
+            tc_rejected: self.tc_rejected,
+            last_failure_code: self.last_failure_code,
+            moving_legs,
+            fault_legs: self.supervisor.latched_legs(latched),
+            pending_bank: self
+                .pending_table
+                .map_or(0, |p| BootSource::from(p.report.bank).code()),
+            pending_table_id: self.pending_table.map_or(0, |p| p.table_id),
+            job: self.jobs.running_code(),
+            selected_source: self
+                .selection_source
+                .map_or(crate::link::hk::NO_SELECTION, |s| s.code()),
+            tm_dropped: self.tm.dropped(),
+            tc_frames_dropped: 0,
+            uart_overruns: 0,
+            cycle_overruns: self.overruns,
+            reset_cause: self.reset.cause.code(),
+            boot_count: self.reset.boot_count,
+            bank_health: self.bank_health,
+        }
+    }
+
+    /// Control cycles since boot.
+    pub fn cycle(&self) -> u32 {
+        self.cycle
+    }
+
+    /// Microseconds since boot of the current cycle (the telemetry clock).
+    pub fn time_us(&self) -> u64 {
+        cycle_to_us(u64::from(self.cycle))
+    }
+
+    /// The boot report (table source, bank status, selection).
+    pub fn boot_report(&self) -> &BootReport {
+        &self.boot
+    }
+
+    /// The running table.
+    pub fn active_table(&self) -> &Table {
+        &self.active.table
+    }
+
+    /// The committed table waiting for activation.
+    pub fn pending_table(&self) -> Option<PendingTable> {
+        self.pending_table
+    }
+
+    /// Latched faults.
+    pub fn faults(&self) -> FaultFlags {
+        self.supervisor.latched()
+    }
+
+    /// The strokes commanded to (or held by) the drives (mm).
+    pub fn strokes_commanded_mm(&self) -> [f32; LEGS] {
+        self.strokes_commanded_mm
+    }
+
+    /// The telemetry records waiting for the link service.
+    pub fn tm_queue(&mut self) -> &mut TmQueue {
+        &mut self.tm
+    }
+
+    /// Test hook (host): flips RAM bits of the running table, its derived geometry or
+    /// the supervision thresholds, as a radiation upset would; the scrub must find it.
+    #[cfg(feature = "host")]
+    pub fn upset(&mut self, f: impl FnOnce(&mut ActiveTable, &mut SupervisionConfig)) {
+        let mut cfg = *self.supervisor.config();
+        f(&mut self.active, &mut cfg);
+        self.supervisor.set_config(cfg);
+    }
+}
+
+/// A table with no usable geometry, only for the defect path where even the
+/// compiled-in nominal table fails to derive: every motion is refused then.
+fn nominal_placeholder() -> ActiveTable {
+    let table = Table::nominal();
+    ActiveTable {
+        crc32: table.crc32(),
+        table,
+        geom: Geometry {
+            legs: [crate::kinematics::geometry::Leg::default(); LEGS],
+            p0_mm: [0.0; 3],
+            stroke: None,
+            workspace: None,
+        },
+        source: BootSource::Nominal,
+    }
+}

@@ -1,0 +1,354 @@
+//! Motion sequencing: planning over cycles, stepping the path or the direct-stroke move,
+//! stops, and the start/completion reports of the move telecommand.
+
+use super::error::{suspect, CommandError};
+use super::verification::Outcome;
+use super::{event, Controller, State};
+use crate::hw::{SliderDrives, StrokeEncoders};
+use crate::kinematics::{fk, ik, Pose};
+use crate::link::tm::EventSeverity;
+use crate::motion::{DirectStrokeLimits, PlanStart, StrokeMove, Trajectory, TrajectoryPlanner};
+use crate::supervision::FaultFlags;
+
+/// The motion in progress.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Motion {
+    /// At rest: the drives hold.
+    Hold,
+    /// A move accepted and being planned (a few cycles); the drives hold meanwhile.
+    Planning(TrajectoryPlanner),
+    /// A coordinated move along a straight path in pose space.
+    Path {
+        traj: Trajectory,
+        start_cycle: u32,
+        stopping: bool,
+    },
+    /// One slider by a stroke (recovery).
+    Stroke {
+        mv: StrokeMove,
+        start_cycle: u32,
+        stopping: bool,
+    },
+}
+
+/// Faults that make a leg's encoder unfit to guide a direct-stroke move of that leg.
+const ENCODER_FAULTS: [(FaultFlags, u32); 3] = [
+    (FaultFlags::ENCODER_READ_FAILURE, suspect::READ_FAILURE),
+    (FaultFlags::ENCODER_JUMP, suspect::JUMP),
+    (FaultFlags::ENCODER_STUCK, suspect::STUCK),
+];
+
+impl<M: SliderDrives + StrokeEncoders> Controller<M> {
+    /// Turns the current motion into a stop ramp (no-op when holding).
+    pub(super) fn begin_stop(&mut self) {
+        let now = self.cycle;
+        match &mut self.motion {
+            Motion::Hold => {}
+            Motion::Planning(_) => self.plan_aborted = true,
+            Motion::Path {
+                traj,
+                start_cycle,
+                stopping,
+            } => {
+                if !*stopping {
+                    traj.stop(now.wrapping_sub(*start_cycle));
+                    *stopping = true;
+                }
+            }
+            Motion::Stroke {
+                mv,
+                start_cycle,
+                stopping,
+            } => {
+                if !*stopping {
+                    mv.stop(now.wrapping_sub(*start_cycle));
+                    *stopping = true;
+                }
+            }
+        }
+    }
+
+    /// Stops at once: every drive holds where it is, no ramp (the running geometry
+    /// cannot be trusted to compute one). The move in progress, if any, ends with a
+    /// completion failure.
+    pub(super) fn hold_now(&mut self) {
+        let was_moving = !matches!(self.motion, Motion::Hold);
+        if let Motion::Planning(_) = self.motion {
+            self.plan_aborted = true;
+            self.step_planning();
+        }
+        self.motion = Motion::Hold;
+        self.hold_here();
+        self.moving_prev = false;
+        if was_moving {
+            self.end_pending_move(true);
+        }
+    }
+
+    /// Reports the end of the pending move: completion success, or failure with the
+    /// stop or the fault that ended it.
+    fn end_pending_move(&mut self, stopped: bool) {
+        if !matches!(self.tc_pending, Some(p) if p.is_motion()) {
+            return;
+        }
+        if stopped {
+            let latched = self.supervisor.latched();
+            let err = if latched.is_empty() {
+                CommandError::Stopped
+            } else {
+                CommandError::AbortedByFault(latched)
+            };
+            self.complete_pending(Err(err));
+        } else {
+            self.complete_pending(Ok(()));
+        }
+    }
+
+    /// Advances a move being planned: on completion it becomes the path (start success
+    /// reported), on refusal or abort the sliders keep holding (start failure reported).
+    fn step_planning(&mut self) {
+        let Motion::Planning(mut planner) = self.motion else {
+            return;
+        };
+        let result = if self.plan_aborted {
+            let latched = self.supervisor.latched();
+            Some(Err(if latched.is_empty() {
+                CommandError::Stopped
+            } else {
+                CommandError::AbortedByFault(latched)
+            }))
+        } else {
+            planner
+                .advance(&self.active.geom, super::PLAN_SAMPLES_PER_CYCLE)
+                .map(|r| r.map_err(CommandError::Motion))
+        };
+        self.plan_aborted = false;
+        match result {
+            None => self.motion = Motion::Planning(planner),
+            Some(Ok(traj)) => {
+                self.refusal_bits = 0;
+                // The path starts in this very cycle (the motion step follows).
+                self.motion = Motion::Path {
+                    traj,
+                    start_cycle: self.cycle,
+                    stopping: false,
+                };
+                self.start_pending(Ok(()));
+            }
+            Some(Err(e)) => {
+                self.motion = Motion::Hold;
+                if let CommandError::Motion(_) = e {
+                    self.refusal_bits = e.data();
+                    self.event(
+                        EventSeverity::Low,
+                        event::MOVE_REFUSED,
+                        [self.refusal_bits, u32::from(e.code())],
+                    );
+                }
+                self.start_pending(Err(e));
+            }
+        }
+    }
+
+    /// Step 4 of the cycle: the motion's setpoint to the drives, or a drive poll at rest.
+    pub(super) fn step_motion(&mut self) {
+        self.step_planning();
+        let now = self.cycle;
+        let (strokes, moving, done, stopping) = match self.motion {
+            Motion::Hold | Motion::Planning(_) => (self.strokes_commanded_mm, false, false, false),
+            Motion::Path {
+                traj,
+                start_cycle,
+                stopping,
+            } => {
+                let sp = traj.setpoint(now.wrapping_sub(start_cycle));
+                match ik(&self.active.geom, &sp.pose) {
+                    Ok(s) => {
+                        self.pose_commanded = sp.pose;
+                        (s, sp.moving, sp.done, stopping)
+                    }
+                    Err(_) => {
+                        // Planned paths are checked along their length; should a
+                        // setpoint still be refused, hold here and say so.
+                        let refusals = crate::kinematics::check(&self.active.geom, &sp.pose);
+                        self.event(
+                            EventSeverity::High,
+                            event::SETPOINT_REFUSED,
+                            [refusals.to_bits(), now],
+                        );
+                        (self.strokes_commanded_mm, false, true, true)
+                    }
+                }
+            }
+            Motion::Stroke {
+                mv,
+                start_cycle,
+                stopping,
+            } => {
+                let sp = mv.setpoint(now.wrapping_sub(start_cycle));
+                (sp.strokes_mm, sp.moving, sp.done, stopping)
+            }
+        };
+        if matches!(self.motion, Motion::Hold | Motion::Planning(_)) {
+            // Nothing is commanded at rest: poll the drives' health instead.
+            self.last_drive = self.mech.status();
+        } else {
+            self.strokes_commanded_mm = strokes;
+            self.last_drive = self.mech.command_strokes_mm(&strokes);
+        }
+        self.moving_prev = moving;
+        if done {
+            let was_stroke = matches!(self.motion, Motion::Stroke { .. });
+            self.motion = Motion::Hold;
+            if was_stroke {
+                // The commanded pose of the strokes now held.
+                self.sync_to_drives();
+            }
+            self.end_pending_move(stopping);
+        }
+    }
+
+    fn require_geometry(&self) -> Result<(), CommandError> {
+        if self.geometry_ok {
+            Ok(())
+        } else {
+            Err(CommandError::NoGeometry)
+        }
+    }
+
+    /// At rest (holding, faulted or not) and no table job running.
+    pub(super) fn require_idle(&self) -> Result<(), CommandError> {
+        match self.state() {
+            State::Idle | State::Faulted => {}
+            s => return Err(CommandError::Busy(s)),
+        }
+        match self.jobs.running_code() {
+            0 => Ok(()),
+            job => Err(CommandError::JobBusy(job)),
+        }
+    }
+
+    fn require_can_move(&self) -> Result<(), CommandError> {
+        self.require_geometry()?;
+        let latched = self.supervisor.latched();
+        if !latched.is_empty() {
+            return Err(CommandError::Faulted(latched));
+        }
+        self.require_idle()
+    }
+
+    /// The pose the drives hold now: the start of any move (FK of the held strokes,
+    /// warm-started from the commanded pose).
+    fn held_pose(&mut self) -> Result<Pose<f32>, CommandError> {
+        let held = self.mech.setpoints_mm();
+        self.strokes_commanded_mm = held;
+        let sol = fk(&self.active.geom, &held, &self.pose_commanded, &self.fk_cfg)
+            .map_err(|_| CommandError::NoPose)?;
+        self.pose_commanded = sol.pose;
+        Ok(sol.pose)
+    }
+
+    /// Starts a coordinated move to `target` (absolute pose, mm and rad).
+    pub(super) fn start_move(&mut self, target: Pose<f32>) -> Result<Outcome, CommandError> {
+        self.require_can_move()?;
+        // Plan from the pose of the strokes the drives hold, so the first setpoint is
+        // continuous with them. The ends are checked now (a refused target is refused at
+        // once with every reason); the path samples are evaluated over the next cycles.
+        let start = self.held_pose()?;
+        let begun = TrajectoryPlanner::begin(&self.active.geom, &start, &target, &self.cfg.motion)
+            .map_err(|e| {
+                self.refusal_bits = CommandError::Motion(e).data();
+                CommandError::Motion(e)
+            })?;
+        self.refusal_bits = 0;
+        self.plan_aborted = false;
+        match begun {
+            PlanStart::Ready(traj) => {
+                self.motion = Motion::Path {
+                    traj,
+                    start_cycle: self.cycle.wrapping_add(1),
+                    stopping: false,
+                };
+                Ok(Outcome::Started)
+            }
+            PlanStart::Sampling(planner) => {
+                self.motion = Motion::Planning(planner);
+                Ok(Outcome::Planning)
+            }
+        }
+    }
+
+    /// The relative-move target: the held pose plus `delta` component by component
+    /// (translations added along the base axes, Euler angles added).
+    pub(super) fn relative_target(&mut self, delta: Pose<f32>) -> Result<Pose<f32>, CommandError> {
+        self.require_can_move()?;
+        let mut target = self.held_pose()?;
+        for (t, v) in target.translation_mm.iter_mut().zip(delta.translation_mm) {
+            *t += v;
+        }
+        for (t, v) in target.rotation_rad.iter_mut().zip(delta.rotation_rad) {
+            *t += v;
+        }
+        Ok(target)
+    }
+
+    /// Why leg `idx`'s own encoder is unfit to guide a direct-stroke move of it
+    /// ([`suspect`] bits, 0 if fit).
+    fn encoder_suspect(&self, idx: usize, held_mm: f32) -> u32 {
+        let mut why = 0;
+        let leg_bit = 1u8.checked_shl(idx as u32).unwrap_or(0);
+        for (flag, bit) in ENCODER_FAULTS {
+            if self.supervisor.latched_legs(flag) & leg_bit != 0 {
+                why |= bit;
+            }
+        }
+        if !self.encoders_valid {
+            why |= suspect::NO_READING;
+        } else if let Some(m) = self.encoders_mm.get(idx) {
+            let threshold = self.supervisor.config().following_fault_mm;
+            if !((m - held_mm).abs() <= threshold) {
+                why |= suspect::DISAGREES;
+            }
+        }
+        why
+    }
+
+    /// Starts a direct-stroke (recovery) move of `leg` (1..=6) by `delta_mm`: that leg
+    /// from its held setpoint, every other leg keeping exactly its setpoint.
+    pub(super) fn start_direct_stroke(
+        &mut self,
+        leg: u8,
+        delta_mm: f32,
+    ) -> Result<Outcome, CommandError> {
+        // Recovery works while faulted (that is what it is for), not while moving.
+        self.require_geometry()?;
+        self.require_idle()?;
+        let Some(stroke) = self.active.geom.stroke else {
+            return Err(CommandError::NoGeometry);
+        };
+        let idx = leg.wrapping_sub(1);
+        let held = self.mech.setpoints_mm();
+        let Some(own) = held.get(usize::from(idx)).copied() else {
+            return Err(CommandError::Stroke(crate::motion::StrokeMoveError::BadLeg));
+        };
+        let why = self.encoder_suspect(usize::from(idx), own);
+        if why != 0 {
+            return Err(CommandError::EncoderSuspect(why));
+        }
+        let limits = DirectStrokeLimits {
+            max_speed_mm_per_s: self.cfg.direct_speed_mm_per_s,
+            max_accel_mm_per_s2: self.cfg.direct_accel_mm_per_s2,
+            max_delta_mm: self.cfg.direct_max_delta_mm,
+            stroke_min_mm: stroke.min_mm,
+            stroke_max_mm: stroke.max_mm,
+        };
+        let mv = StrokeMove::plan(&held, idx, delta_mm, &limits).map_err(CommandError::Stroke)?;
+        self.strokes_commanded_mm = held;
+        self.motion = Motion::Stroke {
+            mv,
+            start_cycle: self.cycle.wrapping_add(1),
+            stopping: false,
+        };
+        Ok(Outcome::Started)
+    }
+}

@@ -1,0 +1,251 @@
+//! The wire toolkit: one place for the conversions between working units and wire
+//! integers, and for the byte cursors every layout uses.
+//!
+//! * Rounding: [`round_sat_i32`] (f64, exact), [`mm_to_nm_f32`] and
+//!   [`pose_to_wire_f32`] (f32, the flight telemetry path).
+//! * Cursors: [`Reader`] and [`Writer`] over byte slices, big-endian (the PUS fields)
+//!   or little-endian (the parameter table), checked: a read past the end is `None`, a
+//!   write past the end is `None`, nothing panics.
+
+use super::command::{WirePose, NM_PER_MM, UAS_PER_ARCSEC};
+use crate::kinematics::{Pose, ARCSEC_PER_RAD, LEGS};
+
+/// Rounds half away from zero to the nearest i32, saturating; NaN gives 0.
+pub fn round_sat_i32(v: f64) -> i32 {
+    let r = libm::round(v);
+    if r.is_nan() {
+        0
+    } else if r >= f64::from(i32::MAX) {
+        i32::MAX
+    } else if r <= f64::from(i32::MIN) {
+        i32::MIN
+    } else {
+        r as i32
+    }
+}
+
+/// Below this magnitude every f32 multiple of 0.5 is exact, so rounding in f32 is
+/// exact too (2^22).
+const F32_EXACT_HALF_LIMIT: f32 = 4_194_304.0;
+/// Nanometres per millimetre in f32.
+const NM_PER_MM_F32: f32 = NM_PER_MM as f32;
+/// Micro-arcseconds per radian.
+const UAS_PER_RAD: f64 = ARCSEC_PER_RAD * UAS_PER_ARCSEC;
+
+/// Rounds an f32 half away from zero to i32 (saturating, NaN gives 0).
+fn round_f32(v: f32) -> i32 {
+    let r = if v >= 0.0 { v + 0.5 } else { v - 0.5 };
+    // `as` saturates and maps NaN to 0.
+    r as i32
+}
+
+/// A length in mm to the nearest nm, in f32 where that is exact to 1 nm (|v| < 4 mm:
+/// the product carries at most ~0.25 nm of rounding, so a half-way value may round to
+/// the neighbour), in f64 beyond. Saturates; NaN gives 0.
+pub fn mm_to_nm_f32(v: f32) -> i32 {
+    let p = v * NM_PER_MM_F32;
+    if p.abs() < F32_EXACT_HALF_LIMIT {
+        round_f32(p)
+    } else {
+        round_sat_i32(f64::from(v) * NM_PER_MM)
+    }
+}
+
+/// A telemetry pose (nm, uas) of an f32 pose: translations by [`mm_to_nm_f32`];
+/// rotations need more than f32's 24 bits in micro-arcseconds and take the exact f64
+/// path. (f64 is software floating point on the Cortex-M4F: this keeps the 1 Hz
+/// housekeeping inside the cycle budget.)
+pub fn pose_to_wire_f32(pose: &Pose<f32>) -> WirePose {
+    WirePose {
+        translation_nm: pose.translation_mm.map(mm_to_nm_f32),
+        rotation_uas: pose
+            .rotation_rad
+            .map(|v| round_sat_i32(f64::from(v) * UAS_PER_RAD)),
+    }
+}
+
+/// Byte order of a layout.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Order {
+    /// Network order (CCSDS, PUS).
+    Big,
+    /// The parameter table's order.
+    Little,
+}
+
+/// A checked reader over bytes.
+#[derive(Clone, Copy, Debug)]
+pub struct Reader<'a> {
+    buf: &'a [u8],
+    pos: usize,
+    order: Order,
+}
+
+impl<'a> Reader<'a> {
+    /// At the start of `buf`.
+    pub const fn new(buf: &'a [u8], order: Order) -> Self {
+        Self { buf, pos: 0, order }
+    }
+
+    /// Bytes read so far.
+    pub const fn position(&self) -> usize {
+        self.pos
+    }
+
+    /// Bytes left.
+    pub fn remaining(&self) -> &'a [u8] {
+        self.buf.get(self.pos..).unwrap_or(&[])
+    }
+
+    /// The next `N` bytes.
+    pub fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
+        let end = self.pos.checked_add(N)?;
+        let out: [u8; N] = self.buf.get(self.pos..end)?.try_into().ok()?;
+        self.pos = end;
+        Some(out)
+    }
+
+    /// The next `n` bytes as a slice.
+    pub fn bytes(&mut self, n: usize) -> Option<&'a [u8]> {
+        let end = self.pos.checked_add(n)?;
+        let out = self.buf.get(self.pos..end)?;
+        self.pos = end;
+        Some(out)
+    }
+
+    /// A u8.
+    pub fn u8(&mut self) -> Option<u8> {
+        self.take::<1>().map(|b| b[0])
+    }
+
+    /// A u16 in the reader's order.
+    pub fn u16(&mut self) -> Option<u16> {
+        let b = self.take()?;
+        Some(match self.order {
+            Order::Big => u16::from_be_bytes(b),
+            Order::Little => u16::from_le_bytes(b),
+        })
+    }
+
+    /// A u32 in the reader's order.
+    pub fn u32(&mut self) -> Option<u32> {
+        let b = self.take()?;
+        Some(match self.order {
+            Order::Big => u32::from_be_bytes(b),
+            Order::Little => u32::from_le_bytes(b),
+        })
+    }
+
+    /// An i32 in the reader's order.
+    pub fn i32(&mut self) -> Option<i32> {
+        self.u32().map(|v| v as i32)
+    }
+
+    /// An f32 in the reader's order.
+    pub fn f32(&mut self) -> Option<f32> {
+        self.u32().map(f32::from_bits)
+    }
+
+    /// An f64 in the reader's order.
+    pub fn f64(&mut self) -> Option<f64> {
+        let b = self.take()?;
+        Some(match self.order {
+            Order::Big => f64::from_be_bytes(b),
+            Order::Little => f64::from_le_bytes(b),
+        })
+    }
+
+    /// Six i32 (one per leg).
+    pub fn i32s(&mut self) -> Option<[i32; LEGS]> {
+        let mut v = [0i32; LEGS];
+        for x in v.iter_mut() {
+            *x = self.i32()?;
+        }
+        Some(v)
+    }
+
+    /// A wire pose (six i32).
+    pub fn pose(&mut self) -> Option<WirePose> {
+        Some(WirePose::from_array(self.i32s()?))
+    }
+}
+
+/// A checked writer over bytes.
+#[derive(Debug)]
+pub struct Writer<'a> {
+    buf: &'a mut [u8],
+    pos: usize,
+    order: Order,
+}
+
+impl<'a> Writer<'a> {
+    /// At the start of `buf`.
+    pub fn new(buf: &'a mut [u8], order: Order) -> Self {
+        Self { buf, pos: 0, order }
+    }
+
+    /// Bytes written so far.
+    pub const fn position(&self) -> usize {
+        self.pos
+    }
+
+    /// Writes raw bytes; `None` (and nothing written) if they do not fit.
+    pub fn put(&mut self, bytes: &[u8]) -> Option<()> {
+        let end = self.pos.checked_add(bytes.len())?;
+        self.buf.get_mut(self.pos..end)?.copy_from_slice(bytes);
+        self.pos = end;
+        Some(())
+    }
+
+    /// A u8.
+    pub fn u8(&mut self, v: u8) -> Option<()> {
+        self.put(&[v])
+    }
+
+    /// A u16 in the writer's order.
+    pub fn u16(&mut self, v: u16) -> Option<()> {
+        match self.order {
+            Order::Big => self.put(&v.to_be_bytes()),
+            Order::Little => self.put(&v.to_le_bytes()),
+        }
+    }
+
+    /// A u32 in the writer's order.
+    pub fn u32(&mut self, v: u32) -> Option<()> {
+        match self.order {
+            Order::Big => self.put(&v.to_be_bytes()),
+            Order::Little => self.put(&v.to_le_bytes()),
+        }
+    }
+
+    /// An i32 in the writer's order.
+    pub fn i32(&mut self, v: i32) -> Option<()> {
+        self.u32(v as u32)
+    }
+
+    /// An f32 in the writer's order.
+    pub fn f32(&mut self, v: f32) -> Option<()> {
+        self.u32(v.to_bits())
+    }
+
+    /// An f64 in the writer's order.
+    pub fn f64(&mut self, v: f64) -> Option<()> {
+        match self.order {
+            Order::Big => self.put(&v.to_be_bytes()),
+            Order::Little => self.put(&v.to_le_bytes()),
+        }
+    }
+
+    /// Six i32.
+    pub fn i32s(&mut self, v: &[i32; LEGS]) -> Option<()> {
+        for x in v {
+            self.i32(*x)?;
+        }
+        Some(())
+    }
+
+    /// A wire pose.
+    pub fn pose(&mut self, p: &WirePose) -> Option<()> {
+        self.i32s(&p.to_array())
+    }
+}

@@ -1,0 +1,345 @@
+//! The one test bench: the real controller, link service and background worker (the
+//! code the firmware runs), the simulated plant, a mock NOR flash and a ground station,
+//! advanced together one control cycle at a time. The host tests, the mission demo and
+//! the soak all run on it.
+//!
+//! A [`Bench::tick`] does what one millisecond does on the target, in priority order:
+//! the plant moves for one period; the control task runs [`Controller::control_cycle`];
+//! the link service passes once (telecommands in, telemetry out, job messages); the
+//! background worker takes [`BenchConfig::worker_steps_per_cycle`] steps. The uplink and
+//! downlink carry bytes; with [`BenchConfig::uart_bytes_per_cycle`] set they carry at
+//! most that many per cycle each way, as a UART would.
+
+use std::collections::VecDeque;
+
+use super::plant::{Plant, PlantConfig, SharedPlant};
+use crate::controller::comms::{JobPort, LinkService, RxBytes, TxBytes};
+use crate::controller::{Controller, ControllerConfig, JobRequest, JobResult, ResetInfo, State, Worker};
+use crate::ground::station::Station;
+use crate::link::{Command, Housekeeping, RequestId};
+use crate::nominal::PROTOTYPE;
+use crate::table::mock_flash::MockFlash;
+use crate::table::{BankLayout, TableStore};
+use crate::timing::CYCLE_S;
+
+/// Size of the simulated flash (bytes): the QEMU board's 4 MiB.
+pub const SIM_FLASH_BYTES: usize = 0x40_0000;
+/// Size of one table bank in the simulated flash (bytes).
+pub const SIM_BANK_SIZE: u32 = 0x1_0000;
+/// The simulated flash's bank layout: two banks at the top, as on the QEMU board.
+pub const SIM_LAYOUT: BankLayout =
+    BankLayout::two_banks(SIM_FLASH_BYTES as u32 - 2 * SIM_BANK_SIZE, SIM_BANK_SIZE);
+/// Default simulated sector-erase time (control cycles): 0.3 s, a NOR sector.
+pub const DEFAULT_ERASE_CYCLES: u32 = 300;
+/// Default simulated program time of one 32-byte chunk (control cycles).
+pub const DEFAULT_PROGRAM_CYCLES: u32 = 1;
+/// Default plant seed of the bench.
+pub const DEFAULT_PLANT_SEED: u64 = 11;
+/// A UART at 115,200 baud, 8N1, carries 11.52 bytes per millisecond.
+pub const UART_115200_BYTES_PER_CYCLE: usize = 11;
+
+/// Bench settings.
+#[derive(Clone, Copy, Debug)]
+pub struct BenchConfig {
+    /// Controller settings.
+    pub controller: ControllerConfig,
+    /// Background worker steps per control cycle.
+    pub worker_steps_per_cycle: u32,
+    /// Sector-erase time of the mock flash (cycles).
+    pub erase_cycles: u32,
+    /// Program time of one chunk (cycles).
+    pub program_cycles: u32,
+    /// Bytes per cycle each way on the link (`None`: unlimited).
+    pub uart_bytes_per_cycle: Option<usize>,
+}
+
+impl Default for BenchConfig {
+    fn default() -> Self {
+        Self {
+            controller: ControllerConfig::default(),
+            worker_steps_per_cycle: 1,
+            erase_cycles: DEFAULT_ERASE_CYCLES,
+            program_cycles: DEFAULT_PROGRAM_CYCLES,
+            uart_bytes_per_cycle: None,
+        }
+    }
+}
+
+/// The worker as the link service's job port (on the target: two queues).
+struct WorkerPort<'a> {
+    worker: &'a mut Worker<MockFlash>,
+    results: &'a mut VecDeque<JobResult>,
+}
+
+impl JobPort for WorkerPort<'_> {
+    fn send(&mut self, request: JobRequest) -> Result<(), JobRequest> {
+        self.worker.submit(request)
+    }
+    fn recv(&mut self) -> Option<JobResult> {
+        self.results.pop_front()
+    }
+}
+
+/// Bytes from the station, at most `budget` per pass.
+struct Uplink<'a> {
+    bytes: &'a mut VecDeque<u8>,
+    budget: usize,
+}
+
+impl RxBytes for Uplink<'_> {
+    fn pop(&mut self) -> Option<u8> {
+        if self.budget == 0 {
+            return None;
+        }
+        self.budget -= 1;
+        self.bytes.pop_front()
+    }
+}
+
+/// Bytes to the station, at most `budget` per pass.
+struct Downlink<'a> {
+    station: &'a mut Station,
+    budget: usize,
+}
+
+impl TxBytes for Downlink<'_> {
+    fn free(&self) -> usize {
+        self.budget
+    }
+    fn push(&mut self, frame: &[u8]) {
+        self.budget = self.budget.saturating_sub(frame.len());
+        self.station.receive(frame);
+    }
+}
+
+/// Controller + plant + flash + ground station (module documentation).
+pub struct Bench {
+    /// The controller.
+    pub ctl: Controller<SharedPlant>,
+    /// The plant (the controller owns its own handle as its hardware).
+    pub plant: SharedPlant,
+    /// The background worker (owns the flash).
+    pub worker: Worker<MockFlash>,
+    /// The link service.
+    pub link: LinkService,
+    /// The ground station.
+    pub st: Station,
+    cfg: BenchConfig,
+    uplink: VecDeque<u8>,
+    results: VecDeque<JobResult>,
+    /// Control cycles run since the bench was built (across reboots).
+    pub cycles: u64,
+}
+
+impl Default for Bench {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Bench {
+    /// The nominal mechanism (plant seed [`DEFAULT_PLANT_SEED`]), a blank flash.
+    pub fn new() -> Self {
+        Self::with_flash(MockFlash::new(SIM_FLASH_BYTES))
+    }
+
+    /// The nominal mechanism on this flash.
+    pub fn with_flash(flash: MockFlash) -> Self {
+        let plant = Plant::new(
+            &PROTOTYPE,
+            PlantConfig {
+                seed: DEFAULT_PLANT_SEED,
+                ..PlantConfig::default()
+            },
+        )
+        .unwrap_or_else(|e| panic!("nominal geometry: {e:?}"));
+        Self::build(plant.shared(), flash, BenchConfig::default(), Station::new())
+    }
+
+    /// This plant, a blank flash.
+    pub fn with_plant(plant: Plant) -> Self {
+        Self::build(
+            plant.shared(),
+            MockFlash::new(SIM_FLASH_BYTES),
+            BenchConfig::default(),
+            Station::new(),
+        )
+    }
+
+    /// Everything chosen.
+    pub fn with(plant: Plant, flash: MockFlash, cfg: BenchConfig) -> Self {
+        Self::build(plant.shared(), flash, cfg, Station::new())
+    }
+
+    fn build(plant: SharedPlant, mut flash: MockFlash, cfg: BenchConfig, st: Station) -> Self {
+        flash.set_timing(cfg.erase_cycles, cfg.program_cycles);
+        let mut store = TableStore::new(flash, SIM_LAYOUT)
+            .unwrap_or_else(|(_, e)| panic!("simulated flash layout: {e:?}"));
+        let (table, boot) = store.boot(&cfg.controller.validation);
+        // The drives come up holding where they are.
+        plant.with(|p| crate::hw::SliderDrives::hold(p));
+        let ctl = Controller::new(plant.clone(), table, boot, cfg.controller);
+        Self {
+            ctl,
+            plant,
+            worker: Worker::new(store, cfg.controller.validation),
+            link: LinkService::new(),
+            st,
+            cfg,
+            uplink: VecDeque::new(),
+            results: VecDeque::new(),
+            cycles: 0,
+        }
+    }
+
+    /// Sets the reset information the board would give (before the first tick).
+    pub fn set_reset_info(&mut self, info: ResetInfo) {
+        self.ctl.set_reset_info(info);
+    }
+
+    /// One millisecond (module documentation).
+    pub fn tick(&mut self) {
+        self.plant.with(|p| p.step(f64::from(CYCLE_S)));
+        self.ctl.control_cycle();
+        self.link_pass();
+        for _ in 0..self.cfg.worker_steps_per_cycle {
+            if let Some(r) = self.worker.step(self.ctl.cycle()) {
+                self.results.push_back(r);
+            }
+        }
+        self.cycles += 1;
+    }
+
+    /// The link service's pass (what runs below the control task each cycle).
+    fn link_pass(&mut self) {
+        let budget = self.cfg.uart_bytes_per_cycle.unwrap_or(usize::MAX);
+        let mut rx = Uplink {
+            bytes: &mut self.uplink,
+            budget,
+        };
+        let mut ctl = &mut self.ctl;
+        self.link.receive(&mut ctl, &mut rx);
+        let mut port = WorkerPort {
+            worker: &mut self.worker,
+            results: &mut self.results,
+        };
+        self.link.exchange_jobs(&mut ctl, &mut port);
+        let mut tx = Downlink {
+            station: &mut self.st,
+            budget,
+        };
+        self.link.transmit(&mut ctl, &mut tx);
+    }
+
+    /// Runs `cycles` ticks.
+    pub fn run(&mut self, cycles: u32) {
+        for _ in 0..cycles {
+            self.tick();
+        }
+    }
+
+    /// Puts raw bytes on the uplink (as the ground's UART would send them).
+    pub fn uplink_bytes(&mut self, bytes: &[u8]) {
+        self.uplink.extend(bytes.iter().copied());
+    }
+
+    /// Bytes still waiting on the uplink.
+    pub fn uplink_len(&self) -> usize {
+        self.uplink.len()
+    }
+
+    /// Frames a telecommand onto the uplink and runs one cycle; returns its request ID.
+    pub fn send(&mut self, cmd: &Command) -> RequestId {
+        let rid = self.queue(cmd);
+        self.tick();
+        rid
+    }
+
+    /// Frames a telecommand onto the uplink without running a cycle.
+    pub fn queue(&mut self, cmd: &Command) -> RequestId {
+        let (frame, rid) = self
+            .st
+            .frame(cmd)
+            .unwrap_or_else(|e| panic!("encode {cmd:?}: {e}"));
+        self.uplink_bytes(&frame);
+        rid
+    }
+
+    /// Sends a telecommand and runs until its completion (success or failure) or a
+    /// start/acceptance failure, at most `max` cycles; returns its reports.
+    pub fn command(&mut self, cmd: &Command, max: u32) -> Vec<crate::link::tm::Verification> {
+        let rid = self.send(cmd);
+        for _ in 0..max {
+            if self.st.finished(rid) {
+                break;
+            }
+            self.tick();
+        }
+        self.st.reports(rid)
+    }
+
+    /// Runs until the controller is at rest (idle or faulted), no table job runs and
+    /// the sliders have settled, at most `max` cycles; returns the cycles run, or
+    /// `None` if it never settled.
+    pub fn try_settle(&mut self, max: u32) -> Option<u32> {
+        for n in 0..max {
+            self.tick();
+            let h = self.ctl.housekeeping();
+            if matches!(self.ctl.state(), State::Idle | State::Faulted)
+                && h.job == 0
+                && self.plant.with(|p| p.settled())
+            {
+                return Some(n);
+            }
+        }
+        None
+    }
+
+    /// As [`Bench::try_settle`], panicking if it never settles (tests).
+    pub fn settle(&mut self, max: u32) -> u32 {
+        self.try_settle(max).unwrap_or_else(|| {
+            panic!(
+                "not settled after {max} cycles, state {:?}",
+                self.ctl.state()
+            )
+        })
+    }
+
+    /// A one-shot housekeeping report, as the ground receives it.
+    pub fn hk(&mut self) -> Housekeeping {
+        let rid = self.send(&Command::HousekeepingOneShot);
+        for _ in 0..1000 {
+            if self.st.finished(rid) {
+                break;
+            }
+            self.tick();
+        }
+        self.st
+            .last_hk()
+            .unwrap_or_else(|| panic!("no housekeeping received"))
+    }
+
+    /// The flash (power cuts, bit flips).
+    pub fn flash_mut(&mut self) -> &mut MockFlash {
+        self.worker.store_mut().flash_mut()
+    }
+
+    /// Power cycle: the controller and the worker restart from what the flash holds
+    /// now (power restored); the plant keeps its sliders where they are; the station
+    /// keeps its log.
+    pub fn reboot(self) -> Self {
+        let Bench {
+            plant,
+            worker,
+            st,
+            cfg,
+            cycles,
+            ..
+        } = self;
+        let mut flash = worker.into_store().into_inner();
+        flash.power_cycle();
+        let mut b = Self::build(plant, flash, cfg, st);
+        b.cycles = cycles;
+        b
+    }
+}

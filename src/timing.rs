@@ -1,0 +1,25 @@
+//! The control cycle's period, defined once as an integer, and everything derived from
+//! it: the control rate, the motion time step, the housekeeping and scrub periods, the
+//! telemetry clock. The board derives its timer reload from [`CONTROL_RATE_HZ`].
+
+/// Control period (microseconds): one control cycle.
+pub const CYCLE_US: u32 = 1_000;
+/// Microseconds per second.
+pub const US_PER_S: u32 = 1_000_000;
+/// Control rate (Hz): control cycles per second.
+pub const CONTROL_RATE_HZ: u32 = US_PER_S / CYCLE_US;
+/// Control period (s), for the motion profiles.
+pub const CYCLE_S: f32 = CYCLE_US as f32 / US_PER_S as f32;
+/// Periodic housekeeping TM[3,25]: one report per second (cycles).
+pub const HK_PERIOD_CYCLES: u32 = CONTROL_RATE_HZ;
+/// RAM scrub of the running table and the supervision thresholds: one check per
+/// second (cycles).
+pub const SCRUB_PERIOD_CYCLES: u32 = CONTROL_RATE_HZ;
+
+/// Microseconds since boot of control cycle `cycle` (the telemetry clock).
+pub const fn cycle_to_us(cycle: u64) -> u64 {
+    cycle * CYCLE_US as u64
+}
+
+// The period must divide a second exactly, so that the derived rates are exact.
+const _: () = assert!(US_PER_S % CYCLE_US == 0);
