@@ -5,39 +5,17 @@
 
 mod common;
 
-use m2ctl::sim::Bench;
+use common::{activate, all_ok, calibrated_table, install, tick_packet, upload, wire, JOB_CYCLES};
+
 use m2ctl::controller::{event, State};
 use m2ctl::ground::station::Tm;
 use m2ctl::kinematics::{Pose, ARCSEC_PER_RAD};
 use m2ctl::link::command::{WirePose, TABLE_CHUNK_MAX_LEN};
-use m2ctl::link::tm::{dump_chunks, Verification};
+use m2ctl::link::tm::Verification;
 use m2ctl::link::{Command, MemoryId, TableChunk};
 use m2ctl::motion::CYCLE_S;
+use m2ctl::sim::Bench;
 use m2ctl::table::{Table, TABLE_LEN};
-
-fn wire(x_um: f64, y_um: f64, z_um: f64, a_as: f64, b_as: f64, c_as: f64) -> WirePose {
-    WirePose {
-        translation_nm: [x_um, y_um, z_um].map(|v| (v * 1e3).round() as i32),
-        rotation_uas: [a_as, b_as, c_as].map(|v| (v * 1e6).round() as i32),
-    }
-}
-
-/// Frames a raw packet onto the uplink and runs one cycle.
-fn tick_packet(r: &mut Bench, pkt: &[u8]) {
-    r.uplink_bytes(&m2ctl::ground::tc::frame(pkt));
-    r.tick();
-}
-
-/// Cycles a table job (commit, activation) may take on the bench (sector erases).
-const JOB_CYCLES: u32 = 5_000;
-
-fn all_ok(v: &[Verification]) -> bool {
-    v == [
-        Verification::AcceptanceSuccess,
-        Verification::StartSuccess,
-        Verification::CompletionSuccess,
-    ]
-}
 
 #[test]
 fn boots_on_nominal_from_blank_flash_and_answers_ping() {
@@ -165,33 +143,6 @@ fn malformed_packets_are_rejected_with_codes_and_change_nothing() {
     assert_eq!(hk.tc_rejected, hk0.tc_rejected + 3);
 }
 
-/// Uploads a table image in chunks (in the given chunk order).
-fn upload(r: &mut Bench, bytes: &[u8; TABLE_LEN], order: &[usize]) {
-    let chunks: Vec<(u16, Vec<u8>)> = dump_chunks(bytes).map(|(o, b)| (o, b.to_vec())).collect();
-    for &i in order {
-        let (off, data) = &chunks[i];
-        let rid = r.send(&Command::LoadTableChunk(
-            TableChunk::new(*off, data).unwrap(),
-        ));
-        assert!(
-            all_ok(&r.st.reports(rid)),
-            "chunk {i}: {:?}",
-            r.st.reports(rid)
-        );
-    }
-}
-
-fn calibrated_table(id: u32) -> Table {
-    let mut t = Table::nominal();
-    t.table_id = id;
-    // A plausible calibration: joints moved by tens of micrometres.
-    for (i, leg) in t.legs.iter_mut().enumerate() {
-        leg.a_mm[0] += 0.01 * i as f64;
-        leg.b_mm[1] -= 0.02;
-    }
-    t
-}
-
 #[test]
 fn upload_out_of_order_with_duplicates_commit_activate_and_dump() {
     let mut r = Bench::new();
@@ -229,14 +180,6 @@ fn upload_out_of_order_with_duplicates_commit_activate_and_dump() {
     let rid = r.send(&Command::MoveRelative(wire(100.0, 0.0, 0.0, 0.0, 0.0, 0.0)));
     r.settle(20_000);
     assert!(all_ok(&r.st.reports(rid)));
-}
-
-/// TC[8,1] activate naming `t`.
-fn activate(t: &Table) -> Command {
-    Command::ActivateTable {
-        table_id: t.table_id,
-        crc32: t.crc32(),
-    }
 }
 
 #[test]
@@ -303,7 +246,10 @@ fn bad_uploads_are_refused_and_the_active_table_stays() {
     assert!(
         matches!(
             reps.last(),
-            Some(Verification::CompletionFailure { code: 0x0418..=0x0419, .. })
+            Some(Verification::CompletionFailure {
+                code: 0x0418..=0x0419,
+                ..
+            })
         ),
         "{reps:?}"
     );
@@ -472,7 +418,11 @@ fn fuzzed_packets_never_panic_and_rejected_ones_change_nothing() {
             // Exactly one TM[1,2] if the packet named a request, nothing else.
             let new: Vec<_> = r.st.log[log_before..].to_vec();
             assert!(
-                new.len() <= 1 && new.iter().all(|t| matches!(t, Tm::Verify(_, Verification::AcceptanceFailure { .. }))),
+                new.len() <= 1
+                    && new.iter().all(|t| matches!(
+                        t,
+                        Tm::Verify(_, Verification::AcceptanceFailure { .. })
+                    )),
                 "case {case}: {new:?}"
             );
         } else {
@@ -503,18 +453,6 @@ impl m2ctl::controller::comms::TxBytes for StationSink<'_> {
     fn push(&mut self, frame: &[u8]) {
         self.0.receive(frame);
     }
-}
-
-/// Uploads, commits and (optionally) activates a table by telecommand.
-fn install(r: &mut Bench, t: &Table, activate: bool) -> Vec<Verification> {
-    let n = TABLE_LEN.div_ceil(TABLE_CHUNK_MAX_LEN);
-    upload(r, &t.to_bytes(), &(0..n).collect::<Vec<_>>());
-    let reps = r.command(&Command::CommitTable { crc32: t.crc32() }, JOB_CYCLES);
-    if activate && all_ok(&reps) {
-        let a = r.command(&self::activate(t), JOB_CYCLES);
-        assert!(all_ok(&a), "{a:?}");
-    }
-    reps
 }
 
 #[test]
@@ -556,8 +494,12 @@ fn power_cut_during_a_commit_and_activation_boots_what_the_last_completed_select
     let s0 = probe.flash_mut().stats().steps;
     assert!(all_ok(&install(&mut probe, &new, true)));
     let total = probe.flash_mut().stats().steps - s0;
-    let cuts: Vec<u64> = (0..total).step_by(97).chain(total.saturating_sub(40)..total).collect();
-    let padding = (m2ctl::table::store::SELECTION_SLOT_LEN - m2ctl::table::store::SELECTION_LEN) as u64;
+    let cuts: Vec<u64> = (0..total)
+        .step_by(97)
+        .chain(total.saturating_sub(40)..total)
+        .collect();
+    let padding =
+        (m2ctl::table::store::SELECTION_SLOT_LEN - m2ctl::table::store::SELECTION_LEN) as u64;
     let (mut booted_old, mut booted_new) = (0, 0);
     for &cut in &cuts {
         let mut r = Bench::new();
@@ -586,7 +528,10 @@ fn power_cut_during_a_commit_and_activation_boots_what_the_last_completed_select
         } else {
             booted_old += 1;
             assert_eq!(booted, (1, old.crc32()), "cut after {cut} of {total}");
-            assert!(!activated, "cut after {cut}: activation reported, old table booted");
+            assert!(
+                !activated,
+                "cut after {cut}: activation reported, old table booted"
+            );
         }
     }
     println!(

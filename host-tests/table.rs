@@ -376,7 +376,10 @@ fn layouts() {
     assert_eq!(s.layout().bank_a_offset, 0x3E_0000);
     assert_eq!(s.layout().bank_b_offset, 0x3F_0000);
     assert_eq!(SIM_BANK_SIZE, 0x1_0000);
-    assert_eq!(SIM_LAYOUT.bank_a_offset + SIM_BANK_SIZE, SIM_LAYOUT.bank_b_offset);
+    assert_eq!(
+        SIM_LAYOUT.bank_a_offset + SIM_BANK_SIZE,
+        SIM_LAYOUT.bank_b_offset
+    );
     // Refused: erase sector bigger than the bank, overlap, out of range, misaligned, a
     // selection slot inside a record's sectors.
     assert!(TableStore::new(MockFlash::<4, 0x2_0000>::new(0x40_0000), SIM_LAYOUT).is_err());
@@ -471,7 +474,7 @@ fn blank_boots_nominal_and_commits_alternate() {
     // Nominal running: the next commit goes to the bank without a record.
     assert_eq!(s.target_bank(), Bank::B);
     s.commit(&calibrated(2, 0.1), &cfg()).unwrap(); // B seq 2
-    // ... then to the bank with the older record (replacing it).
+                                                    // ... then to the bank with the older record (replacing it).
     assert_eq!(s.target_bank(), Bank::A);
     let c = s.commit(&calibrated(3, 0.1), &cfg()).unwrap();
     assert_eq!((c.bank, c.sequence), (Bank::A, 3));

@@ -67,9 +67,13 @@ impl<T: Real> Sliders<T> {
         }
     }
 
-    /// Stops every drive where it is (setpoint := position).
+    /// Stops every drive where it is: setpoint := position, in the drive's own
+    /// resolution (the `f32` of its command interface), so that commanding back what it
+    /// reports holding changes nothing.
     pub fn hold(&mut self) {
-        self.setpoint_mm = self.position_mm;
+        self.setpoint_mm = self
+            .position_mm
+            .map(|p| T::from_f64(f64::from(p.to_f64() as f32)));
     }
 
     /// Drive positions (mm).
@@ -88,12 +92,13 @@ impl<T: Real> Sliders<T> {
     }
 
     /// Shifts a drive's position and setpoint by `delta_mm` (re-referencing after missed
-    /// steps: the slider does not move, the drive's count does). No-op for a bad leg.
+    /// steps: the slider does not move, the drive's count does); the setpoint stays in
+    /// the drive's resolution. No-op for a bad leg.
     pub fn shift(&mut self, leg: usize, delta_mm: T) {
         if let (Some(p), Some(sp)) = (self.position_mm.get_mut(leg), self.setpoint_mm.get_mut(leg))
         {
             *p += delta_mm;
-            *sp += delta_mm;
+            *sp = T::from_f64(f64::from((*sp + delta_mm).to_f64() as f32));
         }
     }
 

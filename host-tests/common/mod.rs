@@ -85,3 +85,85 @@ pub fn golden() -> Vec<([f64; 6], [f64; 6])> {
         })
         .collect()
 }
+
+// ---------------------------------------------------------------------------------
+// Bench helpers shared by the controller, contract and soak tests.
+
+use m2ctl::link::command::{WirePose, TABLE_CHUNK_MAX_LEN};
+use m2ctl::link::tm::{dump_chunks, Verification};
+use m2ctl::link::{Command, TableChunk};
+use m2ctl::sim::Bench;
+use m2ctl::table::{Table, TABLE_LEN};
+
+/// A wire pose from micrometres and arcseconds.
+pub fn wire(x_um: f64, y_um: f64, z_um: f64, a_as: f64, b_as: f64, c_as: f64) -> WirePose {
+    WirePose {
+        translation_nm: [x_um, y_um, z_um].map(|v| (v * 1e3).round() as i32),
+        rotation_uas: [a_as, b_as, c_as].map(|v| (v * 1e6).round() as i32),
+    }
+}
+
+/// Frames a raw packet onto the uplink and runs one cycle.
+pub fn tick_packet(r: &mut Bench, pkt: &[u8]) {
+    r.uplink_bytes(&m2ctl::ground::tc::frame(pkt));
+    r.tick();
+}
+
+/// Cycles a table job (commit, activation) may take on the bench (sector erases).
+pub const JOB_CYCLES: u32 = 5_000;
+
+/// Acceptance, start and completion, all successful.
+pub fn all_ok(v: &[Verification]) -> bool {
+    v == [
+        Verification::AcceptanceSuccess,
+        Verification::StartSuccess,
+        Verification::CompletionSuccess,
+    ]
+}
+
+/// Uploads a table image in chunks (in the given chunk order).
+pub fn upload(r: &mut Bench, bytes: &[u8; TABLE_LEN], order: &[usize]) {
+    let chunks: Vec<(u16, Vec<u8>)> = dump_chunks(bytes).map(|(o, b)| (o, b.to_vec())).collect();
+    for &i in order {
+        let (off, data) = &chunks[i];
+        let rid = r.send(&Command::LoadTableChunk(
+            TableChunk::new(*off, data).unwrap(),
+        ));
+        assert!(
+            all_ok(&r.st.reports(rid)),
+            "chunk {i}: {:?}",
+            r.st.reports(rid)
+        );
+    }
+}
+
+pub fn calibrated_table(id: u32) -> Table {
+    let mut t = Table::nominal();
+    t.table_id = id;
+    // A plausible calibration: joints moved by tens of micrometres.
+    for (i, leg) in t.legs.iter_mut().enumerate() {
+        leg.a_mm[0] += 0.01 * i as f64;
+        leg.b_mm[1] -= 0.02;
+    }
+    t
+}
+
+/// TC[8,1] activate naming `t`.
+pub fn activate(t: &Table) -> Command {
+    Command::ActivateTable {
+        table_id: t.table_id,
+        crc32: t.crc32(),
+    }
+}
+
+/// Uploads, commits and (optionally) activates a table by telecommand.
+pub fn install(r: &mut Bench, t: &Table, activate: bool) -> Vec<Verification> {
+    let n = TABLE_LEN.div_ceil(TABLE_CHUNK_MAX_LEN);
+    upload(r, &t.to_bytes(), &(0..n).collect::<Vec<_>>());
+    let reps = r.command(&Command::CommitTable { crc32: t.crc32() }, JOB_CYCLES);
+    if activate && all_ok(&reps) {
+        let a = r.command(&self::activate(t), JOB_CYCLES);
+        assert!(all_ok(&a), "{a:?}");
+    }
+    reps
+}

@@ -224,9 +224,7 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             MemoryId::UploadBuffer => *self.upload.bytes(),
         };
         let start = usize::from(offset_bytes);
-        let end = start
-            .saturating_add(TABLE_CHUNK_MAX_LEN)
-            .min(image.len());
+        let end = start.saturating_add(TABLE_CHUNK_MAX_LEN).min(image.len());
         let bytes = image.get(start..end)?;
         let mut chunk = DumpChunk {
             len: bytes.len(),

@@ -65,6 +65,7 @@ pub trait TxBytes {
 /// target, the worker itself on the host).
 pub trait JobPort {
     /// Hands a request over; gives it back if there is no room.
+    #[allow(clippy::result_large_err)] // handed back by value: no heap
     fn send(&mut self, request: JobRequest) -> Result<(), JobRequest>;
     /// The next result, if any.
     fn recv(&mut self) -> Option<JobResult>;

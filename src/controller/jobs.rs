@@ -85,7 +85,10 @@ impl ScrubImage {
     }
 }
 
-/// What the controller asks of the worker.
+/// What the controller asks of the worker. The messages carry whole tables by value
+/// (no heap in flight code): they live in two bounded static queues, and a copy of
+/// about a kilobyte per job or scrub is cheap next to the work it asks for.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum JobRequest {
     /// Validate and write the table (pending afterwards).
@@ -107,9 +110,9 @@ impl JobRequest {
     pub const fn kind(&self) -> Option<JobKind> {
         match self {
             JobRequest::Commit(_) => Some(JobKind::Commit),
-            JobRequest::ActivatePending(_) | JobRequest::SwitchBank | JobRequest::RevertToNominal => {
-                Some(JobKind::Select)
-            }
+            JobRequest::ActivatePending(_)
+            | JobRequest::SwitchBank
+            | JobRequest::RevertToNominal => Some(JobKind::Select),
             JobRequest::Reload => Some(JobKind::Reload),
             JobRequest::Scrub(_) => None,
         }
@@ -403,11 +406,15 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
 
     /// Nothing to do until the next request or bank check.
     pub fn is_idle(&self) -> bool {
-        self.op.is_none() && self.scrub.is_none() && self.failed.is_none() && self.reloaded.is_none()
+        self.op.is_none()
+            && self.scrub.is_none()
+            && self.failed.is_none()
+            && self.reloaded.is_none()
     }
 
     /// Takes a request; refused (handed back) while an operator job runs, or a scrub is
     /// still queued, for a request of that kind.
+    #[allow(clippy::result_large_err)] // the request is handed back by value (no heap)
     pub fn submit(&mut self, request: JobRequest) -> Result<(), JobRequest> {
         match request {
             JobRequest::Scrub(img) => {
@@ -486,7 +493,10 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
     fn other_bank_table(&mut self) -> Result<(Selection, Table), StoreError> {
         let bank = match self.store.running().bank() {
             Some(b) => b.other(),
-            None => match (self.store.read_header(Bank::A), self.store.read_header(Bank::B)) {
+            None => match (
+                self.store.read_header(Bank::A),
+                self.store.read_header(Bank::B),
+            ) {
                 (Ok(ha), Ok(hb)) if crate::table::store::seq_newer(hb.sequence, ha.sequence) => {
                     Bank::B
                 }
@@ -604,9 +614,9 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
                 WritePoll::Done(Ok(WriteDone::Selected(selection))) => {
                     self.op = None;
                     if selection.source.bank().is_some()
-                        && self.pending_table.is_some_and(|(r, _)| {
-                            Some(r.bank) == selection.source.bank()
-                        })
+                        && self
+                            .pending_table
+                            .is_some_and(|(r, _)| Some(r.bank) == selection.source.bank())
                     {
                         self.pending_table = None;
                     }

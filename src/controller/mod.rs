@@ -40,6 +40,9 @@
 //! * completion of a move is reported when the mirror has arrived (TM[1,7]) or, if a
 //!   stop or a fault ended it, as a completion failure (TM[1,8]).
 
+// `!(x <= t)` is deliberate: unlike `x > t` it is also true for NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod comms;
 pub mod error;
 pub mod jobs;
@@ -53,8 +56,10 @@ use crate::hw::{counts_to_mm, DriveError, SliderDrives, StrokeEncoders};
 use crate::kinematics::{fk, FkConfig, FkError, FkSolution, Geometry, GeometryError, Pose, LEGS};
 use crate::link::tm::EventSeverity;
 use crate::link::Housekeeping;
-use crate::motion::{MotionLimits, DEFAULT_DIRECT_ACCEL_MM_PER_S2, DEFAULT_DIRECT_MAX_DELTA_MM,
-    DEFAULT_DIRECT_SPEED_MM_PER_S};
+use crate::motion::{
+    MotionLimits, DEFAULT_DIRECT_ACCEL_MM_PER_S2, DEFAULT_DIRECT_MAX_DELTA_MM,
+    DEFAULT_DIRECT_SPEED_MM_PER_S,
+};
 use crate::supervision::{CycleInputs, FaultFlags, SupervisionConfig, Supervisor};
 use crate::table::upload::UploadBuffer;
 use crate::table::{BootReport, BootSource, CommitReport, Table, ValidationConfig};
@@ -463,7 +468,10 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             self.event(
                 EventSeverity::High,
                 event::DEADLINE_MISSED,
-                [u32::from(self.consecutive_overruns), u32::from(self.overruns)],
+                [
+                    u32::from(self.consecutive_overruns),
+                    u32::from(self.overruns),
+                ],
             );
             self.begin_stop();
         }
@@ -488,7 +496,10 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         self.event(
             sev,
             event::BOOT,
-            [u32::from(self.boot.source.code()), self.active.table.table_id],
+            [
+                u32::from(self.boot.source.code()),
+                self.active.table.table_id,
+            ],
         );
         self.event(
             EventSeverity::Info,
@@ -561,7 +572,9 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             active_table_crc32: self.active.crc32,
             pose_fk: crate::link::wire::pose_to_wire_f32(&self.pose_fk),
             pose_commanded: crate::link::wire::pose_to_wire_f32(&self.pose_commanded),
-            strokes_commanded_nm: self.strokes_commanded_mm.map(crate::link::wire::mm_to_nm_f32),
+            strokes_commanded_nm: self
+                .strokes_commanded_mm
+                .map(crate::link::wire::mm_to_nm_f32),
             encoders_nm: self.encoders_mm.map(crate::link::wire::mm_to_nm_f32),
             tc_accepted: self.tc_accepted,
             tc_rejected: self.tc_rejected,

@@ -200,7 +200,12 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         if done {
             let was_stroke = matches!(self.motion, Motion::Stroke { .. });
             self.motion = Motion::Hold;
-            if was_stroke {
+            if !self.supervisor.latched().is_empty() {
+                // Came to rest with a fault latched: the drives hold where their sliders
+                // are, so a jammed slider that frees later does not lurch to the stop
+                // ramp's last setpoint.
+                self.hold_here();
+            } else if was_stroke {
                 // The commanded pose of the strokes now held.
                 self.sync_to_drives();
             }
@@ -264,9 +269,11 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         self.plan_aborted = false;
         match begun {
             PlanStart::Ready(traj) => {
+                // Telecommands are handled between control cycles: `self.cycle` is
+                // already the index of the next one, where the path begins.
                 self.motion = Motion::Path {
                     traj,
-                    start_cycle: self.cycle.wrapping_add(1),
+                    start_cycle: self.cycle,
                     stopping: false,
                 };
                 Ok(Outcome::Started)
@@ -344,9 +351,10 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         };
         let mv = StrokeMove::plan(&held, idx, delta_mm, &limits).map_err(CommandError::Stroke)?;
         self.strokes_commanded_mm = held;
+        // The move begins in the next control cycle, whose index `self.cycle` already is.
         self.motion = Motion::Stroke {
             mv,
-            start_cycle: self.cycle.wrapping_add(1),
+            start_cycle: self.cycle,
             stopping: false,
         };
         Ok(Outcome::Started)

@@ -64,10 +64,8 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         if let Some((code, _)) = report.failure() {
             self.last_failure_code = code;
         }
-        self.tm.push(
-            self.cycle,
-            TmRecord::Verification { request_id, report },
-        );
+        self.tm
+            .push(self.cycle, TmRecord::Verification { request_id, report });
     }
 
     /// The start report of the pending telecommand: success (if asked for) or failure

@@ -31,9 +31,10 @@ pub mod trajectory;
 
 pub use ramp::{Ramp, RampError, RampSample, CYCLE_S, MAX_MOVE_CYCLES};
 pub use stroke::{
-    DirectStrokeLimits, StrokeMove, StrokeMoveError, StrokeSetpoint, DEFAULT_DIRECT_ACCEL_MM_PER_S2,
-    DEFAULT_DIRECT_MAX_DELTA_MM, DEFAULT_DIRECT_SPEED_MM_PER_S,
+    DirectStrokeLimits, StrokeMove, StrokeMoveError, StrokeSetpoint,
+    DEFAULT_DIRECT_ACCEL_MM_PER_S2, DEFAULT_DIRECT_MAX_DELTA_MM, DEFAULT_DIRECT_SPEED_MM_PER_S,
 };
 pub use trajectory::{
     MotionError, MotionLimits, PathBounds, PlanStart, Setpoint, Trajectory, TrajectoryPlanner,
+    DEFAULT_MAX_ACCEL_MM_PER_S2, DEFAULT_MAX_SPEED_MM_PER_S,
 };

@@ -14,7 +14,9 @@ use std::collections::VecDeque;
 
 use super::plant::{Plant, PlantConfig, SharedPlant};
 use crate::controller::comms::{JobPort, LinkService, RxBytes, TxBytes};
-use crate::controller::{Controller, ControllerConfig, JobRequest, JobResult, ResetInfo, State, Worker};
+use crate::controller::{
+    Controller, ControllerConfig, JobRequest, JobResult, ResetInfo, State, Worker,
+};
 use crate::ground::station::Station;
 use crate::link::{Command, Housekeeping, RequestId};
 use crate::nominal::PROTOTYPE;
@@ -37,6 +39,8 @@ pub const DEFAULT_PROGRAM_CYCLES: u32 = 1;
 pub const DEFAULT_PLANT_SEED: u64 = 11;
 /// A UART at 115,200 baud, 8N1, carries 11.52 bytes per millisecond.
 pub const UART_115200_BYTES_PER_CYCLE: usize = 11;
+/// Bytes the simulated UART transmit queue holds (as the target's TX queue).
+pub const SIM_TX_QUEUE_LEN: usize = 1024;
 
 /// Bench settings.
 #[derive(Clone, Copy, Debug)]
@@ -96,19 +100,18 @@ impl RxBytes for Uplink<'_> {
     }
 }
 
-/// Bytes to the station, at most `budget` per pass.
+/// The UART transmit queue: whole frames in, drained toward the station at the line
+/// rate (or at once without a rate).
 struct Downlink<'a> {
-    station: &'a mut Station,
-    budget: usize,
+    queue: &'a mut VecDeque<u8>,
 }
 
 impl TxBytes for Downlink<'_> {
     fn free(&self) -> usize {
-        self.budget
+        SIM_TX_QUEUE_LEN.saturating_sub(self.queue.len())
     }
     fn push(&mut self, frame: &[u8]) {
-        self.budget = self.budget.saturating_sub(frame.len());
-        self.station.receive(frame);
+        self.queue.extend(frame.iter().copied());
     }
 }
 
@@ -126,6 +129,7 @@ pub struct Bench {
     pub st: Station,
     cfg: BenchConfig,
     uplink: VecDeque<u8>,
+    downlink: VecDeque<u8>,
     results: VecDeque<JobResult>,
     /// Control cycles run since the bench was built (across reboots).
     pub cycles: u64,
@@ -153,7 +157,12 @@ impl Bench {
             },
         )
         .unwrap_or_else(|e| panic!("nominal geometry: {e:?}"));
-        Self::build(plant.shared(), flash, BenchConfig::default(), Station::new())
+        Self::build(
+            plant.shared(),
+            flash,
+            BenchConfig::default(),
+            Station::new(),
+        )
     }
 
     /// This plant, a blank flash.
@@ -177,7 +186,7 @@ impl Bench {
             .unwrap_or_else(|(_, e)| panic!("simulated flash layout: {e:?}"));
         let (table, boot) = store.boot(&cfg.controller.validation);
         // The drives come up holding where they are.
-        plant.with(|p| crate::hw::SliderDrives::hold(p));
+        plant.with(crate::hw::SliderDrives::hold);
         let ctl = Controller::new(plant.clone(), table, boot, cfg.controller);
         Self {
             ctl,
@@ -187,6 +196,7 @@ impl Bench {
             st,
             cfg,
             uplink: VecDeque::new(),
+            downlink: VecDeque::new(),
             results: VecDeque::new(),
             cycles: 0,
         }
@@ -225,10 +235,13 @@ impl Bench {
         };
         self.link.exchange_jobs(&mut ctl, &mut port);
         let mut tx = Downlink {
-            station: &mut self.st,
-            budget,
+            queue: &mut self.downlink,
         };
         self.link.transmit(&mut ctl, &mut tx);
+        // The line carries the queued bytes to the station.
+        let n = budget.min(self.downlink.len());
+        let bytes: Vec<u8> = self.downlink.drain(..n).collect();
+        self.st.receive(&bytes);
     }
 
     /// Runs `cycles` ticks.

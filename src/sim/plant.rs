@@ -18,10 +18,10 @@ use rand_distr::{Distribution, Normal};
 use rand_pcg::Pcg64;
 
 use crate::hw::{DriveError, EncoderError, SliderDrives, StrokeEncoders};
-use crate::plant::{nearest_count, Sliders};
 use crate::kinematics::{
     fk, FkConfig, FkError, Geometry, GeometryError, GeometryParams, Pose, LEGS,
 };
+use crate::plant::{nearest_count, Sliders};
 
 /// Plant settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -227,6 +227,12 @@ impl Plant {
     /// The drives' setpoints (mm): what each drive holds or is moving to.
     pub fn drive_setpoints_mm(&self) -> [f64; LEGS] {
         self.sliders.setpoints_mm()
+    }
+
+    /// The drives' positions (mm): where each drive believes its slider is (the true
+    /// stroke plus any travel lost to missed steps).
+    pub fn drive_positions_mm(&self) -> [f64; LEGS] {
+        self.sliders.positions_mm()
     }
 
     /// Simulated time (s).

@@ -498,7 +498,11 @@ impl Selection {
         let crc = w
             .get(..SELECTION_CRC_OFFSET)
             .map_or(0, |b| CRC32.checksum(b));
-        for (d, s) in w.iter_mut().skip(SELECTION_CRC_OFFSET).zip(crc.to_le_bytes()) {
+        for (d, s) in w
+            .iter_mut()
+            .skip(SELECTION_CRC_OFFSET)
+            .zip(crc.to_le_bytes())
+        {
             *d = s;
         }
         for (d, s) in out.iter_mut().zip(w.iter()) {
@@ -702,13 +706,16 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
         }
         let rec = Self::record_erase_len();
         // Erase ranges: two records, two selection sectors; pairwise disjoint.
-        let ranges = [(a, a + rec), (b, b + rec), (sa, sa + erase), (sb, sb + erase)];
-        let disjoint = ranges.iter().enumerate().all(|(i, r)| {
-            ranges
-                .iter()
-                .skip(i + 1)
-                .all(|q| r.1 <= q.0 || q.1 <= r.0)
-        });
+        let ranges = [
+            (a, a + rec),
+            (b, b + rec),
+            (sa, sa + erase),
+            (sb, sb + erase),
+        ];
+        let disjoint = ranges
+            .iter()
+            .enumerate()
+            .all(|(i, r)| ranges.iter().skip(i + 1).all(|q| r.1 <= q.0 || q.1 <= r.0));
         l.bank_size.is_power_of_two()
             && size % erase == 0
             && size >= RECORD_LEN as u64
@@ -1112,9 +1119,7 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
         let end = (at + RECORD_ALIGN).min(w.len);
         let want = w.image.get(at..end).ok_or(StoreError::VerifyFailed)?;
         let mut back = [0u8; RECORD_ALIGN];
-        let dst = back
-            .get_mut(..want.len())
-            .ok_or(StoreError::VerifyFailed)?;
+        let dst = back.get_mut(..want.len()).ok_or(StoreError::VerifyFailed)?;
         self.flash
             .read(w.base + at as u32, dst)
             .map_err(flash_err)?;
