@@ -131,3 +131,35 @@ impl TmQueue {
         self.dropped
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn event() -> TmRecord {
+        TmRecord::Event {
+            severity: EventSeverity::Info,
+            id: 1,
+            aux: [0, 0],
+        }
+    }
+
+    #[test]
+    fn bulk_records_leave_the_reserve_to_reports_and_events() {
+        let mut q = TmQueue::new();
+        let mut bulk = 0;
+        while q.push(0, TmRecord::Housekeeping) {
+            bulk += 1;
+        }
+        assert_eq!(bulk, TM_QUEUE_LEN - TM_RESERVED_SLOTS);
+        assert_eq!(q.dropped(), 1);
+        for _ in 0..TM_RESERVED_SLOTS {
+            assert!(q.push(1, event()));
+        }
+        assert!(!q.push(2, event()), "full");
+        assert_eq!(q.dropped(), 2);
+        // Nothing queued is reordered: the oldest comes out first.
+        assert_eq!(q.pop().map(|s| s.record), Some(TmRecord::Housekeeping));
+        assert_eq!(q.len(), TM_QUEUE_LEN - 1);
+    }
+}

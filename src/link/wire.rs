@@ -249,3 +249,35 @@ impl<'a> Writer<'a> {
         self.i32s(&p.to_array())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cursors_are_checked_and_rounding_is_half_away_from_zero() {
+        let mut buf = [0u8; 7];
+        let mut w = Writer::new(&mut buf, Order::Big);
+        assert_eq!(w.u32(0x0102_0304), Some(()));
+        assert_eq!(w.u16(0x0506), Some(()));
+        assert_eq!(
+            w.u16(0x0708),
+            None,
+            "past the end: refused, nothing written"
+        );
+        assert_eq!(w.position(), 6);
+        let mut r = Reader::new(&buf, Order::Big);
+        assert_eq!(r.u32(), Some(0x0102_0304));
+        assert_eq!(r.u16(), Some(0x0506));
+        assert_eq!(r.u16(), None);
+        let mut l = Reader::new(&buf, Order::Little);
+        assert_eq!(l.u16(), Some(0x0201));
+        assert_eq!(round_sat_i32(2.5), 3);
+        assert_eq!(round_sat_i32(-2.5), -3);
+        assert_eq!(round_sat_i32(f64::NAN), 0);
+        assert_eq!(round_sat_i32(1e300), i32::MAX);
+        assert_eq!(mm_to_nm_f32(0.0015), 1500);
+        assert_eq!(mm_to_nm_f32(-0.0015), -1500);
+        assert_eq!(mm_to_nm_f32(f32::NAN), 0);
+    }
+}

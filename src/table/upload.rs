@@ -51,9 +51,10 @@ impl UploadBuffer {
         let off = usize::from(offset_bytes);
         for (i, b) in data.iter().enumerate() {
             let at = off + i;
-            if let Some(dst) = self.bytes.get_mut(at) {
-                *dst = *b;
-            }
+            let Some(dst) = self.bytes.get_mut(at) else {
+                break;
+            };
+            *dst = *b;
             if let Some(bits) = self.received.get_mut(at / 8) {
                 *bits |= 1 << (at % 8);
             }
@@ -93,5 +94,31 @@ impl UploadBuffer {
     /// Forgets which bytes were received (after a commit was started from them).
     pub fn clear_received(&mut self) {
         self.received = [0; BITMAP_LEN];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_commit_needs_every_byte_the_named_crc_and_a_decodable_image() {
+        let t = Table::nominal();
+        let bytes = t.to_bytes();
+        let mut u = UploadBuffer::new();
+        assert_eq!(u.missing(), TABLE_LEN as u16);
+        u.load(0, &bytes[..500]);
+        assert_eq!(u.check(t.crc32()), Err(UploadError::Incomplete(16)));
+        u.load(500, &bytes[500..]);
+        assert_eq!(
+            u.check(t.crc32() ^ 1),
+            Err(UploadError::CrcMismatch(t.crc32()))
+        );
+        assert_eq!(u.check(t.crc32()), Ok(t));
+        u.clear_received();
+        assert_eq!(u.missing(), TABLE_LEN as u16);
+        // Bytes beyond the table are ignored, never written out of bounds.
+        u.load(TABLE_LEN as u16 - 1, &[1, 2, 3]);
+        assert_eq!(u.missing(), TABLE_LEN as u16 - 1);
     }
 }
