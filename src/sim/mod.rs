@@ -5,12 +5,15 @@
 //!   noise, implementing the same [`crate::hw`] traits the board glue implements on the
 //!   target; everything is deterministic from a seed.
 
+//! * [`soak`]: the model-based soak: random operator/adversary sequences on the bench
+//!   with the operator contract checked every cycle (the soak test and the fuzzer).
 //! * [`bench`]: the one test bench: controller + link service + worker + plant + flash
 //!   + ground station, one tick per control cycle.
 
 pub mod bench;
 pub mod manufacturing;
 pub mod plant;
+pub mod soak;
 
 pub use bench::{Bench, BenchConfig};
 pub use plant::{InjectedFault, Plant, PlantConfig, SharedPlant};

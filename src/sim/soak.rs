@@ -1,0 +1,802 @@
+//! The model-based soak: the real controller, link service and worker on the bench,
+//! driven by a long seeded random sequence of valid and invalid telecommands, plant
+//! faults and repairs, and power cuts (also in the middle of flash writes), with the
+//! operator contract checked **every cycle**:
+//!
+//! 1. commanded and true strokes stay inside the running table's stroke limits;
+//! 2. no commanded stroke changes by more than the speed limit times a cycle (plus
+//!    rounding), whatever the sequence;
+//! 3. while a fault is latched nothing moves except a stop ramp and the recovery move's
+//!    own leg;
+//! 4. during a recovery move the other legs keep exactly their setpoints;
+//! 5. every telecommand gets its service-1 reports in a valid order (none lost: the
+//!    telemetry queue never drops);
+//! 6. after every reboot the running table is the one the operator's last completed
+//!    selection implies (or, if a selection was being written at the cut, that one),
+//!    never a table nobody committed.
+//!
+//! The sequence comes from a [`Choices`] source: a seeded generator for the soak test
+//! (`host-tests/soak.rs`, `M2_SOAK_SECONDS`, `M2_SOAK_SEED`) or the fuzzer's bytes
+//! (`fuzz/fuzz_targets/controller.rs`): one model, one set of invariants.
+
+#![allow(clippy::needless_range_loop)] // index loops over six legs read clearer here
+
+use std::collections::HashMap;
+
+use crate::controller::{event, State};
+use crate::ground::station::Tm;
+use crate::kinematics::LEGS;
+use crate::link::command::WirePose;
+use crate::link::tm::{dump_chunks, Verification};
+use crate::link::{Command, MemoryId, RequestId, TableChunk};
+use crate::motion::{CYCLE_S, DEFAULT_MAX_SPEED_MM_PER_S};
+use crate::nominal::PROTOTYPE;
+use crate::sim::bench::UART_115200_BYTES_PER_CYCLE;
+use crate::sim::{Bench, BenchConfig, InjectedFault, Plant, PlantConfig};
+use crate::table::mock_flash::{MockFlash, TearMode};
+use crate::table::Table;
+
+/// Stroke tolerance beyond a soft limit (mm): the supervision's own tolerance.
+const LIMIT_TOL_MM: f64 = 1e-3;
+/// Rounding allowance on one setpoint step (mm): f32 strokes near 5 mm.
+const STEP_ROUNDING_MM: f64 = 2e-6;
+/// A slider "at rest" moves less than this per cycle (mm): 0.1 nm, above the f32
+/// resolution of a held stroke (a hold rounds the setpoint to the f32 of the interface).
+const STILL_MM: f64 = 1e-7;
+
+/// What the soak knows the controller should run after a reboot.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct TableRef {
+    id: u32,
+    crc: u32,
+}
+
+impl TableRef {
+    fn of(t: &Table) -> Self {
+        Self {
+            id: t.table_id,
+            crc: t.crc32(),
+        }
+    }
+}
+
+/// Where the soak's decisions come from.
+pub trait Choices {
+    /// Uniform in [-1, 1).
+    fn sym(&mut self) -> f64;
+    /// Whether the source is exhausted (a fuzz input consumed): the driver stops.
+    fn exhausted(&self) -> bool {
+        false
+    }
+}
+
+/// Deterministic xorshift64* generator (the soak test's source).
+#[derive(Clone, Copy, Debug)]
+pub struct SeededChoices(pub u64);
+
+impl Choices for SeededChoices {
+    fn sym(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    }
+}
+
+/// Decisions read from bytes (a fuzz input): two bytes per decision, then exhausted.
+#[derive(Clone, Debug)]
+pub struct ByteChoices<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl<'a> ByteChoices<'a> {
+    /// Over `bytes`.
+    pub fn new(bytes: &'a [u8]) -> Self {
+        Self { bytes, at: 0 }
+    }
+}
+
+impl Choices for ByteChoices<'_> {
+    fn sym(&mut self) -> f64 {
+        let hi = self.bytes.get(self.at).copied().unwrap_or(0);
+        let lo = self.bytes.get(self.at + 1).copied().unwrap_or(0);
+        self.at += 2;
+        f64::from(u16::from_be_bytes([hi, lo])) / 32768.0 - 1.0
+    }
+    fn exhausted(&self) -> bool {
+        self.at >= self.bytes.len()
+    }
+}
+
+/// A plausible calibrated table: nominal joints moved by tens of micrometres.
+pub fn calibrated_table(id: u32) -> Table {
+    let mut t = Table::nominal();
+    t.table_id = id;
+    for (i, leg) in t.legs.iter_mut().enumerate() {
+        leg.a_mm[0] += 0.01 * i as f64;
+        leg.b_mm[1] -= 0.02;
+    }
+    t
+}
+
+/// Figures of a soak run.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SoakFigures {
+    /// Control cycles run.
+    pub cycles: u64,
+    /// Telecommands sent.
+    pub tcs_sent: u64,
+    /// Telecommands whose reports were complete and in order.
+    pub tcs_done: u64,
+    /// Telecommands that completed successfully.
+    pub completed: u64,
+    /// Reboots (power cuts).
+    pub reboots: u64,
+    /// Reboots that struck inside a flash write.
+    pub cuts_in_writes: u64,
+    /// Plant faults injected.
+    pub faults_injected: u64,
+    /// Cycles per state (idle, moving, stopping, recovery move, faulted).
+    pub state_cycles: [u64; 5],
+    /// Invariant violations.
+    pub violations: u64,
+}
+
+/// The soak: the bench, the model of what the operator may expect, and the checks.
+pub struct Soak<C> {
+    /// The bench under test.
+    pub r: Bench,
+    rng: C,
+    /// Tables the soak uploaded (by CRC), so any booted table must be one of them.
+    known: HashMap<u32, Table>,
+    /// The last table whose activation (activate, switch bank, revert) completed.
+    selected: TableRef,
+    /// Selection telecommands in flight: request ID and the CRC of the table each
+    /// selects (`None`: switch bank, whose table the soak does not model).
+    selecting: Vec<(RequestId, Option<u32>)>,
+    /// Telecommands sent since the last reboot, with the log length when sent.
+    in_flight: Vec<(RequestId, usize)>,
+    /// The cycle after a plant repair (a drive re-referenced: its count moves, the
+    /// slider does not): the commanded-stroke checks skip it.
+    repaired: bool,
+    /// Telecommands whose reports were checked complete.
+    tcs_done: u64,
+    /// Telecommands that completed successfully.
+    completed: u64,
+    /// Cycles per state (Idle, Moving, Stopping, StrokeMoving, Faulted).
+    state_cycles: [u64; 5],
+    tcs_sent: u64,
+    reboots: u64,
+    cuts_in_writes: u64,
+    faults_injected: u64,
+    cycles: u64,
+    violations: Vec<String>,
+    /// Where the station log was at the last check.
+    log_seen: usize,
+    prev_cmd: [f32; LEGS],
+    prev_truth: [f64; LEGS],
+    prev_drives: [f64; LEGS],
+    prev_state: State,
+    prev_faulted: bool,
+    tm_dropped_seen: u16,
+    /// Consecutive cycles in the faulted state.
+    rest_cycles: u32,
+    /// The last actions, printed at the first violation.
+    history: Vec<String>,
+}
+
+/// Actions kept in the history.
+const HISTORY_LEN: usize = 30;
+/// Violations printed (all are counted).
+const MAX_PRINTED_VIOLATIONS: usize = 20;
+
+fn fresh_bench(flash: MockFlash) -> Bench {
+    let plant = Plant::new(
+        &crate::sim::manufacturing::perturbed(&PROTOTYPE, 0.05, 77),
+        PlantConfig {
+            seed: 5,
+            ..PlantConfig::default()
+        },
+    )
+    .unwrap();
+    Bench::with(
+        plant,
+        flash,
+        BenchConfig {
+            uart_bytes_per_cycle: Some(UART_115200_BYTES_PER_CYCLE),
+            ..BenchConfig::default()
+        },
+    )
+}
+
+impl<C: Choices> Soak<C> {
+    /// A fresh bench on a blank flash, decisions from `choices`.
+    pub fn new(choices: C) -> Self {
+        let r = fresh_bench(MockFlash::new(crate::sim::bench::SIM_FLASH_BYTES));
+        let nominal = Table::nominal();
+        let mut known = HashMap::new();
+        known.insert(nominal.crc32(), nominal);
+        let prev_cmd = r.ctl.strokes_commanded_mm();
+        Self {
+            r,
+            rng: choices,
+            known,
+            selected: TableRef::of(&nominal),
+            selecting: Vec::new(),
+            in_flight: Vec::new(),
+            repaired: false,
+            tcs_done: 0,
+            completed: 0,
+            state_cycles: [0; 5],
+            tcs_sent: 0,
+            reboots: 0,
+            cuts_in_writes: 0,
+            faults_injected: 0,
+            cycles: 0,
+            violations: Vec::new(),
+            log_seen: 0,
+            prev_cmd,
+            prev_truth: [0.0; LEGS],
+            prev_drives: [0.0; LEGS],
+            prev_state: State::Idle,
+            prev_faulted: false,
+            tm_dropped_seen: 0,
+            rest_cycles: 0,
+            history: Vec::new(),
+        }
+    }
+
+    fn uniform(&mut self) -> f64 {
+        (self.rng.sym() + 1.0) / 2.0
+    }
+
+    /// A choice in 0..n.
+    pub fn below(&mut self, n: usize) -> usize {
+        ((self.uniform() * n as f64) as usize).min(n - 1)
+    }
+
+    fn violation(&mut self, what: String) {
+        if self.violations.is_empty() {
+            eprintln!("history before the first violation:");
+            for h in &self.history {
+                eprintln!("  {h}");
+            }
+        }
+        if self.violations.len() < MAX_PRINTED_VIOLATIONS {
+            eprintln!("VIOLATION at cycle {}: {what}", self.cycles);
+        }
+        self.violations.push(what);
+    }
+
+    fn note(&mut self, what: String) {
+        if self.history.len() == HISTORY_LEN {
+            self.history.remove(0);
+        }
+        self.history.push(format!("cycle {}: {what}", self.cycles));
+    }
+
+    fn send(&mut self, cmd: &Command) -> RequestId {
+        if !matches!(cmd, Command::LoadTableChunk(_)) {
+            self.note(format!("TC {cmd:?} in state {:?}", self.r.ctl.state()));
+        }
+        let from = self.r.st.log.len();
+        let rid = self.r.queue(cmd);
+        self.tcs_sent += 1;
+        self.in_flight.push((rid, from));
+        rid
+    }
+
+    /// A random pose inside (mostly), near or outside the +-2 mm / +-600" workspace.
+    fn pose(&mut self) -> WirePose {
+        let scale = match self.below(10) {
+            0 => 1.3,
+            1 => 1.02,
+            _ => 0.6,
+        };
+        let mut v = [0i32; 6];
+        for k in 0..6 {
+            let r = self.rng.sym() * scale;
+            v[k] = if k < 3 {
+                (r * 2.0e6) as i32
+            } else {
+                (r * 600.0e6) as i32
+            };
+        }
+        WirePose::from_array(v)
+    }
+
+    fn small_delta(&mut self) -> WirePose {
+        let mut v = [0i32; 6];
+        for k in 0..6 {
+            let r = self.rng.sym();
+            v[k] = if k < 3 {
+                (r * 0.3e6) as i32
+            } else {
+                (r * 60.0e6) as i32
+            };
+        }
+        WirePose::from_array(v)
+    }
+
+    /// A table to upload: plausible (known afterwards) or one the controller must refuse.
+    fn table(&mut self, good: bool) -> Table {
+        let id = 10 + self.below(1000) as u32;
+        let mut t = calibrated_table(id);
+        t.legs[self.below(6)].b_mm[self.below(3)] += self.rng.sym() * 0.05;
+        if !good {
+            match self.below(3) {
+                0 => t.p0_mm[0] = f64::NAN,
+                1 => t.legs[2].a_mm[1] += 5.0,
+                _ => {
+                    t.stroke_limits.min_mm = [-0.4; 6];
+                    t.stroke_limits.max_mm = [0.4; 6];
+                }
+            }
+        }
+        t
+    }
+
+    fn upload(&mut self, t: &Table, corrupt_crc: bool, skip_chunk: bool) {
+        let bytes = t.to_bytes();
+        let chunks: Vec<(u16, Vec<u8>)> =
+            dump_chunks(&bytes).map(|(o, b)| (o, b.to_vec())).collect();
+        let skip = if skip_chunk {
+            Some(self.below(chunks.len()))
+        } else {
+            None
+        };
+        for (i, (off, data)) in chunks.iter().enumerate() {
+            if Some(i) != skip {
+                self.send(&Command::LoadTableChunk(
+                    TableChunk::new(*off, data).unwrap(),
+                ));
+            }
+        }
+        let crc = if corrupt_crc {
+            t.crc32() ^ 0x10
+        } else {
+            t.crc32()
+        };
+        self.send(&Command::CommitTable { crc32: crc });
+    }
+
+    /// One random operator (or adversary) action.
+    pub fn act(&mut self) {
+        let pending = self.r.ctl.pending_table();
+        match self.below(23) {
+            0..=4 => {
+                let p = self.pose();
+                self.send(&Command::MoveAbsolute(p));
+            }
+            5 | 6 => {
+                let d = self.small_delta();
+                self.send(&Command::MoveRelative(d));
+            }
+            7 => {
+                self.send(&Command::Stop);
+            }
+            8 => {
+                // The operator repairs what the fault report points at, then clears.
+                if self.below(2) == 0 && matches!(self.r.ctl.state(), State::Faulted) {
+                    self.r.plant.with(|p| p.clear_faults());
+                    self.note("plant repaired".into());
+                    self.repaired = true;
+                }
+                self.send(&Command::ClearFault);
+            }
+            9 | 10 => {
+                let leg = 1 + self.below(6) as u8;
+                let delta_nm = (self.rng.sym() * 0.2e6) as i32;
+                self.send(&Command::DirectStroke { leg, delta_nm });
+            }
+            11 => {
+                let t = self.table(true);
+                self.known.insert(t.crc32(), t);
+                self.upload(&t, false, false);
+            }
+            12 => {
+                let t = self.table(false);
+                self.upload(&t, false, false);
+            }
+            13 => {
+                // A plausible table uploaded badly; the upload buffer keeps its bytes, so a
+                // later upload may complete it legitimately: it is a known table.
+                let t = self.table(true);
+                self.known.insert(t.crc32(), t);
+                let (bad_crc, skip) = (self.below(2) == 0, self.below(2) == 0);
+                self.upload(&t, bad_crc, skip || !bad_crc);
+            }
+            14 | 15 => {
+                // Activate the pending table by name, or a wrong name.
+                let (cmd, crc) = match pending {
+                    Some(p) if self.below(4) != 0 => (
+                        Command::ActivateTable {
+                            table_id: p.table_id,
+                            crc32: p.report.table_crc,
+                        },
+                        p.report.table_crc,
+                    ),
+                    _ => {
+                        let crc = self.below(1 << 30) as u32;
+                        (
+                            Command::ActivateTable {
+                                table_id: self.below(50) as u32,
+                                crc32: crc,
+                            },
+                            crc,
+                        )
+                    }
+                };
+                let rid = self.send(&cmd);
+                self.selecting.push((rid, Some(crc)));
+            }
+            16 => {
+                let rid = self.send(&Command::SwitchBank);
+                self.selecting.push((rid, None));
+            }
+            17 => {
+                let rid = self.send(&Command::RevertToNominal);
+                self.selecting.push((rid, Some(Table::nominal().crc32())));
+            }
+            18 => {
+                let cmd = match self.below(4) {
+                    0 => Command::Ping,
+                    1 => Command::HousekeepingOneShot,
+                    2 => Command::DumpTable(MemoryId::ActiveTable),
+                    _ => Command::DumpTable(MemoryId::UploadBuffer),
+                };
+                self.send(&cmd);
+            }
+            19 => {
+                // Garbage on the line, or a packet with a bad CRC.
+                if self.below(2) == 0 {
+                    let n = 1 + self.below(80);
+                    let g: Vec<u8> = (0..n).map(|_| self.below(256) as u8).collect();
+                    self.r.uplink_bytes(&g);
+                } else {
+                    let from = self.r.st.log.len();
+                    let (mut p, rid) = self.r.st.packet(&Command::Ping).unwrap();
+                    let last = p.len() - 1;
+                    p[last] ^= 0x40;
+                    self.r.uplink_bytes(&crate::ground::tc::frame(&p));
+                    self.tcs_sent += 1;
+                    self.in_flight.push((rid, from));
+                }
+            }
+            20 => self.inject_fault(),
+            // Repairs (re-referencing a drive that missed steps) are maintenance at rest:
+            // a drive does not re-reference itself in the middle of a motion.
+            21 => {
+                if matches!(self.r.ctl.state(), State::Idle | State::Faulted) {
+                    self.r.plant.with(|p| p.clear_faults());
+                    self.note("plant repaired".into());
+                    self.repaired = true;
+                }
+            }
+            _ => self.power_cut(),
+        }
+    }
+
+    fn inject_fault(&mut self) {
+        let leg = self.below(6) as u8;
+        let f = match self.below(8) {
+            0 => InjectedFault::EncoderNoResponse { leg },
+            1 => InjectedFault::EncoderCorrupted { leg },
+            2 => InjectedFault::EncoderJump {
+                leg,
+                jump_mm: self.rng.sym() * 0.5,
+            },
+            3 => InjectedFault::EncoderStuck { leg },
+            4 => InjectedFault::MissedSteps {
+                leg,
+                lost_mm: self.rng.sym() * 0.1,
+            },
+            5 => InjectedFault::StuckSlider { leg },
+            6 => InjectedFault::NoiseBurst {
+                leg,
+                sigma_mm: 0.05,
+            },
+            _ => InjectedFault::DriveFault { leg },
+        };
+        self.faults_injected += 1;
+        if matches!(f, InjectedFault::MissedSteps { .. }) {
+            // The slip itself is the fault: its cycle is not a commanded motion.
+            self.repaired = true;
+        }
+        self.note(format!("inject {f:?}"));
+        self.r.plant.with(|p| p.inject(f));
+    }
+
+    /// A power cut now, or armed to strike inside the next flash write.
+    fn power_cut(&mut self) {
+        if self.below(2) == 0 {
+            let steps = self.below(3000) as u64;
+            let tear = if self.below(2) == 0 {
+                TearMode::Clean
+            } else {
+                TearMode::TornByte
+            };
+            self.r.flash_mut().cut_power_after(steps, tear);
+        } else {
+            self.reboot();
+        }
+    }
+
+    fn reboot(&mut self) {
+        self.note("reboot".into());
+        // Whatever was in flight dies with the controller; only the completed selection
+        // (or the one being written) may run after the reboot.
+        self.check_reports(true);
+        let candidates = std::mem::take(&mut self.selecting);
+        let in_writes = !self.r.flash_mut().is_powered();
+        if in_writes {
+            self.cuts_in_writes += 1;
+        }
+        let old = std::mem::take(&mut self.r);
+        self.r = old.reboot();
+        self.reboots += 1;
+        self.in_flight.clear();
+        self.log_seen = self.r.st.log.len();
+        self.r.tick();
+        self.cycles += 1;
+        let running = TableRef {
+            id: self.r.ctl.active_table().table_id,
+            crc: self.r.ctl.active_table().crc32(),
+        };
+        if !self.known.contains_key(&running.crc) {
+            self.violation(format!("booted an unknown table {running:?}"));
+        }
+        if running != self.selected {
+            // A selection telecommand whose job may have persisted its record before the
+            // reboot, its completion report not yet on the ground.
+            let written = candidates
+                .iter()
+                .any(|(_, crc)| crc.is_none_or(|c| c == running.crc));
+            if written {
+                // The selection being written reached its commit point before the cut.
+                self.selected = running;
+            } else {
+                self.violation(format!(
+                    "booted {running:?}, the last completed selection was {:?}",
+                    self.selected
+                ));
+            }
+        }
+        self.prev_cmd = self.r.ctl.strokes_commanded_mm();
+        self.prev_truth = self.r.plant.with(|p| p.strokes_mm());
+        self.prev_drives = self.r.plant.with(|p| p.drive_setpoints_mm());
+        self.prev_state = self.r.ctl.state();
+        self.prev_faulted = !self.r.ctl.faults().is_empty();
+        self.tm_dropped_seen = 0;
+        self.rest_cycles = 0;
+    }
+
+    /// Checks the report order of every telecommand in flight; retires finished ones.
+    /// `dying`: the controller is about to reboot (incomplete reports are fine then).
+    pub fn check_reports(&mut self, dying: bool) {
+        let mut keep = Vec::new();
+        let in_flight = std::mem::take(&mut self.in_flight);
+        for (rid, from) in in_flight {
+            let reps = self.r.st.reports_since(from, rid);
+            let finished = match report_order(&reps) {
+                Ok(f) => f,
+                Err(e) => {
+                    self.violation(format!("TC {rid:?}: {e}: {reps:?}"));
+                    continue;
+                }
+            };
+            if finished {
+                self.tcs_done += 1;
+                // A selection refused at start changed nothing; one that completed (or
+                // failed after starting) is known from the events.
+                self.selecting.retain(|(r, _)| *r != rid);
+                if reps.last() == Some(&Verification::CompletionSuccess) {
+                    self.completed += 1;
+                }
+            } else if !dying {
+                keep.push((rid, from));
+            }
+        }
+        self.in_flight = keep;
+    }
+
+    /// The per-cycle invariants (module documentation).
+    fn check_cycle(&mut self) {
+        let c = self.r.ctl.strokes_commanded_mm();
+        let state = self.r.ctl.state();
+        let faulted = !self.r.ctl.faults().is_empty();
+        let hk = self.r.ctl.housekeeping();
+        let limits = self.r.ctl.active_table().stroke_limits;
+        let truth = self.r.plant.with(|p| p.strokes_mm());
+        let drives = self.r.plant.with(|p| p.drive_setpoints_mm());
+        let skip = std::mem::take(&mut self.repaired);
+        if let Some(n) = self.state_cycles.get_mut(usize::from(state.code())) {
+            *n += 1;
+        }
+        // 1. Inside the limits: what is commanded and where the sliders are.
+        for i in 0..LEGS {
+            let (lo, hi) = (
+                limits.min_mm[i] - LIMIT_TOL_MM,
+                limits.max_mm[i] + LIMIT_TOL_MM,
+            );
+            let ci = f64::from(c[i]);
+            if !(lo..=hi).contains(&ci) {
+                self.violation(format!(
+                    "leg {} commanded {ci} mm outside [{lo}, {hi}]",
+                    i + 1
+                ));
+            }
+            if !(lo..=hi).contains(&truth[i]) {
+                self.violation(format!("leg {} true stroke {} mm outside", i + 1, truth[i]));
+            }
+        }
+        // 2. Speed: no drive is commanded to a setpoint further than the speed limit
+        //    times a cycle from its last one, unless to where it is (a hold), and the
+        //    controller's commands are continuous: within a motion from cycle to cycle,
+        //    and at its start from what the drives held.
+        let step_limit = f64::from(DEFAULT_MAX_SPEED_MM_PER_S * CYCLE_S) + STEP_ROUNDING_MM;
+        let moving = |s: State| matches!(s, State::Moving | State::Stopping | State::StrokeMoving);
+        let positions = self.r.plant.with(|p| p.drive_positions_mm());
+        for i in 0..LEGS {
+            let d = (drives[i] - self.prev_drives[i]).abs();
+            let hold = (drives[i] - positions[i]).abs() <= STILL_MM;
+            if d > step_limit && !hold && !skip {
+                self.violation(format!(
+                    "leg {} drive setpoint stepped {:.3} um in one cycle ({:?} -> {state:?})",
+                    i + 1,
+                    d * 1e3,
+                    self.prev_state
+                ));
+            }
+            let reference = if moving(self.prev_state) {
+                f64::from(self.prev_cmd[i])
+            } else {
+                self.prev_drives[i]
+            };
+            let d = (f64::from(c[i]) - reference).abs();
+            if moving(state) && d > step_limit {
+                self.violation(format!(
+                    "leg {} commanded step {:.3} um ({:?} -> {state:?})",
+                    i + 1,
+                    d * 1e3,
+                    self.prev_state
+                ));
+            }
+        }
+        // 3. While faulted and at rest no slider moves (from the second cycle at rest:
+        //    the drives take one cycle to reach the stop ramp's last setpoint).
+        self.rest_cycles = if state == State::Faulted {
+            self.rest_cycles.saturating_add(1)
+        } else {
+            0
+        };
+        if self.rest_cycles > 2 && !skip {
+            for i in 0..LEGS {
+                if (truth[i] - self.prev_truth[i]).abs() > STILL_MM {
+                    self.violation(format!(
+                        "leg {} moved {:.6} um while faulted at rest",
+                        i + 1,
+                        (truth[i] - self.prev_truth[i]) * 1e3
+                    ));
+                }
+            }
+        }
+        // 4. During a recovery move only its leg's drive setpoint changes; the others
+        //    keep exactly theirs.
+        if state == State::StrokeMoving && self.prev_state == State::StrokeMoving && !skip {
+            for i in (0..LEGS).filter(|i| hk.moving_legs & (1 << i) == 0) {
+                if drives[i] != self.prev_drives[i] {
+                    self.violation(format!(
+                        "leg {} drive setpoint {} -> {} during a recovery move of legs {:#08b}",
+                        i + 1,
+                        self.prev_drives[i],
+                        drives[i],
+                        hk.moving_legs
+                    ));
+                }
+            }
+        }
+        // 5. Nothing dropped.
+        if hk.tm_dropped != self.tm_dropped_seen {
+            self.tm_dropped_seen = hk.tm_dropped;
+            self.violation(format!("{} telemetry records dropped", hk.tm_dropped));
+        }
+        // 6. Track completed selections from the telemetry.
+        self.track_selections();
+        self.prev_cmd = c;
+        self.prev_truth = truth;
+        self.prev_drives = drives;
+        self.prev_state = state;
+        self.prev_faulted = faulted;
+    }
+
+    /// A completed activation is a TABLE_ACTIVATED event: that table is now the one to
+    /// boot.
+    fn track_selections(&mut self) {
+        let new = self.r.st.log.len();
+        for k in self.log_seen..new {
+            if let Tm::Event(_, event::TABLE_ACTIVATED, [id, crc]) = self.r.st.log[k] {
+                let t = TableRef { id, crc };
+                if !self.known.contains_key(&crc) {
+                    self.violation(format!("activated an unknown table {t:?}"));
+                }
+                self.selected = t;
+            }
+        }
+        self.log_seen = new;
+    }
+
+    /// The figures so far.
+    pub fn figures(&self) -> SoakFigures {
+        SoakFigures {
+            cycles: self.cycles,
+            tcs_sent: self.tcs_sent,
+            tcs_done: self.tcs_done,
+            completed: self.completed,
+            reboots: self.reboots,
+            cuts_in_writes: self.cuts_in_writes,
+            faults_injected: self.faults_injected,
+            state_cycles: self.state_cycles,
+            violations: self.violations.len() as u64,
+        }
+    }
+
+    /// Every violation found, in order.
+    pub fn violations(&self) -> &[String] {
+        &self.violations
+    }
+
+    /// Telecommands whose reports are still incomplete.
+    pub fn in_flight(&self) -> usize {
+        self.in_flight.len()
+    }
+
+    /// Time passing (up to `max_gap` cycles, chosen), then one action.
+    pub fn round(&mut self, max_gap: usize) {
+        let gap = 1 + self.below(max_gap);
+        for _ in 0..gap {
+            self.step();
+        }
+        self.act();
+    }
+
+    /// Lets the telecommands in flight finish (`cycles` cycles), then checks them.
+    pub fn drain(&mut self, cycles: u32) {
+        for _ in 0..cycles {
+            self.step();
+        }
+        self.check_reports(false);
+    }
+
+    /// One control cycle, checked; a reboot if the power failed.
+    pub fn step(&mut self) {
+        if !self.r.flash_mut().is_powered() {
+            // The cut struck inside a flash write: the whole controller loses power.
+            self.reboot();
+            return;
+        }
+        self.r.tick();
+        self.cycles += 1;
+        self.check_cycle();
+        if self.cycles % 64 == 0 {
+            self.check_reports(false);
+        }
+    }
+}
+
+/// A valid service-1 sequence (all acknowledgements requested): `[1,2]`, or `[1,1]` then
+/// `[1,4]`, or `[1,1] [1,3]` then `[1,7]` or `[1,8]`; a prefix of one while in flight.
+/// Returns whether it is complete.
+fn report_order(reps: &[Verification]) -> Result<bool, &'static str> {
+    use Verification::*;
+    Ok(match reps {
+        [] => false,
+        [AcceptanceFailure { .. }] => true,
+        [AcceptanceSuccess] => false,
+        [AcceptanceSuccess, StartFailure { .. }] => true,
+        [AcceptanceSuccess, StartSuccess] => false,
+        [AcceptanceSuccess, StartSuccess, CompletionSuccess | CompletionFailure { .. }] => true,
+        _ => return Err("reports out of order or duplicated"),
+    })
+}
