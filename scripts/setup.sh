@@ -16,6 +16,9 @@ rustup target list --installed | grep -qx thumbv7em-none-eabihf || rustup target
 rustup component list --installed | grep -q '^clippy' || rustup component add clippy
 rustup component list --installed | grep -q '^rustfmt' || rustup component add rustfmt
 command -v defmt-print >/dev/null || cargo install defmt-print --locked --version 1.2.0
+# Coverage-guided fuzzing (scripts/fuzz.sh): a nightly toolchain and cargo-fuzz.
+rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
+command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked --version 0.13.2
 # Python spacepackets: the independent PUS encoder of host-tests/link.rs.
 python3 -c 'import spacepackets' 2>/dev/null || pip install --quiet spacepackets
 echo "setup: rust target, qemu-system-arm, arm binutils, defmt-print ready"

@@ -747,6 +747,11 @@ impl<C: Choices> Soak<C> {
         &self.violations
     }
 
+    /// The decision source is exhausted (a fuzz input consumed).
+    pub fn is_exhausted(&self) -> bool {
+        self.rng.exhausted()
+    }
+
     /// Telecommands whose reports are still incomplete.
     pub fn in_flight(&self) -> usize {
         self.in_flight.len()
