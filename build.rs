@@ -1,20 +1,34 @@
 //! Build script:
-//! * puts `memory.x` on the linker search path for the firmware (thumb targets only);
+//! * puts the board's memory map on the linker search path as `memory.x` (what
+//!   cortex-m-rt's `link.x` includes) for the firmware, thumb targets only:
+//!   `memory/mps2-an386.x` (the default board) or `memory/netduinoplus2.x` (feature
+//!   `board-netduinoplus2`). No `memory.x` may sit in the package root: the linker
+//!   searches its working directory first and would take that one for every board;
 //! * turns `testdata/ik_golden.csv` into Rust constants for the self-test, so the
 //!   firmware image carries no decimal parser (f64 parsing is ~20 KiB of flash).
 use std::{env, fs, path::PathBuf};
 
 const GOLDEN_CSV: &str = "testdata/ik_golden.csv";
+/// Memory map of the default board (QEMU mps2-an386).
+const MEMORY_MPS2: &str = "memory/mps2-an386.x";
+/// Memory map of the Netduino Plus 2 (feature `board-netduinoplus2`).
+const MEMORY_NETDUINOPLUS2: &str = "memory/netduinoplus2.x";
 const GOLDEN_COLUMNS: usize = 12;
 
 fn main() {
-    println!("cargo:rerun-if-changed=memory.x");
+    println!("cargo:rerun-if-changed={MEMORY_MPS2}");
+    println!("cargo:rerun-if-changed={MEMORY_NETDUINOPLUS2}");
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed={GOLDEN_CSV}");
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
     let target = env::var("TARGET").unwrap_or_default();
     if target.starts_with("thumb") {
-        fs::write(out.join("memory.x"), include_bytes!("memory.x")).expect("write memory.x");
+        let memory: &[u8] = if env::var_os("CARGO_FEATURE_BOARD_NETDUINOPLUS2").is_some() {
+            include_bytes!("memory/netduinoplus2.x")
+        } else {
+            include_bytes!("memory/mps2-an386.x")
+        };
+        fs::write(out.join("memory.x"), memory).expect("write memory.x");
         println!("cargo:rustc-link-search={}", out.display());
     }
     let text = fs::read_to_string(GOLDEN_CSV).expect("read testdata/ik_golden.csv");

@@ -6,19 +6,55 @@ use crate::kinematics::LEGS;
 /// Encoder resolution: one count is 0.1 um of slider stroke (mm per count).
 pub const ENCODER_MM_PER_COUNT: f64 = 1.0e-4;
 
-/// Why the encoders could not be read.
+/// The leg index a hardware error carries when it concerns every leg at once (a shared
+/// bus or a daisy chain that failed as a whole). Any index `>= LEGS` means "every leg" to
+/// the supervisor; this is the one the drivers use.
+pub const EVERY_LEG: u8 = u8::MAX;
+
+/// Why the encoders could not be read. `leg` is 0-based, or [`EVERY_LEG`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum EncoderError {
-    /// No answer from the encoder of this leg (0-based).
+    /// No answer from the encoder of this leg (0-based): no acknowledge, no start bit
+    /// in time (timeout), or the bus itself failed.
     NoResponse {
         /// 0-based leg index.
         leg: u8,
     },
-    /// The encoder answered with a corrupted frame (parity/CRC).
+    /// The encoder answered with a corrupted frame (parity/CRC, or a frame that breaks
+    /// the protocol's structure).
     Corrupted {
         /// 0-based leg index.
         leg: u8,
     },
+    /// The encoder answered with an intact frame (CRC good) whose error bit is set: its
+    /// own checks say this position must not be trusted (on a Renishaw RESOLUTE: the
+    /// internal position check failed, or the readhead is over temperature). The link
+    /// works; the measurement does not.
+    SelfCheckFailed {
+        /// 0-based leg index.
+        leg: u8,
+    },
+}
+
+impl EncoderError {
+    /// The 0-based leg (or [`EVERY_LEG`]) the error concerns.
+    pub const fn leg(&self) -> u8 {
+        match *self {
+            EncoderError::NoResponse { leg }
+            | EncoderError::Corrupted { leg }
+            | EncoderError::SelfCheckFailed { leg } => leg,
+        }
+    }
+
+    /// Stable code of the kind of failure, for events and telemetry: 1 no response,
+    /// 2 corrupted, 3 the encoder's own error bit. Never renumbered.
+    pub const fn code(&self) -> u8 {
+        match self {
+            EncoderError::NoResponse { .. } => 1,
+            EncoderError::Corrupted { .. } => 2,
+            EncoderError::SelfCheckFailed { .. } => 3,
+        }
+    }
 }
 
 /// Why a slider command was not accepted by the drive.
@@ -53,6 +89,77 @@ pub trait SliderDrives {
     fn setpoints_mm(&mut self) -> [f32; LEGS];
     /// Health of the drives now (polled while no command is sent, i.e. at rest).
     fn status(&mut self) -> Result<(), DriveError>;
+}
+
+/// Per-leg encoder warnings, for encoders that report one beside the position (BiSS-C's
+/// warning bit). A warning does not invalidate the reading (that is
+/// [`EncoderError::SelfCheckFailed`]); it asks for maintenance (RESOLUTE: the scale or
+/// the readhead window should be cleaned).
+pub trait EncoderWarnings {
+    /// Legs (bit i = leg i+1) whose encoder flagged a warning in the most recent
+    /// [`StrokeEncoders::read_counts`], counting only frames that arrived intact (CRC
+    /// good); 0 before the first read. Read it after `read_counts`, every cycle.
+    fn warning_legs(&self) -> u8;
+}
+
+/// What open-loop (step/direction) drives have issued: the stroke each slider was told
+/// to reach, counted in the pulses actually sent. The encoders measure where it is; the
+/// difference is missed steps (or compliance).
+pub trait IssuedStrokes {
+    /// Stroke (mm, along base z, 0 at home) each drive has been stepped to: the
+    /// microsteps sent so far, converted through the lead-screw pitch, microstepping and
+    /// gear ratio. Pulses still in flight at the call count as issued.
+    fn issued_strokes_mm(&self) -> [f32; LEGS];
+    /// Declares where the sliders are (mm, e.g. the encoder reading at boot or after
+    /// recovery): the issued position becomes this, to the nearest microstep, and no
+    /// pulse is sent. Until it has been called, the drives refuse to move (they do not
+    /// know where they are).
+    fn align_issued_mm(&mut self, measured_mm: &[f32; LEGS]);
+}
+
+/// The end-of-travel and reference inputs of every slider, as read in one cycle. Each
+/// field is a leg mask (bit i = leg i+1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TravelSwitches {
+    /// Lower end-of-travel switch active: the slider must not move to smaller strokes.
+    pub lower: u8,
+    /// Upper end-of-travel switch active: the slider must not move to larger strokes.
+    pub upper: u8,
+    /// Reference (home) sensor active. Information only (homing, checking the encoder
+    /// zero); never a fault by itself.
+    pub reference: u8,
+    /// Some input of this leg could not be read. Treat as both ends active (fail safe).
+    pub unreadable: u8,
+}
+
+impl TravelSwitches {
+    /// Legs that must not move towards smaller strokes: lower switch active or unreadable.
+    pub const fn blocked_negative(&self) -> u8 {
+        self.lower | self.unreadable
+    }
+
+    /// Legs that must not move towards larger strokes: upper switch active or unreadable.
+    pub const fn blocked_positive(&self) -> u8 {
+        self.upper | self.unreadable
+    }
+
+    /// Legs with an end-of-travel condition (either end, both, or unreadable).
+    pub const fn end_of_travel(&self) -> u8 {
+        self.lower | self.upper | self.unreadable
+    }
+
+    /// Legs whose two end switches are active at once, or unreadable: the switch
+    /// hardware is at fault (a slider cannot be at both ends).
+    pub const fn implausible(&self) -> u8 {
+        (self.lower & self.upper) | self.unreadable
+    }
+}
+
+/// End-of-travel switches and reference sensors of the six sliders.
+pub trait EndOfTravel {
+    /// Reads every input once (call once per cycle, right after the encoders). A switch
+    /// seen active is in the result of this call: there is no filtering or latching here.
+    fn read_switches(&mut self) -> TravelSwitches;
 }
 
 /// Converts encoder counts to strokes (mm) in f32.

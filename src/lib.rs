@@ -8,6 +8,8 @@
 //! * [`kinematics`]: geometry, IK, FK, workspace check, generic over `f32`/`f64`.
 //! * [`nominal`]: the compiled-in nominal geometry of the prototype.
 //! * [`selftest`]: the golden-vector self-test the firmware runs at boot.
+//! * [`drivers`]: BiSS-C encoders, step/direction drives, limit switches on
+//!   embedded-hal 1.0 traits (no board imports).
 //! * `sim` (host): the simulated plant (true geometry, sliders, encoders).
 //! * `ground` (host): files, CLI support, calibration.
 #![cfg_attr(not(feature = "host"), no_std)]
@@ -15,6 +17,7 @@
 #![warn(missing_docs)]
 
 pub mod controller;
+pub mod drivers;
 pub mod hw;
 pub mod kinematics;
 pub mod link;

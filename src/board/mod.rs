@@ -1,8 +1,21 @@
 //! Board glue (feature `firmware`, target only): the only code that touches hardware
-//! registers. One file per board; [`active`] names the one this image is built for.
-//! Today: QEMU's mps2-an386 (Cortex-M4F). A second board is a new file here
-//! implementing the same items (exit, UART, table flash, cycle pacing, markers).
+//! registers. One file per board; [`active`] names the one this image is built for,
+//! chosen by cargo feature:
+//!
+//! * default: QEMU's mps2-an386 (Cortex-M4F), [`mps2_an386`];
+//! * `board-netduinoplus2`: the STM32F405 Netduino Plus 2 (also QEMU `netduinoplus2`),
+//!   `netduinoplus2`, which also wires the drivers of `crate::drivers` to the HAL.
+//!
+//! Every board implements the same items (exit, UART, table flash, cycle pacing, stack
+//! peak, markers), so every image builds for either. Exactly one board is compiled (each
+//! defines the panic handler).
 
+#[cfg(not(feature = "board-netduinoplus2"))]
 pub mod mps2_an386;
-
+#[cfg(not(feature = "board-netduinoplus2"))]
 pub use mps2_an386 as active;
+
+#[cfg(feature = "board-netduinoplus2")]
+pub mod netduinoplus2;
+#[cfg(feature = "board-netduinoplus2")]
+pub use netduinoplus2 as active;

@@ -15,7 +15,7 @@
 //!
 //! | flag | condition at cycle c | N (default) | latency |
 //! |---|---|---|---|
-//! | `ENCODER_READ_FAILURE` | read `Err`, or a non-finite stroke (that leg) | 1 | c0 |
+//! | `ENCODER_READ_FAILURE` | read `Err` (no response, corrupted frame, or the encoder's own error bit: `SelfCheckFailed`), or a non-finite stroke (that leg) | 1 | c0 |
 //! | `ENCODER_JUMP` | `|m_c - m_prev| > jump_mm_per_cycle * cycles since m_prev` | 1 | c0 |
 //! | `DRIVE_FAULT` | `drive` is `Err` (result of the last command) | 1 | c0 |
 //! | `FOLLOWING_WARNING` | `|m_c - commanded_prev| > following_warning_mm` | 5 | c0 + 4 |
@@ -318,9 +318,12 @@ impl Supervisor {
 
         // --- Encoder read --------------------------------------------------------------
         let (read_fail_legs, measured) = match &inp.encoders {
-            Err(EncoderError::NoResponse { leg }) | Err(EncoderError::Corrupted { leg }) => {
-                (leg_bit(*leg), None)
-            }
+            // No answer, a corrupted frame, or an intact frame whose error bit says the
+            // encoder's own check failed (`SelfCheckFailed`): no trustworthy reading of
+            // that leg this cycle, so all three are a read failure of that leg.
+            Err(EncoderError::NoResponse { leg })
+            | Err(EncoderError::Corrupted { leg })
+            | Err(EncoderError::SelfCheckFailed { leg }) => (leg_bit(*leg), None),
             Ok(m) => {
                 let mut bad = 0u8;
                 for (i, v) in m.iter().enumerate() {

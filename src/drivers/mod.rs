@@ -1,0 +1,92 @@
+//! Drivers for the mechanism's hardware, `no_std`, generic over embedded-hal 1.0 traits
+//! and free of any board import: a board wires them to its HAL's SPI, GPIO and timers.
+//!
+//! * [`biss`]: BiSS-C absolute linear encoders on an `SpiDevice` (one daisy chain of
+//!   six in one transaction, or six point-to-point links) -> [`hw::StrokeEncoders`],
+//!   [`hw::EncoderWarnings`].
+//! * [`stepper`]: step/direction drives (lead screw, microsteps, gear) with a
+//!   drift-free microstep count and a [`stepper::StepPulses`] seam for the board's
+//!   timer -> [`hw::SliderDrives`], [`hw::IssuedStrokes`].
+//! * [`switches`]: lower/upper end-of-travel switches and a reference sensor per slider
+//!   -> [`hw::EndOfTravel`].
+//! * [`Mechanism`]: the three together as the one `mech` object the controller takes.
+//!
+//! Nothing here allocates or panics; every hardware failure becomes a [`hw`] error.
+//!
+//! [`hw`]: crate::hw
+//! [`hw::StrokeEncoders`]: crate::hw::StrokeEncoders
+//! [`hw::EncoderWarnings`]: crate::hw::EncoderWarnings
+//! [`hw::SliderDrives`]: crate::hw::SliderDrives
+//! [`hw::IssuedStrokes`]: crate::hw::IssuedStrokes
+//! [`hw::EndOfTravel`]: crate::hw::EndOfTravel
+
+#![deny(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::unreachable,
+    clippy::indexing_slicing
+)]
+
+pub mod biss;
+pub mod stepper;
+pub mod switches;
+
+use crate::hw::{
+    DriveError, EncoderError, EncoderWarnings, EndOfTravel, IssuedStrokes, SliderDrives,
+    StrokeEncoders, TravelSwitches,
+};
+use crate::kinematics::LEGS;
+
+/// Encoders, drives and switches of one mechanism, behind every [`crate::hw`] trait
+/// (each call goes to the part that owns it).
+pub struct Mechanism<E, D, S> {
+    /// The stroke encoders.
+    pub encoders: E,
+    /// The slider drives.
+    pub drives: D,
+    /// The end-of-travel switches and reference sensors.
+    pub switches: S,
+}
+
+impl<E: StrokeEncoders, D, S> StrokeEncoders for Mechanism<E, D, S> {
+    fn read_counts(&mut self) -> Result<[i32; LEGS], EncoderError> {
+        self.encoders.read_counts()
+    }
+}
+
+impl<E: EncoderWarnings, D, S> EncoderWarnings for Mechanism<E, D, S> {
+    fn warning_legs(&self) -> u8 {
+        self.encoders.warning_legs()
+    }
+}
+
+impl<E, D: SliderDrives, S> SliderDrives for Mechanism<E, D, S> {
+    fn command_strokes_mm(&mut self, setpoint_mm: &[f32; LEGS]) -> Result<(), DriveError> {
+        self.drives.command_strokes_mm(setpoint_mm)
+    }
+    fn hold(&mut self) {
+        self.drives.hold()
+    }
+    fn setpoints_mm(&mut self) -> [f32; LEGS] {
+        self.drives.setpoints_mm()
+    }
+    fn status(&mut self) -> Result<(), DriveError> {
+        self.drives.status()
+    }
+}
+
+impl<E, D: IssuedStrokes, S> IssuedStrokes for Mechanism<E, D, S> {
+    fn issued_strokes_mm(&self) -> [f32; LEGS] {
+        self.drives.issued_strokes_mm()
+    }
+    fn align_issued_mm(&mut self, measured_mm: &[f32; LEGS]) {
+        self.drives.align_issued_mm(measured_mm)
+    }
+}
+
+impl<E, D, S: EndOfTravel> EndOfTravel for Mechanism<E, D, S> {
+    fn read_switches(&mut self) -> TravelSwitches {
+        self.switches.read_switches()
+    }
+}
