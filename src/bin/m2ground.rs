@@ -50,6 +50,13 @@ enum Cmd {
     Tc(TcCli),
     /// The whole mission story on the simulated plant: move, calibrate, upload, move again.
     Mission(MissionCli),
+    /// Write the mission database (every TC, TM packet, enumeration, event) as JSON, the
+    /// input of yamcs/tools/gen_xtce.py (docs/ground-segment.md).
+    MdbJson {
+        /// Output file (default: stdout).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
 }
 
 #[derive(clap::Args)]
@@ -531,6 +538,7 @@ fn main() -> ExitCode {
             }
             Cmd::Tc(a) => tc_cmd(a),
             Cmd::Mission(a) => mission_cmd(a),
+            Cmd::MdbJson { out } => write_out(out.as_ref(), &m2ctl::ground::mdb::mdb().to_json()),
             Cmd::Bench(a) => {
                 bench(&table_config(&a.solver_cli, None), a.repeats).map(|t| print!("{t}"))
             }

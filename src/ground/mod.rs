@@ -6,6 +6,7 @@ pub mod campaign;
 pub mod eval;
 pub mod files;
 pub mod ikfk;
+pub mod mdb;
 pub mod mission;
 pub mod plan;
 pub mod report;
