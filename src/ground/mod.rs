@@ -5,6 +5,7 @@ pub mod calib_cmd;
 pub mod campaign;
 pub mod eval;
 pub mod files;
+pub mod gateway;
 pub mod ikfk;
 pub mod mdb;
 pub mod mission;
