@@ -60,7 +60,7 @@ trap cleanup EXIT
 trap 'exit 130' INT TERM
 
 SOCK=$W/uart.sock
-qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none \
+qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none -icount shift=auto \
   -semihosting-config enable=on,target=native \
   -chardev "socket,id=uart0,path=$SOCK,server=on,wait=on" -serial chardev:uart0 \
   -kernel "$ELF" > "$W/logs/qemu.log" 2>&1 &
@@ -89,11 +89,14 @@ echo "ground-segment: up. Yamcs web UI http://localhost:$HTTP_PORT (instance m2)
 
 if [ ${#cmd[@]} -gt 0 ]; then
   set +e
-  M2_YAMCS_URL="localhost:$HTTP_PORT" M2_GROUND_DIR="$W" M2GROUND="$M2GROUND" "${cmd[@]}"
+  M2_YAMCS_URL="localhost:$HTTP_PORT" M2_GROUND_DIR="$W" M2GROUND="$M2GROUND" "${cmd[@]}" &
+  cmd_pid=$!
+  pids+=("$cmd_pid")
+  wait "$cmd_pid"
   rc=$?
   set -e
   echo "ground-segment: gateway: $(grep 'gateway: TM' "$W/logs/gateway.log" | tail -1 | sed 's/^gateway: //')"
   exit $rc
 fi
 echo "ground-segment: Ctrl-C to stop"
-wait "${pids[0]}"
+wait "${pids[0]}" || true

@@ -56,6 +56,8 @@ const CCSDS_LENGTH_OFFSET: usize = CCSDS_PRIMARY_HEADER_LEN + 1;
 const CCSDS_LENGTH_FIELD: usize = 4;
 /// Seconds of Yamcs' gradient per raw CUC 4+2 count.
 pub const GRADIENT_S_PER_COUNT: f64 = 1.0 / TIME_FRACTIONS_PER_SECOND as f64;
+/// Longest wait for Yamcs' answer to a coefficient update.
+const HTTP_TIMEOUT: Duration = Duration::from_millis(500);
 /// Read chunk (bytes).
 const READ_CHUNK: usize = 4096;
 /// How long the UART/Yamcs connections are retried at start (s).
@@ -358,8 +360,13 @@ pub fn http_post_json(url: &str, body: &str) -> Result<(), String> {
         .strip_prefix("http://")
         .ok_or_else(|| format!("{url}: only http:// URLs"))?;
     let (host, path) = rest.split_once('/').unwrap_or((rest, ""));
-    let mut s = TcpStream::connect(host).map_err(|e| format!("{host}: {e}"))?;
-    s.set_read_timeout(Some(Duration::from_secs(5)))
+    let addr = std::net::ToSocketAddrs::to_socket_addrs(host)
+        .map_err(|e| format!("{host}: {e}"))?
+        .next()
+        .ok_or_else(|| format!("{host}: no address"))?;
+    let mut s =
+        TcpStream::connect_timeout(&addr, HTTP_TIMEOUT).map_err(|e| format!("{host}: {e}"))?;
+    s.set_read_timeout(Some(HTTP_TIMEOUT))
         .map_err(|e| e.to_string())?;
     let req = format!(
         "POST /{path} HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
@@ -587,9 +594,16 @@ pub fn run(
         tm.push(&buf[..n], &mut packets);
         Stats::add(&stats.tm_bad_frames, tm.bad_frames - before);
         for p in packets.drain(..) {
-            if let (Some(tx), Some(obt)) = (&tco_tx, tm_obt_s(&p)) {
-                if let Some(boot) = correlator.sample(obt, arrival) {
-                    let _ = tx.send(boot);
+            if let (Some(tx), Some(obt), Some(url)) = (&tco_tx, tm_obt_s(&p), &options.tco_url) {
+                if let Some(fit) = correlator.sample(obt, arrival) {
+                    // Before this packet goes to Yamcs, so that Yamcs stamps it with the
+                    // corrected line; if Yamcs does not answer at once, retry later.
+                    let live = client.lock().map(|c| c.is_some()).unwrap_or(false);
+                    if live && http_post_json(url, &coefficients_json(&fit)).is_ok() {
+                        Stats::add(&stats.tco_updates, 1);
+                    } else {
+                        let _ = tx.send(fit);
+                    }
                 }
             }
             let (Ok(mut c), Ok(mut b)) = (client.lock(), backlog.lock()) else {
