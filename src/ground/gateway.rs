@@ -56,6 +56,8 @@ const CCSDS_LENGTH_OFFSET: usize = CCSDS_PRIMARY_HEADER_LEN + 1;
 const CCSDS_LENGTH_FIELD: usize = 4;
 /// Seconds of Yamcs' gradient per raw CUC 4+2 count.
 pub const GRADIENT_S_PER_COUNT: f64 = 1.0 / TIME_FRACTIONS_PER_SECOND as f64;
+/// Attempts to set the correlation when Yamcs connects, [`CONNECT_RETRY`] apart.
+const TCO_CONNECT_TRIES: usize = 20;
 /// Longest wait for Yamcs' answer to a coefficient update.
 const HTTP_TIMEOUT: Duration = Duration::from_millis(500);
 /// Read chunk (bytes).
@@ -467,6 +469,9 @@ pub fn run(
     stop: Arc<AtomicBool>,
 ) -> Result<(), String> {
     let client: Arc<Mutex<Option<TcpStream>>> = Arc::new(Mutex::new(None));
+    // The correlation line Yamcs should have (set by the TM path, given to each new
+    // Yamcs connection before the backlog).
+    let latest_fit: Arc<Mutex<Option<TimeFit>>> = Arc::new(Mutex::new(None));
     let backlog: Arc<Mutex<VecDeque<Vec<u8>>>> = Arc::new(Mutex::new(VecDeque::new()));
     let uart_tx = Arc::new(Mutex::new(uart_tx));
     let capacity = options.backlog.max(1);
@@ -481,6 +486,7 @@ pub fn run(
             stats.clone(),
             stop.clone(),
         );
+        let (latest_fit, tco_url) = (latest_fit.clone(), options.tco_url.clone());
         std::thread::spawn(move || {
             while !stop.load(Ordering::Relaxed) {
                 let Ok((mut s, _)) = listener.accept() else {
@@ -489,7 +495,19 @@ pub fn run(
                 };
                 let _ = s.set_nonblocking(false);
                 let _ = s.set_nodelay(true);
-                // Send what arrived while nobody listened, then go live.
+                // Send what arrived while nobody listened, then go live. The correlation
+                // first, so that the kept packets get their on-board times (Yamcs' HTTP
+                // server is up before its link connects; retried briefly).
+                if let (Some(url), Some(fit)) = (&tco_url, latest_fit.lock().ok().and_then(|f| *f))
+                {
+                    for _ in 0..TCO_CONNECT_TRIES {
+                        if http_post_json(url, &coefficients_json(&fit)).is_ok() {
+                            Stats::add(&stats.tco_updates, 1);
+                            break;
+                        }
+                        std::thread::sleep(CONNECT_RETRY);
+                    }
+                }
                 if let (Ok(mut c), Ok(mut b)) = (client.lock(), backlog.lock()) {
                     let ok = b.iter().all(|p| s.write_all(p).is_ok());
                     Stats::add(&stats.tm_packets, b.len() as u64);
@@ -596,6 +614,9 @@ pub fn run(
         for p in packets.drain(..) {
             if let (Some(tx), Some(obt), Some(url)) = (&tco_tx, tm_obt_s(&p), &options.tco_url) {
                 if let Some(fit) = correlator.sample(obt, arrival) {
+                    if let Ok(mut f) = latest_fit.lock() {
+                        *f = Some(fit);
+                    }
                     // Before this packet goes to Yamcs, so that Yamcs stamps it with the
                     // corrected line; if Yamcs does not answer at once, retry later.
                     let live = client.lock().map(|c| c.is_some()).unwrap_or(false);
