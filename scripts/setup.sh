@@ -7,6 +7,10 @@ need_apt=()
 command -v qemu-system-arm >/dev/null || need_apt+=(qemu-system-arm)
 command -v arm-none-eabi-nm >/dev/null || need_apt+=(binutils-arm-none-eabi)
 command -v gcc >/dev/null || need_apt+=(gcc)
+# Ground segment (scripts/ground-segment.sh, scripts/yamcs-e2e.sh): Java 17 for Yamcs,
+# Chromium for the web UI screenshot.
+command -v java >/dev/null || need_apt+=(openjdk-17-jre-headless)
+command -v chromium >/dev/null || need_apt+=(chromium)
 if [ ${#need_apt[@]} -gt 0 ]; then
   SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO=sudo
   $SUDO apt-get update -qq
@@ -21,4 +25,11 @@ rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly -
 command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked --version 0.13.2
 # Python spacepackets: the independent PUS encoder of host-tests/link.rs.
 python3 -c 'import spacepackets' 2>/dev/null || pip install --quiet spacepackets
-echo "setup: rust target, qemu-system-arm, arm binutils, defmt-print ready"
+# Ground segment: Yamcs 5.12 server jars (AGPL; installed from PyPI, never vendored),
+# the XTCE writer, the Yamcs client, the XTCE schema validator.
+python3 - <<'PY' 2>/dev/null || pip install --quiet "fprime-yamcs-bundle==5.12.8.0" "yamcs-pymdb==1.4.0" "yamcs-client==2.1.0" "space-packet-parser==6.2.0"
+import importlib.metadata as m
+want = {"fprime-yamcs-bundle": "5.12.8.0", "yamcs-pymdb": "1.4.0", "yamcs-client": "2.1.0", "space-packet-parser": "6.2.0"}
+raise SystemExit(any(m.version(k) != v for k, v in want.items()))
+PY
+echo "setup: rust target, qemu-system-arm, arm binutils, defmt-print, Yamcs ground segment ready"

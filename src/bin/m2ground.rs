@@ -50,6 +50,15 @@ enum Cmd {
     Tc(TcCli),
     /// The whole mission story on the simulated plant: move, calibrate, upload, move again.
     Mission(MissionCli),
+    /// Join Yamcs' TCP link and the controller's COBS byte stream (docs/ground-segment.md).
+    Gateway(GatewayCli),
+    /// Write the mission database (every TC, TM packet, enumeration, event) as JSON, the
+    /// input of yamcs/tools/gen_xtce.py (docs/ground-segment.md).
+    MdbJson {
+        /// Output file (default: stdout).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
 }
 
 #[derive(clap::Args)]
@@ -106,6 +115,58 @@ fn mission_cmd(a: &MissionCli) -> Result<(), String> {
     println!();
     print!("{}", format_summary(&report));
     Ok(())
+}
+
+#[derive(clap::Args)]
+struct GatewayCli {
+    /// The controller's byte stream: unix:PATH (QEMU UART socket), tcp:HOST:PORT, or a
+    /// serial device path (configured first: stty -F DEV 115200 raw -echo).
+    #[arg(long)]
+    uart: String,
+    /// Address Yamcs' TcpTcTmDataLink connects to.
+    #[arg(long, default_value = "127.0.0.1:10015")]
+    listen: String,
+    /// Yamcs' time-correlation URL (http://127.0.0.1:8090/api/tco/m2/tco0/coefficients);
+    /// without it Yamcs stamps packets with their reception time.
+    #[arg(long)]
+    tco_url: Option<String>,
+    /// Seconds to wait for the controller's stream to appear.
+    #[arg(long, default_value_t = 30)]
+    wait_s: u64,
+    /// Print the counters every N seconds (0: only at the end).
+    #[arg(long, default_value_t = 10)]
+    stats_s: u64,
+}
+
+fn gateway_cmd(a: &GatewayCli) -> Result<(), String> {
+    use m2ctl::ground::gateway::{run, Options, Stats, Uart, DEFAULT_BACKLOG_PACKETS};
+    use std::sync::{atomic::AtomicBool, Arc};
+    use std::time::Duration;
+    let listener =
+        std::net::TcpListener::bind(&a.listen).map_err(|e| format!("{}: {e}", a.listen))?;
+    let uart = Uart::parse(&a.uart);
+    let (rx, tx) = uart.open(Duration::from_secs(a.wait_s))?;
+    eprintln!(
+        "gateway: controller {uart:?} <-> Yamcs on {}{}",
+        a.listen,
+        a.tco_url
+            .as_ref()
+            .map(|u| format!(", time correlation -> {u}"))
+            .unwrap_or_default()
+    );
+    let options = Options {
+        tco_url: a.tco_url.clone(),
+        backlog: DEFAULT_BACKLOG_PACKETS,
+        stats_every: (a.stats_s > 0).then(|| Duration::from_secs(a.stats_s)),
+    };
+    run(
+        listener,
+        rx,
+        tx,
+        &options,
+        Arc::new(Stats::default()),
+        Arc::new(AtomicBool::new(false)),
+    )
 }
 
 #[derive(clap::Args)]
@@ -554,6 +615,8 @@ fn main() -> ExitCode {
             }
             Cmd::Tc(a) => tc_cmd(a),
             Cmd::Mission(a) => mission_cmd(a),
+            Cmd::Gateway(a) => gateway_cmd(a),
+            Cmd::MdbJson { out } => write_out(out.as_ref(), &m2ctl::ground::mdb::mdb().to_json()),
             Cmd::Bench(a) => {
                 bench(&table_config(&a.solver_cli, None), a.repeats).map(|t| print!("{t}"))
             }

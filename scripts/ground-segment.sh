@@ -1,0 +1,102 @@
+#!/usr/bin/env bash
+# The whole ground segment on this machine (docs/ground-segment.md):
+#   the flight image m2fw in QEMU (UART0 on a Unix socket)
+#   <-> m2ground gateway (COBS frames <-> CCSDS packets, time correlation)
+#   <-> Yamcs 5.12 (PyPI fprime-yamcs-bundle jars; web UI http://localhost:8090)
+# with the mission database generated from m2ground mdb-json.
+#
+#   scripts/ground-segment.sh                 # bring it up; Ctrl-C stops everything
+#   scripts/ground-segment.sh -- CMD ARGS...  # bring it up, run CMD, stop; CMD's exit code
+#
+# Needs scripts/setup.sh (QEMU, Python yamcs packages, Java 17). Work files, logs and
+# the Yamcs archive are in target/ground-segment/ (fresh at every start).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$PWD
+W=$ROOT/target/ground-segment
+HTTP_PORT=${M2_YAMCS_HTTP_PORT:-8090}
+LINK_PORT=${M2_YAMCS_LINK_PORT:-10015}
+export DEFMT_LOG=${DEFMT_LOG:-info}
+
+cmd=()
+if [ "${1:-}" = "--" ]; then shift; cmd=("$@"); fi
+
+for p in "$HTTP_PORT" "$LINK_PORT"; do
+  if (exec 3<>"/dev/tcp/127.0.0.1/$p") 2>/dev/null; then
+    echo "ground-segment: port $p is in use (another Yamcs or gateway?)" >&2
+    exit 1
+  fi
+done
+
+echo "ground-segment: building m2fw (QEMU) and m2ground"
+cargo build --release --target thumbv7em-none-eabihf --features firmware --bin m2fw
+cargo build --release --features host --bin m2ground
+M2GROUND=$ROOT/target/release/m2ground
+ELF=$ROOT/target/thumbv7em-none-eabihf/release/m2fw
+LIB=$(python3 -c 'import fprime_yamcs_bundle, os; print(os.path.join(os.path.dirname(fprime_yamcs_bundle.__file__), "lib"))')
+[ -f "$LIB/yamcs-core-5.12.8.jar" ] || { echo "ground-segment: Yamcs jars missing in $LIB (scripts/setup.sh)" >&2; exit 1; }
+
+rm -rf "$W"
+mkdir -p "$W/yamcs/etc" "$W/yamcs/data" "$W/logs"
+cp "$ROOT"/yamcs/etc/* "$W/yamcs/etc/"
+sed -i "s/port: 8090/port: $HTTP_PORT/" "$W/yamcs/etc/yamcs.yaml"
+sed -i "s/port: 10015/port: $LINK_PORT/" "$W/yamcs/etc/yamcs.m2.yaml"
+"$M2GROUND" mdb-json --out "$W/mdb.json"
+python3 "$ROOT/yamcs/tools/gen_xtce.py" "$W/mdb.json" "$W/yamcs"
+python3 -c '
+import sys
+from space_packet_parser.xtce.validation import validate_xtce
+r = validate_xtce(sys.argv[1], level="schema", allow_schema_download=False, print_results=False, raise_on_error=False)
+print("ground-segment: XTCE schema validation:", "valid" if r else "INVALID")
+sys.exit(0 if r else 1)
+' "$W/yamcs/mdb/m2.xml"
+
+pids=()
+cleanup() {
+  for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
+  for p in "${pids[@]}"; do wait "$p" 2>/dev/null || true; done
+}
+trap cleanup EXIT
+trap 'exit 130' INT TERM
+
+SOCK=$W/uart.sock
+qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none -icount shift=auto \
+  -semihosting-config enable=on,target=native \
+  -chardev "socket,id=uart0,path=$SOCK,server=on,wait=on" -serial chardev:uart0 \
+  -kernel "$ELF" > "$W/logs/qemu.log" 2>&1 &
+pids+=($!)
+
+"$M2GROUND" gateway --uart "unix:$SOCK" --listen "127.0.0.1:$LINK_PORT" \
+  --tco-url "http://127.0.0.1:$HTTP_PORT/api/tco/m2/tco0/coefficients" --stats-s 10 \
+  > "$W/logs/gateway.log" 2>&1 &
+pids+=($!)
+
+(cd "$W/yamcs" && exec java -cp "$LIB/*" org.yamcs.YamcsServer --etc-dir etc --data-dir data) \
+  > "$W/logs/yamcs.log" 2>&1 &
+pids+=($!)
+
+echo "ground-segment: waiting for Yamcs and the link"
+for _ in $(seq 1 120); do
+  if python3 - "$HTTP_PORT" <<'EOF' 2>/dev/null; then break; fi
+import sys, json, urllib.request
+links = json.load(urllib.request.urlopen(f"http://127.0.0.1:{sys.argv[1]}/api/links/m2", timeout=2))
+sys.exit(0 if any(l.get("status") == "OK" and int(l.get("dataInCount", 0)) > 0 for l in links.get("links", [])) else 1)
+EOF
+  for p in "${pids[@]}"; do kill -0 "$p" 2>/dev/null || { echo "ground-segment: a process died; logs in $W/logs" >&2; tail -20 "$W"/logs/*.log >&2; exit 1; }; done
+  sleep 1
+done
+echo "ground-segment: up. Yamcs web UI http://localhost:$HTTP_PORT (instance m2); logs in $W/logs"
+
+if [ ${#cmd[@]} -gt 0 ]; then
+  set +e
+  M2_YAMCS_URL="localhost:$HTTP_PORT" M2_GROUND_DIR="$W" M2GROUND="$M2GROUND" "${cmd[@]}" &
+  cmd_pid=$!
+  pids+=("$cmd_pid")
+  wait "$cmd_pid"
+  rc=$?
+  set -e
+  echo "ground-segment: gateway: $(grep 'gateway: TM' "$W/logs/gateway.log" | tail -1 | sed 's/^gateway: //')"
+  exit $rc
+fi
+echo "ground-segment: Ctrl-C to stop"
+wait "${pids[0]}" || true

@@ -1,0 +1,1924 @@
+//! The mission database (host): one machine-readable description of the whole
+//! telecommand/telemetry vocabulary of `docs/icd.md`, built from the flight code's own
+//! constants, and the single source of the Yamcs XTCE (`m2ground mdb-json` ->
+//! `yamcs/tools/gen_xtce.py` -> `m2.xml`, see `docs/ground-segment.md`).
+//!
+//! What it holds:
+//! * every telecommand: PUS service/subtype, TC[8,1] function ID, arguments with their
+//!   wire type, engineering unit, calibration (engineering value = raw x `scale`, e.g.
+//!   0.001 um per nm) and valid range; a `build` function that turns raw argument values
+//!   into the flight [`Command`], so the tests can encode every described telecommand
+//!   through the description and compare it with the link's encoder;
+//! * every telemetry packet with its fields (offset in the source data, wire type, unit,
+//!   calibration, enumeration or named bit field), the housekeeping fields each with an
+//!   accessor into [`Housekeeping`], so the tests read an emitted report back by the
+//!   description;
+//! * the enumerations (controller state, boot source, bank, memory ID, failure codes,
+//!   event IDs) and the bit fields (fault/warning flags, refusal bits, leg masks);
+//! * the events with their severities and the meaning of their auxiliary words;
+//! * how service-1 reports verify each telecommand (acceptance, start, completion).
+//!
+//! Drift between this file and the flight code is a failing test
+//! (`host-tests/mdb.rs`): a telecommand the parser knows but the description lacks, a
+//! housekeeping field at another offset, an event, failure code or flag bit the code has
+//! and the description does not.
+
+use serde::Serialize;
+
+use crate::controller::{CommandError, State};
+use crate::kinematics::{FkError, GeometryError, IkError, Refusals, LEGS};
+use crate::link::command::{
+    FunctionId, MemoryId, TableChunk, WirePose, FUNCTION_ID_LEN, TABLE_CHUNK_MAX_LEN,
+};
+use crate::link::hk::{HK_REPORT_LEN, HK_STRUCTURE_ID};
+use crate::link::tc::{TcHeader, APID_MASK, SEQ_COUNT_MASK};
+use crate::link::tm::{event_id, EventSeverity, TIME_FRACTIONS_PER_SECOND};
+use crate::link::{
+    encode_telecommand, service, subtype, AckFlags, Command, Housekeeping, LinkError,
+    CCSDS_PRIMARY_HEADER_LEN, M2_APID, MAX_TC_PACKET_LEN, PUS_C_VERSION, PUS_TC_SEC_HEADER_LEN,
+    PUS_TM_SEC_HEADER_LEN_NO_TIME, TM_TIMESTAMP_LEN,
+};
+use crate::motion::{MotionError, StrokeMoveError, CYCLE_S};
+use crate::supervision::FaultFlags;
+use crate::table::{BootSource, StoreError, TableError, ValidationError, TABLE_LEN};
+use crate::timing::HK_PERIOD_CYCLES;
+
+/// Micrometres per nanometre (engineering unit of translations and strokes).
+pub const UM_PER_NM: f64 = 1.0e-3;
+/// Arcseconds per micro-arcsecond (engineering unit of rotations).
+pub const ARCSEC_PER_UAS: f64 = 1.0e-6;
+/// Engineering unit of translations and strokes.
+pub const UNIT_UM: &str = "um";
+/// Engineering unit of rotations.
+pub const UNIT_ARCSEC: &str = "arcsec";
+/// Offset of the TM source data in a TM packet (bytes): primary header + secondary
+/// header with its CUC 4+2 timestamp.
+pub const TM_SOURCE_DATA_OFFSET: usize =
+    CCSDS_PRIMARY_HEADER_LEN + PUS_TM_SEC_HEADER_LEN_NO_TIME + TM_TIMESTAMP_LEN;
+/// Offset of the TC application data in a TC packet (bytes).
+pub const TC_APP_DATA_OFFSET: usize = CCSDS_PRIMARY_HEADER_LEN + PUS_TC_SEC_HEADER_LEN;
+/// Bytes of the CUC coarse time (seconds since controller boot).
+pub const CUC_COARSE_BYTES: usize = 4;
+/// Bytes of the CUC fine time (1/65536 s).
+pub const CUC_FINE_BYTES: usize = TM_TIMESTAMP_LEN - CUC_COARSE_BYTES;
+/// Completion window of telecommands that finish within the cycle that accepts them (s).
+pub const QUICK_COMPLETION_S: f64 = 10.0;
+/// Completion window of moves (s): long enough for any move inside the workspace.
+pub const MOVE_COMPLETION_S: f64 = 600.0;
+/// Acceptance and start windows (s).
+pub const ACK_WINDOW_S: f64 = 10.0;
+
+/// How a field is encoded on the wire (big-endian).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "type")]
+pub enum Wire {
+    /// Unsigned 8 bits.
+    U8,
+    /// Unsigned 16 bits.
+    U16,
+    /// Unsigned 32 bits.
+    U32,
+    /// Two's complement 32 bits.
+    I32,
+    /// A u16 byte count followed by that many bytes.
+    Bytes {
+        /// Fewest bytes.
+        min_len: usize,
+        /// Most bytes.
+        max_len: usize,
+    },
+}
+
+impl Wire {
+    /// Encoded size (bytes) of a fixed-size type; `None` for [`Wire::Bytes`].
+    pub const fn fixed_len(self) -> Option<usize> {
+        match self {
+            Wire::U8 => Some(1),
+            Wire::U16 => Some(2),
+            Wire::U32 | Wire::I32 => Some(4),
+            Wire::Bytes { .. } => None,
+        }
+    }
+
+    /// Bytes of the length prefix of [`Wire::Bytes`].
+    pub const LENGTH_PREFIX_LEN: usize = 2;
+
+    /// Raw range of an integer type.
+    pub fn raw_range(self) -> Option<(i64, i64)> {
+        match self {
+            Wire::U8 => Some((0, i64::from(u8::MAX))),
+            Wire::U16 => Some((0, i64::from(u16::MAX))),
+            Wire::U32 => Some((0, i64::from(u32::MAX))),
+            Wire::I32 => Some((i64::from(i32::MIN), i64::from(i32::MAX))),
+            Wire::Bytes { .. } => None,
+        }
+    }
+}
+
+/// What a field's value means.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum Meaning {
+    /// A number; engineering value = raw x `scale`, in `unit`.
+    Number {
+        /// Engineering unit (`None`: a count or an identifier).
+        unit: Option<&'static str>,
+        /// Engineering value per raw unit (1 when uncalibrated).
+        scale: f64,
+        /// Valid engineering range, inclusive (telecommand arguments).
+        range: Option<(f64, f64)>,
+    },
+    /// One value of a named enumeration ([`Mdb::enums`]).
+    Enum {
+        /// Enumeration name.
+        enumeration: &'static str,
+    },
+    /// A word of named flag bits ([`Mdb::bit_fields`]).
+    Bits {
+        /// Bit field name.
+        bit_field: &'static str,
+    },
+    /// 0 = false, 1 = true.
+    Boolean,
+    /// A constant the encoder writes (not an operator argument).
+    Fixed {
+        /// The value.
+        value: i64,
+    },
+    /// Opaque bytes (table chunks).
+    Binary,
+}
+
+/// One field of a telecommand's application data or of a TM packet's source data.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Field {
+    /// Name (lower snake case; unique within its packet).
+    pub name: String,
+    /// Offset from the start of the application/source data (bytes).
+    pub offset: usize,
+    /// Wire encoding.
+    pub wire: Wire,
+    /// Meaning.
+    pub meaning: Meaning,
+    /// What it is (frame and unit included).
+    pub description: String,
+}
+
+/// A raw argument value of a telecommand.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ArgValue {
+    /// An integer in the wire's raw units.
+    Int(i64),
+    /// Bytes of a [`Wire::Bytes`] argument.
+    Bytes(Vec<u8>),
+}
+
+/// Builds the flight command from raw argument values (operator arguments only, in
+/// description order); `Err` if a value is out of range.
+pub type BuildFn = fn(&[ArgValue]) -> Result<Command, String>;
+
+/// One telecommand.
+#[derive(Clone, Debug, Serialize)]
+pub struct Telecommand {
+    /// Name (upper snake case).
+    pub name: String,
+    /// PUS service.
+    pub service: u8,
+    /// PUS subtype.
+    pub subtype: u8,
+    /// TC[8,1] function ID (the first two bytes of the application data).
+    pub function_id: Option<u16>,
+    /// Application-data fields after the function ID (offsets count from the start of
+    /// the application data, function ID included).
+    pub fields: Vec<Field>,
+    /// What it does.
+    pub description: String,
+    /// Seconds within which the completion report must come.
+    pub completion_timeout_s: f64,
+    /// Raw arguments -> flight command.
+    #[serde(skip)]
+    pub build: BuildFn,
+}
+
+/// One TM packet type.
+#[derive(Clone, Debug, Serialize)]
+pub struct TmPacket {
+    /// Name (lower snake case).
+    pub name: String,
+    /// PUS service.
+    pub service: u8,
+    /// PUS subtypes this layout covers.
+    pub subtypes: Vec<u8>,
+    /// Source-data fields.
+    pub fields: Vec<Field>,
+    /// Source-data length when fixed (bytes).
+    pub fixed_len: Option<usize>,
+    /// What it is.
+    pub description: String,
+}
+
+/// A named enumeration.
+#[derive(Clone, Debug, Serialize)]
+pub struct Enumeration {
+    /// Name.
+    pub name: &'static str,
+    /// `(value, label, meaning)`.
+    pub values: Vec<(i64, String, String)>,
+}
+
+/// A word of named flag bits.
+#[derive(Clone, Debug, Serialize)]
+pub struct BitField {
+    /// Name.
+    pub name: &'static str,
+    /// `(bit, name, meaning)`, bit 0 = least significant.
+    pub bits: Vec<(u32, String, String)>,
+}
+
+/// One service-5 event.
+#[derive(Clone, Debug, Serialize)]
+pub struct Event {
+    /// Event ID.
+    pub id: u16,
+    /// Label (upper snake case, the `event_id` constant's name).
+    pub name: &'static str,
+    /// Severities the controller sends it with (TM[5,x] subtype).
+    pub severities: Vec<&'static str>,
+    /// Meaning of aux0.
+    pub aux0: &'static str,
+    /// Meaning of aux1.
+    pub aux1: &'static str,
+    /// One-line text for the operator (`{aux0}`, `{aux1}` are replaced).
+    pub message: &'static str,
+}
+
+/// One verification stage: TM[1,`success`] or TM[1,`success`+1].
+#[derive(Clone, Debug, Serialize)]
+pub struct VerificationStage {
+    /// Yamcs stage name.
+    pub name: &'static str,
+    /// Subtype of the success report (failure = +1).
+    pub success_subtype: u8,
+}
+
+/// Link-level constants the ground needs.
+#[derive(Clone, Debug, Serialize)]
+pub struct LinkInfo {
+    /// APID of every TC and TM.
+    pub apid: u16,
+    /// PUS version.
+    pub pus_version: u8,
+    /// Default acknowledgement flags of a TC.
+    pub default_ack_flags: u8,
+    /// Largest TC packet (bytes).
+    pub max_tc_packet_len: usize,
+    /// Offset of the TM source data (bytes).
+    pub tm_source_data_offset: usize,
+    /// Offset of the TC application data (bytes).
+    pub tc_app_data_offset: usize,
+    /// Offset of the CUC timestamp in a TM packet (bytes).
+    pub tm_time_offset: usize,
+    /// CUC coarse bytes.
+    pub cuc_coarse_bytes: usize,
+    /// CUC fine bytes.
+    pub cuc_fine_bytes: usize,
+    /// CUC fractions per second.
+    pub cuc_fractions_per_second: u64,
+    /// Control cycle (s).
+    pub control_cycle_s: f64,
+    /// Periodic housekeeping (s).
+    pub housekeeping_period_s: f64,
+}
+
+/// The whole mission database.
+#[derive(Clone, Debug, Serialize)]
+pub struct Mdb {
+    /// Space system name.
+    pub name: &'static str,
+    /// Link constants.
+    pub link: LinkInfo,
+    /// Enumerations.
+    pub enums: Vec<Enumeration>,
+    /// Bit fields.
+    pub bit_fields: Vec<BitField>,
+    /// Telecommands.
+    pub telecommands: Vec<Telecommand>,
+    /// TM packets.
+    pub telemetry: Vec<TmPacket>,
+    /// Events.
+    pub events: Vec<Event>,
+    /// Service-1 stages, in order.
+    pub verification: Vec<VerificationStage>,
+}
+
+// ---------------------------------------------------------------------------------
+// Names from the code's own identifiers.
+
+/// `MoveAbsolute` / `Truncated { got: 1 }` -> `MOVE_ABSOLUTE` / `TRUNCATED`.
+pub fn upper_snake(debug: &str) -> String {
+    let ident: String = debug
+        .chars()
+        .take_while(|c| c.is_ascii_alphanumeric())
+        .collect();
+    let mut out = String::new();
+    for (i, c) in ident.chars().enumerate() {
+        if c.is_ascii_uppercase() && i > 0 {
+            out.push('_');
+        }
+        out.push(c.to_ascii_uppercase());
+    }
+    out
+}
+
+/// The description's name of the telecommand that carries `command` (an exhaustive
+/// match: a new [`Command`] variant does not compile until it is named here).
+pub fn telecommand_name(command: &Command) -> String {
+    match command {
+        Command::Ping => "PING".into(),
+        Command::HousekeepingOneShot => "HOUSEKEEPING_ONE_SHOT".into(),
+        Command::LoadTableChunk(_) => "LOAD_TABLE_CHUNK".into(),
+        Command::DumpTable(_) => "DUMP_TABLE".into(),
+        Command::MoveAbsolute(_)
+        | Command::MoveRelative(_)
+        | Command::Stop
+        | Command::ClearFault
+        | Command::DirectStroke { .. }
+        | Command::CommitTable { .. }
+        | Command::ActivateTable { .. }
+        | Command::SwitchBank
+        | Command::RevertToNominal => command
+            .function_id()
+            .map(|f| upper_snake(&format!("{f:?}")))
+            .unwrap_or_default(),
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// Field constructors.
+
+fn field(name: &str, offset: usize, wire: Wire, meaning: Meaning, description: &str) -> Field {
+    Field {
+        name: name.into(),
+        offset,
+        wire,
+        meaning,
+        description: description.into(),
+    }
+}
+
+fn count(name: &str, offset: usize, wire: Wire, description: &str) -> Field {
+    field(
+        name,
+        offset,
+        wire,
+        Meaning::Number {
+            unit: None,
+            scale: 1.0,
+            range: None,
+        },
+        description,
+    )
+}
+
+fn calibrated(
+    name: &str,
+    offset: usize,
+    wire: Wire,
+    unit: &'static str,
+    scale: f64,
+    description: &str,
+) -> Field {
+    let range = wire
+        .raw_range()
+        .map(|(lo, hi)| (lo as f64 * scale, hi as f64 * scale));
+    field(
+        name,
+        offset,
+        wire,
+        Meaning::Number {
+            unit: Some(unit),
+            scale,
+            range,
+        },
+        description,
+    )
+}
+
+/// Axis names of a pose, in wire order.
+pub const POSE_AXES: [&str; 6] = ["x", "y", "z", "rx", "ry", "rz"];
+
+/// The six fields of a wire pose at `offset`: translations in um (raw nm), rotations in
+/// arcsec (raw micro-arcseconds).
+fn pose_fields(prefix: &str, offset: usize, what: &str) -> Vec<Field> {
+    POSE_AXES
+        .iter()
+        .enumerate()
+        .map(|(k, axis)| {
+            let (unit, scale, frame) = if k < 3 {
+                (
+                    UNIT_UM,
+                    UM_PER_NM,
+                    "translation of the moving-platform origin from p0 along base axis",
+                )
+            } else {
+                (
+                    UNIT_ARCSEC,
+                    ARCSEC_PER_UAS,
+                    "rotation R = Rz(gamma) Ry(beta) Rx(alpha), angle about axis",
+                )
+            };
+            calibrated(
+                &format!("{prefix}{axis}"),
+                offset + 4 * k,
+                Wire::I32,
+                unit,
+                scale,
+                &format!("{what}: {frame} {axis} ({unit}; wire i32 in {})", {
+                    if k < 3 {
+                        "nm"
+                    } else {
+                        "micro-arcsec"
+                    }
+                }),
+            )
+        })
+        .collect()
+}
+
+fn fixed(name: &str, offset: usize, wire: Wire, value: i64, description: &str) -> Field {
+    field(name, offset, wire, Meaning::Fixed { value }, description)
+}
+
+// ---------------------------------------------------------------------------------
+// Telecommands.
+
+fn int_arg(args: &[ArgValue], i: usize) -> Result<i64, String> {
+    match args.get(i) {
+        Some(ArgValue::Int(v)) => Ok(*v),
+        other => Err(format!("argument {i}: expected an integer, got {other:?}")),
+    }
+}
+
+fn arg_i32(args: &[ArgValue], i: usize) -> Result<i32, String> {
+    i32::try_from(int_arg(args, i)?).map_err(|e| format!("argument {i}: {e}"))
+}
+
+fn pose_arg(args: &[ArgValue]) -> Result<WirePose, String> {
+    let mut v = [0i32; 6];
+    for (k, dst) in v.iter_mut().enumerate() {
+        *dst = arg_i32(args, k)?;
+    }
+    Ok(WirePose::from_array(v))
+}
+
+fn build_move_absolute(a: &[ArgValue]) -> Result<Command, String> {
+    Ok(Command::MoveAbsolute(pose_arg(a)?))
+}
+fn build_move_relative(a: &[ArgValue]) -> Result<Command, String> {
+    Ok(Command::MoveRelative(pose_arg(a)?))
+}
+fn build_direct_stroke(a: &[ArgValue]) -> Result<Command, String> {
+    Ok(Command::DirectStroke {
+        leg: u8::try_from(int_arg(a, 0)?).map_err(|e| e.to_string())?,
+        delta_nm: arg_i32(a, 1)?,
+    })
+}
+fn build_commit(a: &[ArgValue]) -> Result<Command, String> {
+    Ok(Command::CommitTable {
+        crc32: u32::try_from(int_arg(a, 0)?).map_err(|e| e.to_string())?,
+    })
+}
+fn build_activate(a: &[ArgValue]) -> Result<Command, String> {
+    Ok(Command::ActivateTable {
+        table_id: u32::try_from(int_arg(a, 0)?).map_err(|e| e.to_string())?,
+        crc32: u32::try_from(int_arg(a, 1)?).map_err(|e| e.to_string())?,
+    })
+}
+fn build_load_chunk(a: &[ArgValue]) -> Result<Command, String> {
+    let offset = u16::try_from(int_arg(a, 0)?).map_err(|e| e.to_string())?;
+    let Some(ArgValue::Bytes(b)) = a.get(1) else {
+        return Err("argument 1: expected bytes".into());
+    };
+    TableChunk::new(offset, b)
+        .map(Command::LoadTableChunk)
+        .map_err(|e| format!("{e:?}"))
+}
+fn build_dump(a: &[ArgValue]) -> Result<Command, String> {
+    let code = u8::try_from(int_arg(a, 0)?).map_err(|e| e.to_string())?;
+    MemoryId::from_code(code)
+        .map(Command::DumpTable)
+        .ok_or_else(|| format!("memory ID {code}: unknown"))
+}
+
+/// The TC[8,1] arguments and builder of a function (an exhaustive match: a new function
+/// ID does not compile until it is described).
+fn function_args(f: FunctionId) -> (Vec<Field>, BuildFn, &'static str, f64) {
+    let at = FUNCTION_ID_LEN;
+    let none = |b: BuildFn, d: &'static str| (Vec::new(), b, d, QUICK_COMPLETION_S);
+    match f {
+        FunctionId::MoveAbsolute => (
+            pose_fields("", at, "target pose"),
+            build_move_absolute,
+            "Move to an absolute pose (all-or-nothing workspace and path check).",
+            MOVE_COMPLETION_S,
+        ),
+        FunctionId::MoveRelative => (
+            pose_fields("", at, "increment from the commanded pose"),
+            build_move_relative,
+            "Move by an increment added component-wise to the commanded pose.",
+            MOVE_COMPLETION_S,
+        ),
+        FunctionId::Stop => none(|_| Ok(Command::Stop), "Stop any motion (ramp down)."),
+        FunctionId::ClearFault => none(|_| Ok(Command::ClearFault), "Clear latched faults."),
+        FunctionId::DirectStroke => (
+            vec![
+                field(
+                    "leg",
+                    at,
+                    Wire::U8,
+                    Meaning::Number {
+                        unit: None,
+                        scale: 1.0,
+                        range: Some((1.0, LEGS as f64)),
+                    },
+                    "slider 1..6",
+                ),
+                calibrated(
+                    "delta",
+                    at + 1,
+                    Wire::I32,
+                    UNIT_UM,
+                    UM_PER_NM,
+                    "stroke increment along base z (um; wire i32 in nm)",
+                ),
+            ],
+            build_direct_stroke,
+            "Move one slider by a stroke increment (recovery).",
+            MOVE_COMPLETION_S,
+        ),
+        FunctionId::CommitTable => (
+            vec![count(
+                "crc32",
+                at,
+                Wire::U32,
+                "CRC-32/ISO-HDLC of table bytes 0..512 (= the table's last four bytes, LE)",
+            )],
+            build_commit,
+            "Commit the uploaded table (checked, validated, written to the inactive bank).",
+            QUICK_COMPLETION_S,
+        ),
+        FunctionId::ActivateTable => (
+            vec![
+                count(
+                    "table_id",
+                    at,
+                    Wire::U32,
+                    "expected table ID of the pending table",
+                ),
+                count(
+                    "crc32",
+                    at + 4,
+                    Wire::U32,
+                    "expected CRC-32 of the pending table",
+                ),
+            ],
+            build_activate,
+            "Activate the pending (committed) table named by its ID and CRC (at rest only).",
+            QUICK_COMPLETION_S,
+        ),
+        FunctionId::SwitchBank => none(
+            |_| Ok(Command::SwitchBank),
+            "Switch to the other flash bank's table.",
+        ),
+        FunctionId::RevertToNominal => none(
+            |_| Ok(Command::RevertToNominal),
+            "Revert to the compiled-in nominal table.",
+        ),
+    }
+}
+
+fn telecommands() -> Vec<Telecommand> {
+    let mut v = vec![
+        Telecommand {
+            name: "PING".into(),
+            service: service::TEST,
+            subtype: subtype::PING,
+            function_id: None,
+            fields: Vec::new(),
+            description: "Are-you-alive: the controller answers TM[17,2].".into(),
+            completion_timeout_s: QUICK_COMPLETION_S,
+            build: |_| Ok(Command::Ping),
+        },
+        Telecommand {
+            name: "HOUSEKEEPING_ONE_SHOT".into(),
+            service: service::HOUSEKEEPING,
+            subtype: subtype::HK_ONE_SHOT,
+            function_id: None,
+            fields: Vec::new(),
+            description: "Send one housekeeping report TM[3,25] now.".into(),
+            completion_timeout_s: QUICK_COMPLETION_S,
+            build: |_| Ok(Command::HousekeepingOneShot),
+        },
+        Telecommand {
+            name: "LOAD_TABLE_CHUNK".into(),
+            service: service::MEMORY,
+            subtype: subtype::MEMORY_LOAD,
+            function_id: None,
+            fields: vec![
+                fixed(
+                    "memory_id",
+                    0,
+                    Wire::U8,
+                    i64::from(MemoryId::UploadBuffer.code()),
+                    "memory ID: the upload buffer",
+                ),
+                field(
+                    "offset",
+                    1,
+                    Wire::U16,
+                    Meaning::Number {
+                        unit: Some("byte"),
+                        scale: 1.0,
+                        range: Some((0.0, (TABLE_LEN - 1) as f64)),
+                    },
+                    "offset of the chunk in the table image (bytes)",
+                ),
+                field(
+                    "data",
+                    3,
+                    Wire::Bytes {
+                        min_len: 1,
+                        max_len: TABLE_CHUNK_MAX_LEN,
+                    },
+                    Meaning::Binary,
+                    "chunk bytes (u16 length, then the bytes)",
+                ),
+            ],
+            description: "Load one table chunk into the upload buffer.".into(),
+            completion_timeout_s: QUICK_COMPLETION_S,
+            build: build_load_chunk,
+        },
+        Telecommand {
+            name: "DUMP_TABLE".into(),
+            service: service::MEMORY,
+            subtype: subtype::MEMORY_DUMP,
+            function_id: None,
+            fields: vec![field(
+                "memory_id",
+                0,
+                Wire::U8,
+                Meaning::Enum {
+                    enumeration: "memory_id",
+                },
+                "memory area to dump as TM[6,6] chunks",
+            )],
+            description: "Dump a table as TM[6,6] chunks.".into(),
+            completion_timeout_s: QUICK_COMPLETION_S,
+            build: build_dump,
+        },
+    ];
+    for f in FunctionId::ALL {
+        let (fields, build, description, completion_timeout_s) = function_args(f);
+        v.push(Telecommand {
+            name: upper_snake(&format!("{f:?}")),
+            service: service::FUNCTION,
+            subtype: subtype::PERFORM_FUNCTION,
+            function_id: Some(f.code()),
+            fields,
+            description: description.into(),
+            completion_timeout_s,
+            build,
+        });
+    }
+    v
+}
+
+// ---------------------------------------------------------------------------------
+// Housekeeping.
+
+/// Reads one housekeeping member as the raw integer of its wire field.
+pub type HkGetter = fn(&Housekeeping) -> i64;
+
+fn hk_pose(p: &WirePose, k: usize) -> i64 {
+    p.to_array().get(k).copied().map_or(0, i64::from)
+}
+
+macro_rules! pose_getters {
+    ($member:ident) => {
+        [
+            |h: &Housekeeping| hk_pose(&h.$member, 0),
+            |h: &Housekeeping| hk_pose(&h.$member, 1),
+            |h: &Housekeeping| hk_pose(&h.$member, 2),
+            |h: &Housekeeping| hk_pose(&h.$member, 3),
+            |h: &Housekeeping| hk_pose(&h.$member, 4),
+            |h: &Housekeeping| hk_pose(&h.$member, 5),
+        ]
+    };
+}
+
+macro_rules! leg_getters {
+    ($member:ident) => {
+        [
+            |h: &Housekeeping| i64::from(h.$member[0]),
+            |h: &Housekeeping| i64::from(h.$member[1]),
+            |h: &Housekeeping| i64::from(h.$member[2]),
+            |h: &Housekeeping| i64::from(h.$member[3]),
+            |h: &Housekeeping| i64::from(h.$member[4]),
+            |h: &Housekeeping| i64::from(h.$member[5]),
+        ]
+    };
+}
+
+/// The housekeeping fields with their accessors into [`Housekeeping`] (the structure
+/// ID has none: it is the constant [`HK_STRUCTURE_ID`]).
+pub fn housekeeping_fields() -> Vec<(Field, Option<HkGetter>)> {
+    let e = |name: &str, off, enumeration, d: &str| {
+        field(name, off, Wire::U8, Meaning::Enum { enumeration }, d)
+    };
+    let b = |name: &str, off, wire, bit_field, d: &str| {
+        field(name, off, wire, Meaning::Bits { bit_field }, d)
+    };
+    let mut v: Vec<(Field, Option<HkGetter>)> = vec![
+        (
+            fixed(
+                "structure_id",
+                0,
+                Wire::U8,
+                i64::from(HK_STRUCTURE_ID),
+                "structure ID of the one housekeeping report",
+            ),
+            None,
+        ),
+        (
+            e("state", 1, "controller_state", "controller state"),
+            Some(|h| i64::from(h.state)),
+        ),
+        (
+            e(
+                "boot_source",
+                2,
+                "boot_source",
+                "where the boot table came from",
+            ),
+            Some(|h| i64::from(h.boot_source)),
+        ),
+        (
+            e("active_bank", 3, "bank", "flash bank of the active table"),
+            Some(|h| i64::from(h.active_bank)),
+        ),
+        (
+            count(
+                "fk_iterations",
+                4,
+                Wire::U8,
+                "Newton iterations of the last FK",
+            ),
+            Some(|h| i64::from(h.fk_iterations)),
+        ),
+        (
+            field(
+                "fk_valid",
+                5,
+                Wire::U8,
+                Meaning::Boolean,
+                "the FK pose is this cycle's (false: FK failed)",
+            ),
+            Some(|h| i64::from(h.fk_valid)),
+        ),
+        (
+            count("cycle_counter", 6, Wire::U32, "control cycle counter"),
+            Some(|h| i64::from(h.cycle_counter)),
+        ),
+        (
+            b(
+                "fault_flags",
+                10,
+                Wire::U32,
+                "fault_flags",
+                "latched fault flags",
+            ),
+            Some(|h| i64::from(h.fault_flags)),
+        ),
+        (
+            b(
+                "warning_flags",
+                14,
+                Wire::U32,
+                "fault_flags",
+                "warning flags",
+            ),
+            Some(|h| i64::from(h.warning_flags)),
+        ),
+        (
+            b(
+                "refusal_bits",
+                18,
+                Wire::U32,
+                "refusal_bits",
+                "refusal bits of the last refused move",
+            ),
+            Some(|h| i64::from(h.refusal_bits)),
+        ),
+        (
+            count("active_table_id", 22, Wire::U32, "active table ID"),
+            Some(|h| i64::from(h.active_table_id)),
+        ),
+        (
+            count("active_table_crc32", 26, Wire::U32, "active table CRC-32"),
+            Some(|h| i64::from(h.active_table_crc32)),
+        ),
+    ];
+    let groups: [(&str, usize, &str, [HkGetter; 6]); 2] = [
+        (
+            "pose_fk_",
+            30,
+            "pose from FK of the encoders",
+            pose_getters!(pose_fk),
+        ),
+        (
+            "pose_cmd_",
+            54,
+            "commanded pose",
+            pose_getters!(pose_commanded),
+        ),
+    ];
+    for (prefix, off, what, getters) in groups {
+        for (f, g) in pose_fields(prefix, off, what).into_iter().zip(getters) {
+            v.push((f, Some(g)));
+        }
+    }
+    let legs: [(&str, usize, &str, [HkGetter; 6]); 2] = [
+        (
+            "stroke_cmd_leg",
+            78,
+            "commanded stroke (um; wire i32 in nm)",
+            leg_getters!(strokes_commanded_nm),
+        ),
+        (
+            "encoder_leg",
+            102,
+            "encoder reading (um; wire i32 in nm, multiples of one 0.1 um count)",
+            leg_getters!(encoders_nm),
+        ),
+    ];
+    for (prefix, off, what, getters) in legs {
+        for (i, g) in getters.into_iter().enumerate() {
+            v.push((
+                calibrated(
+                    &format!("{prefix}{}", i + 1),
+                    off + 4 * i,
+                    Wire::I32,
+                    UNIT_UM,
+                    UM_PER_NM,
+                    &format!("leg {}: {what}", i + 1),
+                ),
+                Some(g),
+            ));
+        }
+    }
+    v.extend([
+        (
+            count(
+                "tc_accepted",
+                126,
+                Wire::U16,
+                "telecommands accepted (wrapping)",
+            ),
+            Some((|h| i64::from(h.tc_accepted)) as HkGetter),
+        ),
+        (
+            count(
+                "tc_rejected",
+                128,
+                Wire::U16,
+                "telecommands rejected (wrapping)",
+            ),
+            Some(|h| i64::from(h.tc_rejected)),
+        ),
+        (
+            field(
+                "last_failure_code",
+                130,
+                Wire::U16,
+                Meaning::Enum {
+                    enumeration: "failure_code",
+                },
+                "last failure code reported (0 none)",
+            ),
+            Some(|h| i64::from(h.last_failure_code)),
+        ),
+        (
+            b(
+                "moving_legs",
+                132,
+                Wire::U8,
+                "leg_mask",
+                "legs commanded to move",
+            ),
+            Some(|h| i64::from(h.moving_legs)),
+        ),
+        (
+            b(
+                "fault_legs",
+                133,
+                Wire::U8,
+                "leg_mask",
+                "legs named by the latched faults",
+            ),
+            Some(|h| i64::from(h.fault_legs)),
+        ),
+        (
+            e(
+                "pending_bank",
+                134,
+                "bank",
+                "bank of the pending (committed, not activated) table",
+            ),
+            Some(|h| i64::from(h.pending_bank)),
+        ),
+        (
+            count(
+                "pending_table_id",
+                135,
+                Wire::U32,
+                "pending table ID (0 if none)",
+            ),
+            Some(|h| i64::from(h.pending_table_id)),
+        ),
+        (
+            count(
+                "job",
+                139,
+                Wire::U8,
+                "table job running: 0 none, 1 commit, 2 selection, 3 reload",
+            ),
+            Some(|h| i64::from(h.job)),
+        ),
+        (
+            count(
+                "selected_source",
+                140,
+                Wire::U8,
+                "selected table (what boots): 0 nominal, 1 A, 2 B, 255 no selection record",
+            ),
+            Some(|h| i64::from(h.selected_source)),
+        ),
+        (
+            count(
+                "tm_dropped",
+                141,
+                Wire::U16,
+                "telemetry records dropped (wrapping)",
+            ),
+            Some(|h| i64::from(h.tm_dropped)),
+        ),
+        (
+            count(
+                "tc_frames_dropped",
+                143,
+                Wire::U16,
+                "telecommand frames dropped: too long or bad COBS (wrapping)",
+            ),
+            Some(|h| i64::from(h.tc_frames_dropped)),
+        ),
+        (
+            count(
+                "uart_overruns",
+                145,
+                Wire::U16,
+                "UART receive overruns and RX queue overflows (wrapping)",
+            ),
+            Some(|h| i64::from(h.uart_overruns)),
+        ),
+        (
+            count(
+                "cycle_overruns",
+                147,
+                Wire::U16,
+                "control-cycle overruns (wrapping)",
+            ),
+            Some(|h| i64::from(h.cycle_overruns)),
+        ),
+        (
+            count(
+                "reset_cause",
+                149,
+                Wire::U8,
+                "reset cause: 0 power-on, 1 watchdog, 2 software, 3 HardFault, 4 panic",
+            ),
+            Some(|h| i64::from(h.reset_cause)),
+        ),
+        (
+            count("boot_count", 150, Wire::U16, "boot count (wrapping)"),
+            Some(|h| i64::from(h.boot_count)),
+        ),
+        (
+            count(
+                "bank_health",
+                152,
+                Wire::U8,
+                "flash bank health: bit 0 bank A, bit 1 bank B corrupt",
+            ),
+            Some(|h| i64::from(h.bank_health)),
+        ),
+    ]);
+    v
+}
+
+// ---------------------------------------------------------------------------------
+// Telemetry packets.
+
+fn telemetry() -> Vec<TmPacket> {
+    let rid = |off| {
+        vec![
+            count(
+                "tc_packet_id",
+                off,
+                Wire::U16,
+                "request ID: packet ID of the TC (version, type, sec. header, APID)",
+            ),
+            count(
+                "tc_sequence_control",
+                off + 2,
+                Wire::U16,
+                "request ID: sequence flags and count of the TC",
+            ),
+        ]
+    };
+    let mut failure = rid(0);
+    failure.extend([
+        field(
+            "failure_code",
+            4,
+            Wire::U16,
+            Meaning::Enum {
+                enumeration: "failure_code",
+            },
+            "failure code",
+        ),
+        count(
+            "failure_data",
+            6,
+            Wire::U32,
+            "failure datum (per code: refusal bits, flags, a/b = a << 16 | b)",
+        ),
+    ]);
+    vec![
+        TmPacket {
+            name: "verification_success".into(),
+            service: service::VERIFICATION,
+            subtypes: vec![
+                subtype::ACCEPTANCE_SUCCESS,
+                subtype::START_SUCCESS,
+                subtype::COMPLETION_SUCCESS,
+            ],
+            fields: rid(0),
+            fixed_len: Some(4),
+            description: "TM[1,1] acceptance, [1,3] start, [1,7] completion success".into(),
+        },
+        TmPacket {
+            name: "verification_failure".into(),
+            service: service::VERIFICATION,
+            subtypes: vec![
+                subtype::ACCEPTANCE_FAILURE,
+                subtype::START_FAILURE,
+                subtype::COMPLETION_FAILURE,
+            ],
+            fields: failure,
+            fixed_len: Some(10),
+            description: "TM[1,2] acceptance, [1,4] start, [1,8] completion failure".into(),
+        },
+        TmPacket {
+            name: "housekeeping".into(),
+            service: service::HOUSEKEEPING,
+            subtypes: vec![subtype::HK_REPORT],
+            fields: housekeeping_fields().into_iter().map(|(f, _)| f).collect(),
+            fixed_len: Some(HK_REPORT_LEN),
+            description: "TM[3,25] housekeeping report".into(),
+        },
+        TmPacket {
+            name: "event".into(),
+            service: service::EVENT,
+            subtypes: vec![
+                subtype::EVENT_INFO,
+                subtype::EVENT_LOW,
+                subtype::EVENT_MEDIUM,
+                subtype::EVENT_HIGH,
+            ],
+            fields: vec![
+                field(
+                    "event_id",
+                    0,
+                    Wire::U16,
+                    Meaning::Enum {
+                        enumeration: "event_id",
+                    },
+                    "event ID",
+                ),
+                count("event_aux0", 2, Wire::U32, "auxiliary word 0 (per event)"),
+                count("event_aux1", 6, Wire::U32, "auxiliary word 1 (per event)"),
+            ],
+            fixed_len: Some(crate::link::tm::EVENT_REPORT_LEN),
+            description: "TM[5,1] info, [5,2] low, [5,3] medium, [5,4] high severity event".into(),
+        },
+        TmPacket {
+            name: "table_dump".into(),
+            service: service::MEMORY,
+            subtypes: vec![subtype::MEMORY_DUMP_REPORT],
+            fields: vec![
+                field(
+                    "dump_memory_id",
+                    0,
+                    Wire::U8,
+                    Meaning::Enum {
+                        enumeration: "memory_id",
+                    },
+                    "memory area",
+                ),
+                count("dump_offset", 1, Wire::U16, "offset of the chunk (bytes)"),
+                field(
+                    "dump_data",
+                    3,
+                    Wire::Bytes {
+                        min_len: 1,
+                        max_len: TABLE_CHUNK_MAX_LEN,
+                    },
+                    Meaning::Binary,
+                    "chunk bytes (u16 length, then the bytes)",
+                ),
+            ],
+            fixed_len: None,
+            description: "TM[6,6] table dump chunk".into(),
+        },
+        TmPacket {
+            name: "ping_reply".into(),
+            service: service::TEST,
+            subtypes: vec![subtype::PING_REPLY],
+            fields: Vec::new(),
+            fixed_len: Some(0),
+            description: "TM[17,2] are-you-alive reply".into(),
+        },
+    ]
+}
+
+// ---------------------------------------------------------------------------------
+// Enumerations and bit fields.
+
+fn controller_states() -> Vec<(i64, String, String)> {
+    // Exhaustive: a new state does not compile until it is listed.
+    let all = [
+        State::Idle,
+        State::Moving,
+        State::Stopping,
+        State::StrokeMoving,
+        State::Faulted,
+    ];
+    all.iter()
+        .map(|s| {
+            let meaning = match s {
+                State::Idle => "holding position, ready",
+                State::Moving => "following a trajectory",
+                State::Stopping => "decelerating after a stop or a fault",
+                State::StrokeMoving => "direct-stroke (recovery) move",
+                State::Faulted => "at rest with a latched fault",
+            };
+            (
+                i64::from(s.code()),
+                upper_snake(&format!("{s:?}")),
+                meaning.into(),
+            )
+        })
+        .collect()
+}
+
+fn boot_sources() -> Vec<(i64, String, String)> {
+    [BootSource::Nominal, BootSource::BankA, BootSource::BankB]
+        .iter()
+        .map(|b| {
+            let meaning = match b {
+                BootSource::Nominal => "the compiled-in nominal table",
+                BootSource::BankA => "flash bank A",
+                BootSource::BankB => "flash bank B",
+            };
+            (
+                i64::from(b.code()),
+                upper_snake(&format!("{b:?}")),
+                meaning.into(),
+            )
+        })
+        .collect()
+}
+
+fn banks() -> Vec<(i64, String, String)> {
+    boot_sources()
+        .into_iter()
+        .map(|(v, l, m)| {
+            if v == i64::from(BootSource::Nominal.code()) {
+                (v, "NONE".into(), "no bank (nominal table)".into())
+            } else {
+                (v, l, m)
+            }
+        })
+        .collect()
+}
+
+fn memory_ids() -> Vec<(i64, String, String)> {
+    [MemoryId::UploadBuffer, MemoryId::ActiveTable]
+        .iter()
+        .map(|m| {
+            let meaning = match m {
+                MemoryId::UploadBuffer => "the upload buffer (RAM)",
+                MemoryId::ActiveTable => "the active parameter table",
+            };
+            (
+                i64::from(m.code()),
+                upper_snake(&format!("{m:?}")),
+                meaning.into(),
+            )
+        })
+        .collect()
+}
+
+/// One instance of every failure the controller reports, by family, with the family
+/// prefix of its label. The labels are the variants' names.
+pub fn failure_samples() -> Vec<(&'static str, u16, String)> {
+    let mut v: Vec<(&'static str, u16, String)> = Vec::new();
+    let mut push = |family: &'static str, code: u16, debug: String| {
+        v.push((family, code, debug));
+    };
+    for e in [
+        LinkError::Truncated { got: 0, needed: 0 },
+        LinkError::LengthMismatch {
+            got: 0,
+            declared: 0,
+        },
+        LinkError::Oversized,
+        LinkError::BadFraming,
+        LinkError::BadCrc { found: 0 },
+        LinkError::WrongApid { apid: 0 },
+        LinkError::BadPrimaryHeader,
+        LinkError::UnsupportedPusVersion { version: 0 },
+        LinkError::UnknownService { service: 0 },
+        LinkError::UnknownSubtype {
+            service: 0,
+            subtype: 0,
+        },
+        LinkError::UnknownFunction { function_id: 0 },
+        LinkError::AppDataLength {
+            got: 0,
+            expected: 0,
+        },
+        LinkError::InvalidArgument { index: 0 },
+        LinkError::ChunkOutOfRange {
+            offset: 0,
+            length: 0,
+        },
+    ] {
+        push("LINK", e.code(), format!("{e:?}"));
+    }
+    for e in [
+        GeometryError::NonFinite,
+        GeometryError::UpperNotAboveLower { leg: 0 },
+        GeometryError::BadStrokeLimits { leg: 0 },
+        GeometryError::BadWorkspaceLimits,
+    ] {
+        push("GEOMETRY", e.code(), format!("{e:?}"));
+    }
+    for e in [
+        IkError::NonFinite,
+        IkError::OutsideWorkspace { axes: 0 },
+        IkError::Unreachable { legs: 0 },
+        IkError::StrokeLimit { legs: 0 },
+    ] {
+        push("IK", e.code(), format!("{e:?}"));
+    }
+    for e in [
+        FkError::NonFinite,
+        FkError::Unreachable {
+            legs: 0,
+            iterations: 0,
+        },
+        FkError::SingularJacobian { iterations: 0 },
+        FkError::NotConverged { iterations: 0 },
+        FkError::ResidualTooLarge { iterations: 0 },
+    ] {
+        push("FK", e.code(), format!("{e:?}"));
+    }
+    for e in [
+        TableError::WrongLength { got: 0 },
+        TableError::BadMagic,
+        TableError::UnsupportedVersion { version: 0 },
+        TableError::BadLengthField { length: 0 },
+        TableError::BadCrc,
+        TableError::ReservedNotZero,
+        TableError::MissingLimits,
+    ] {
+        push("TABLE", e.code(), format!("{e:?}"));
+    }
+    for e in [
+        ValidationError::ProvenanceNotAscii { index: 0 },
+        ValidationError::NonFinite { field: 0 },
+        ValidationError::CoordinateOffNominal { index: 0 },
+        ValidationError::RodLengthImplausible { leg: 0 },
+        ValidationError::Geometry(GeometryError::NonFinite),
+        ValidationError::StrokeLimitBeyondCap { leg: 0 },
+        ValidationError::WorkspaceBeyondCap { axis: 0 },
+        ValidationError::Supervision { field: 0 },
+        ValidationError::Unreachable { legs: 0 },
+        ValidationError::StrokeLimitExceeded { legs: 0 },
+        ValidationError::FkFailed {
+            corner: 0,
+            fk_code: 0,
+        },
+        ValidationError::FkInaccurate { corner: 0 },
+        ValidationError::BadConfig,
+    ] {
+        push("VALIDATION", e.code(), format!("{e:?}"));
+    }
+    for e in [
+        StoreError::BadLayout,
+        StoreError::Flash(embedded_storage::nor_flash::NorFlashErrorKind::Other),
+        StoreError::Invalid(ValidationError::BadConfig),
+        StoreError::VerifyFailed,
+        StoreError::NoRecord(crate::table::BankStatus::Blank),
+        StoreError::Busy,
+        StoreError::NotExpected,
+    ] {
+        push("STORE", e.code(), format!("{e:?}"));
+    }
+    for e in [
+        MotionError::NonFinite,
+        MotionError::BadLimits { leg: 0 },
+        MotionError::StartRefused(Refusals::default()),
+        MotionError::TargetRefused(Refusals::default()),
+        MotionError::PathRefused {
+            sample: 0,
+            refusals: Refusals::default(),
+        },
+        MotionError::TooLong,
+    ] {
+        push("MOTION", e.code(), format!("{e:?}"));
+    }
+    for e in [
+        StrokeMoveError::BadLeg,
+        StrokeMoveError::NonFinite,
+        StrokeMoveError::BadLimits,
+        StrokeMoveError::DeltaTooLarge,
+        StrokeMoveError::OutsideStrokeRange,
+        StrokeMoveError::TooLong,
+    ] {
+        push("STROKE", e.code(), format!("{e:?}"));
+    }
+    // The controller's own codes; its pass-through variants (Motion, Stroke, TableDecode,
+    // Store) carry the codes listed above.
+    for e in [
+        CommandError::Faulted(FaultFlags::empty()),
+        CommandError::Busy(State::Moving),
+        CommandError::FaultPersists(FaultFlags::empty()),
+        CommandError::NoPose,
+        CommandError::UploadIncomplete(0),
+        CommandError::CrcMismatch(0),
+        CommandError::NoPending,
+        CommandError::Stopped,
+        CommandError::AbortedByFault(FaultFlags::empty()),
+        CommandError::PendingMismatch { pending_id: 0 },
+        CommandError::EncoderSuspect(0),
+        CommandError::NoGeometry,
+        CommandError::JobBusy(0),
+    ] {
+        push("CONTROLLER", e.code(), format!("{e:?}"));
+    }
+    v
+}
+
+fn failure_codes() -> Vec<(i64, String, String)> {
+    let mut v = vec![(0, "NONE".to_string(), "no failure".to_string())];
+    v.extend(failure_samples().into_iter().map(|(family, code, debug)| {
+        (
+            i64::from(code),
+            format!("{family}_{}", upper_snake(&debug)),
+            format!(
+                "{} ({family})",
+                debug.split([' ', '(']).next().unwrap_or("")
+            ),
+        )
+    }));
+    v
+}
+
+/// The events (IDs from [`event_id`], severities as the controller sends them).
+pub fn events() -> Vec<Event> {
+    let info = EventSeverity::Info;
+    let sev = |s: &[EventSeverity]| s.iter().map(|s| severity_name(*s)).collect();
+    vec![
+        Event {
+            id: event_id::STATE_CHANGED,
+            name: "STATE_CHANGED",
+            severities: sev(&[info]),
+            aux0: "old state (controller_state)",
+            aux1: "new state (controller_state)",
+            message: "controller state {aux0} -> {aux1}",
+        },
+        Event {
+            id: event_id::FAULT_LATCHED,
+            name: "FAULT_LATCHED",
+            severities: sev(&[EventSeverity::High]),
+            aux0: "all latched fault flags (fault_flags)",
+            aux1: "newly latched flags (bits 0..23) and the legs they name (bits 24..29)",
+            message: "fault latched: flags {aux0}, new {aux1}",
+        },
+        Event {
+            id: event_id::FAULTS_CLEARED,
+            name: "FAULTS_CLEARED",
+            severities: sev(&[info]),
+            aux0: "flags cleared (fault_flags)",
+            aux1: "0",
+            message: "faults cleared: flags {aux0}",
+        },
+        Event {
+            id: event_id::WARNING_CHANGED,
+            name: "WARNING_CHANGED",
+            severities: sev(&[EventSeverity::Low]),
+            aux0: "warning flags (fault_flags)",
+            aux1: "legs of the warnings (leg mask)",
+            message: "warning flags now {aux0}",
+        },
+        Event {
+            id: event_id::MOVE_REFUSED,
+            name: "MOVE_REFUSED",
+            severities: sev(&[EventSeverity::Low]),
+            aux0: "refusal bits (refusal_bits)",
+            aux1: "failure code (failure_code)",
+            message: "move refused: refusal bits {aux0}, failure code {aux1}",
+        },
+        Event {
+            id: event_id::SETPOINT_REFUSED,
+            name: "SETPOINT_REFUSED",
+            severities: sev(&[EventSeverity::High]),
+            aux0: "refusal bits (refusal_bits)",
+            aux1: "control cycle",
+            message: "setpoint on a planned path failed IK (motion holds): refusal bits {aux0}, cycle {aux1}",
+        },
+        Event {
+            id: event_id::TABLE_ACTIVATED,
+            name: "TABLE_ACTIVATED",
+            severities: sev(&[info]),
+            aux0: "table ID",
+            aux1: "CRC-32",
+            message: "table {aux0} activated, CRC-32 {aux1}",
+        },
+        Event {
+            id: event_id::TABLE_REJECTED,
+            name: "TABLE_REJECTED",
+            severities: sev(&[EventSeverity::Medium]),
+            aux0: "failure code (failure_code)",
+            aux1: "ID of the uploaded table for a commit (if it decodes), else 0",
+            message: "table rejected: failure code {aux0}, table {aux1}",
+        },
+        Event {
+            id: event_id::TABLE_COMMITTED,
+            name: "TABLE_COMMITTED",
+            severities: sev(&[info]),
+            aux0: "table ID",
+            aux1: "bank (boot_source: 1 A, 2 B)",
+            message: "table {aux0} committed to bank {aux1}",
+        },
+        Event {
+            id: event_id::TABLE_RELOADED,
+            name: "TABLE_RELOADED",
+            severities: sev(&[EventSeverity::Medium]),
+            aux0: "table ID",
+            aux1: "source (boot_source)",
+            message: "table {aux0} reloaded from {aux1} after a RAM upset",
+        },
+        Event {
+            id: event_id::BANK_HEALTH,
+            name: "BANK_HEALTH",
+            severities: sev(&[info, EventSeverity::Medium]),
+            aux0: "bit 0 bank A, bit 1 bank B corrupt",
+            aux1: "0",
+            message: "flash bank health {aux0}",
+        },
+        Event {
+            id: event_id::BOOT,
+            name: "BOOT",
+            severities: sev(&[info, EventSeverity::Low]),
+            aux0: "boot source (boot_source)",
+            aux1: "running table ID",
+            message: "boot finished: source {aux0}, table {aux1}",
+        },
+        Event {
+            id: event_id::BOOT_DETAIL,
+            name: "BOOT_DETAIL",
+            severities: sev(&[info]),
+            aux0: "boot flags (bank A bits 0..7, fell back bit 7, bank B bits 8..15, selection bits 16..18)",
+            aux1: "reset cause (bits 0..7), boot count (bits 16..31)",
+            message: "boot detail: flags {aux0}, reset cause and count {aux1}",
+        },
+        Event {
+            id: event_id::DEADLINE_MISSED,
+            name: "DEADLINE_MISSED",
+            severities: sev(&[EventSeverity::High]),
+            aux0: "consecutive overruns",
+            aux1: "overruns since boot",
+            message: "control cycles overran {aux0} times in a row (total {aux1}): motion stopped",
+        },
+    ]
+}
+
+/// Label of a severity (Yamcs: INFO, WATCH, DISTRESS, CRITICAL for subtypes 1..4).
+pub fn severity_name(s: EventSeverity) -> &'static str {
+    match s {
+        EventSeverity::Info => "INFO",
+        EventSeverity::Low => "LOW",
+        EventSeverity::Medium => "MEDIUM",
+        EventSeverity::High => "HIGH",
+    }
+}
+
+/// Bit position of a one-bit word.
+fn bit_of(word: u32) -> u32 {
+    word.trailing_zeros()
+}
+
+/// The fault and warning flags, bits from [`FaultFlags`].
+pub fn fault_flag_bits() -> Vec<(u32, String, String)> {
+    let flags = [
+        (
+            FaultFlags::FOLLOWING_ERROR,
+            "FOLLOWING_ERROR",
+            "fault: |measured - commanded stroke| above the fault threshold",
+        ),
+        (
+            FaultFlags::ENCODER_STUCK,
+            "ENCODER_STUCK",
+            "fault: encoder makes no progress while its slider moves",
+        ),
+        (
+            FaultFlags::ENCODER_JUMP,
+            "ENCODER_JUMP",
+            "fault: encoder changed more than physically possible in one cycle",
+        ),
+        (
+            FaultFlags::ENCODER_READ_FAILURE,
+            "ENCODER_READ_FAILURE",
+            "fault: encoder did not answer, corrupted or non-finite",
+        ),
+        (
+            FaultFlags::SOFT_LIMIT,
+            "SOFT_LIMIT",
+            "fault: measured stroke beyond the soft limit",
+        ),
+        (
+            FaultFlags::FK_NOT_CONVERGED,
+            "FK_NOT_CONVERGED",
+            "fault: FK of the measured strokes failed",
+        ),
+        (
+            FaultFlags::POSE_OUTSIDE_WORKSPACE,
+            "POSE_OUTSIDE_WORKSPACE",
+            "fault: measured pose outside the workspace",
+        ),
+        (
+            FaultFlags::DRIVE_FAULT,
+            "DRIVE_FAULT",
+            "fault: a drive reported a fault",
+        ),
+        (
+            FaultFlags::TABLE_CORRUPT,
+            "TABLE_CORRUPT",
+            "fault: the running table, geometry or thresholds in RAM failed the scrub",
+        ),
+        (
+            FaultFlags::DEADLINE_MISSED,
+            "DEADLINE_MISSED",
+            "fault: control cycles overran their period 3 times in a row",
+        ),
+        (
+            FaultFlags::FOLLOWING_WARNING,
+            "FOLLOWING_WARNING",
+            "warning: following error above the warning threshold",
+        ),
+    ];
+    flags
+        .iter()
+        .map(|(f, n, m)| (bit_of(f.bits()), (*n).to_string(), (*m).to_string()))
+        .collect()
+}
+
+/// The refusal bits, positions from [`Refusals::to_bits`].
+pub fn refusal_bits() -> Vec<(u32, String, String)> {
+    let mut v = vec![(
+        bit_of(
+            Refusals {
+                non_finite: true,
+                ..Refusals::default()
+            }
+            .to_bits(),
+        ),
+        "NON_FINITE".to_string(),
+        "a pose component is NaN or infinite".to_string(),
+    )];
+    for leg in 0..LEGS {
+        let m = 1u8 << leg;
+        let one = |r: Refusals| bit_of(r.to_bits());
+        v.push((
+            one(Refusals {
+                legs_above_max: m,
+                ..Refusals::default()
+            }),
+            format!("LEG{}_ABOVE_MAX", leg + 1),
+            format!("leg {} above the upper stroke limit", leg + 1),
+        ));
+        v.push((
+            one(Refusals {
+                legs_unreachable: m,
+                ..Refusals::default()
+            }),
+            format!("LEG{}_UNREACHABLE", leg + 1),
+            format!("leg {} cannot reach", leg + 1),
+        ));
+        v.push((
+            one(Refusals {
+                legs_below_min: m,
+                ..Refusals::default()
+            }),
+            format!("LEG{}_BELOW_MIN", leg + 1),
+            format!("leg {} below the lower stroke limit", leg + 1),
+        ));
+    }
+    for (axis, name) in POSE_AXES.iter().enumerate() {
+        v.push((
+            bit_of(
+                Refusals {
+                    axes_outside: 1 << axis,
+                    ..Refusals::default()
+                }
+                .to_bits(),
+            ),
+            format!("{}_OUTSIDE_WORKSPACE", name.to_ascii_uppercase()),
+            format!("axis {name} beyond the workspace half-range"),
+        ));
+    }
+    v.sort_by_key(|b| b.0);
+    v
+}
+
+fn leg_mask_bits() -> Vec<(u32, String, String)> {
+    (0..LEGS as u32)
+        .map(|i| {
+            (
+                i,
+                format!("LEG{}", i + 1),
+                format!("leg {} (bit i = leg i+1)", i + 1),
+            )
+        })
+        .collect()
+}
+
+/// Microseconds per second (the f32 cycle period is rounded to whole microseconds).
+const US_PER_S: f64 = 1.0e6;
+
+/// The control cycle (s), from the f32 [`CYCLE_S`] rounded to the microsecond.
+fn cycle_s() -> f64 {
+    (f64::from(CYCLE_S) * US_PER_S).round() / US_PER_S
+}
+
+/// The mission database.
+pub fn mdb() -> Mdb {
+    let event_ids = events()
+        .iter()
+        .map(|e| (i64::from(e.id), e.name.to_string(), e.message.to_string()))
+        .collect();
+    Mdb {
+        name: "M2",
+        link: LinkInfo {
+            apid: M2_APID,
+            pus_version: PUS_C_VERSION,
+            default_ack_flags: AckFlags::ALL.0,
+            max_tc_packet_len: MAX_TC_PACKET_LEN,
+            tm_source_data_offset: TM_SOURCE_DATA_OFFSET,
+            tc_app_data_offset: TC_APP_DATA_OFFSET,
+            tm_time_offset: CCSDS_PRIMARY_HEADER_LEN + PUS_TM_SEC_HEADER_LEN_NO_TIME,
+            cuc_coarse_bytes: CUC_COARSE_BYTES,
+            cuc_fine_bytes: CUC_FINE_BYTES,
+            cuc_fractions_per_second: TIME_FRACTIONS_PER_SECOND,
+            control_cycle_s: cycle_s(),
+            housekeeping_period_s: f64::from(HK_PERIOD_CYCLES) * cycle_s(),
+        },
+        enums: vec![
+            Enumeration {
+                name: "controller_state",
+                values: controller_states(),
+            },
+            Enumeration {
+                name: "boot_source",
+                values: boot_sources(),
+            },
+            Enumeration {
+                name: "bank",
+                values: banks(),
+            },
+            Enumeration {
+                name: "memory_id",
+                values: memory_ids(),
+            },
+            Enumeration {
+                name: "failure_code",
+                values: failure_codes(),
+            },
+            Enumeration {
+                name: "event_id",
+                values: event_ids,
+            },
+        ],
+        bit_fields: vec![
+            BitField {
+                name: "fault_flags",
+                bits: fault_flag_bits(),
+            },
+            BitField {
+                name: "refusal_bits",
+                bits: refusal_bits(),
+            },
+            BitField {
+                name: "leg_mask",
+                bits: leg_mask_bits(),
+            },
+        ],
+        telecommands: telecommands(),
+        telemetry: telemetry(),
+        events: events(),
+        verification: vec![
+            VerificationStage {
+                name: "Acceptance",
+                success_subtype: subtype::ACCEPTANCE_SUCCESS,
+            },
+            VerificationStage {
+                name: "Start",
+                success_subtype: subtype::START_SUCCESS,
+            },
+            VerificationStage {
+                name: "Completion",
+                success_subtype: subtype::COMPLETION_SUCCESS,
+            },
+        ],
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// Encoding and decoding by the description (what Yamcs does with the XTCE).
+
+impl Field {
+    /// Raw integer of this field in `data` (offsets relative to `data`); `None` if out of
+    /// bounds or a byte field.
+    pub fn read_raw(&self, data: &[u8]) -> Option<i64> {
+        let n = self.wire.fixed_len()?;
+        let b = data.get(self.offset..self.offset.checked_add(n)?)?;
+        let u = b.iter().fold(0u64, |acc, x| (acc << 8) | u64::from(*x));
+        Some(match self.wire {
+            Wire::I32 => i64::from(u32::try_from(u).ok()? as i32),
+            _ => i64::try_from(u).ok()?,
+        })
+    }
+
+    /// Engineering value of a raw number (raw x scale), for numbers.
+    pub fn to_eng(&self, raw: i64) -> f64 {
+        match self.meaning {
+            Meaning::Number { scale, .. } => raw as f64 * scale,
+            _ => raw as f64,
+        }
+    }
+
+    /// Raw value of an engineering value (nearest, half away from zero), range-checked.
+    pub fn to_raw(&self, eng: f64) -> Result<i64, String> {
+        let (scale, range) = match self.meaning {
+            Meaning::Number { scale, range, .. } => (scale, range),
+            _ => (1.0, None),
+        };
+        if let Some((lo, hi)) = range {
+            if !(lo..=hi).contains(&eng) {
+                return Err(format!("{} = {eng}: outside {lo}..={hi}", self.name));
+            }
+        }
+        let raw = (eng / scale).round();
+        let (lo, hi) = self.wire.raw_range().ok_or("not a number field")?;
+        if !raw.is_finite() || raw < lo as f64 || raw > hi as f64 {
+            return Err(format!("{} = {eng}: beyond the wire range", self.name));
+        }
+        Ok(raw as i64)
+    }
+
+    /// Is this an operator argument (not a constant)?
+    pub fn is_argument(&self) -> bool {
+        !matches!(self.meaning, Meaning::Fixed { .. })
+    }
+}
+
+impl Telecommand {
+    /// Operator arguments, in order.
+    pub fn arguments(&self) -> impl Iterator<Item = &Field> {
+        self.fields.iter().filter(|f| f.is_argument())
+    }
+
+    /// Application data encoded by the description from raw argument values.
+    pub fn encode_app_data(&self, args: &[ArgValue]) -> Result<Vec<u8>, String> {
+        let mut out = Vec::new();
+        if let Some(f) = self.function_id {
+            out.extend(f.to_be_bytes());
+        }
+        let mut next = args.iter();
+        for f in &self.fields {
+            if out.len() != f.offset {
+                return Err(format!(
+                    "{}.{}: offset {} != {}",
+                    self.name,
+                    f.name,
+                    f.offset,
+                    out.len()
+                ));
+            }
+            let value = match f.meaning {
+                Meaning::Fixed { value } => ArgValue::Int(value),
+                _ => next
+                    .next()
+                    .cloned()
+                    .ok_or_else(|| format!("{}: missing argument {}", self.name, f.name))?,
+            };
+            match (f.wire, value) {
+                (Wire::Bytes { min_len, max_len }, ArgValue::Bytes(b)) => {
+                    if !(min_len..=max_len).contains(&b.len()) {
+                        return Err(format!("{}: {} bytes", f.name, b.len()));
+                    }
+                    let n = u16::try_from(b.len()).map_err(|e| e.to_string())?;
+                    out.extend(n.to_be_bytes());
+                    out.extend(b);
+                }
+                (w, ArgValue::Int(v)) => {
+                    let (lo, hi) = w.raw_range().ok_or("bytes field given an integer")?;
+                    if !(lo..=hi).contains(&v) {
+                        return Err(format!("{} = {v}: beyond the wire range", f.name));
+                    }
+                    let n = w.fixed_len().unwrap_or(0);
+                    let be = v.to_be_bytes();
+                    out.extend(be.get(be.len() - n..).unwrap_or(&[]));
+                }
+                (_, v) => return Err(format!("{}: wrong value kind {v:?}", f.name)),
+            }
+        }
+        if next.next().is_some() {
+            return Err(format!("{}: too many arguments", self.name));
+        }
+        Ok(out)
+    }
+
+    /// The whole TC packet encoded by the description (what Yamcs' XTCE encoder and PUS
+    /// post-processor produce): primary header, PUS-C secondary header, application
+    /// data, CRC-16/CCITT-FALSE.
+    pub fn encode_packet(&self, args: &[ArgValue], header: TcHeader) -> Result<Vec<u8>, String> {
+        let app = self.encode_app_data(args)?;
+        let mut p = Vec::with_capacity(TC_APP_DATA_OFFSET + app.len() + 2);
+        // Packet ID: version 0, type TC (bit 12), secondary header (bit 11), APID.
+        let packet_id: u16 = (1 << 12) | (1 << 11) | (M2_APID & APID_MASK);
+        let seq: u16 = (0b11 << 14) | (header.seq_count & SEQ_COUNT_MASK);
+        let total = TC_APP_DATA_OFFSET + app.len() + 2;
+        let data_len =
+            u16::try_from(total - CCSDS_PRIMARY_HEADER_LEN - 1).map_err(|e| e.to_string())?;
+        p.extend(packet_id.to_be_bytes());
+        p.extend(seq.to_be_bytes());
+        p.extend(data_len.to_be_bytes());
+        p.push((PUS_C_VERSION << 4) | (header.ack.0 & 0x0f));
+        p.push(self.service);
+        p.push(self.subtype);
+        p.extend(header.source_id.to_be_bytes());
+        p.extend(app);
+        let crc = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740).checksum(&p);
+        p.extend(crc.to_be_bytes());
+        Ok(p)
+    }
+
+    /// The same telecommand encoded by the flight link's encoder (for comparison).
+    pub fn encode_by_link(&self, args: &[ArgValue], header: TcHeader) -> Result<Vec<u8>, String> {
+        let cmd = (self.build)(args)?;
+        let mut buf = [0u8; MAX_TC_PACKET_LEN];
+        let n = encode_telecommand(&cmd, header, &mut buf).map_err(|e| format!("{e:?}"))?;
+        Ok(buf.get(..n).unwrap_or(&[]).to_vec())
+    }
+}
+
+impl Mdb {
+    /// The telecommand of this name.
+    pub fn telecommand(&self, name: &str) -> Option<&Telecommand> {
+        self.telecommands.iter().find(|t| t.name == name)
+    }
+
+    /// The TM packet of this name.
+    pub fn tm_packet(&self, name: &str) -> Option<&TmPacket> {
+        self.telemetry.iter().find(|t| t.name == name)
+    }
+
+    /// Pretty JSON (the input of `yamcs/tools/gen_xtce.py`).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+}

@@ -1,0 +1,325 @@
+#!/usr/bin/env python3
+"""End-to-end test of the ground segment through Yamcs (scripts/yamcs-e2e.sh runs it
+inside scripts/ground-segment.sh): the flight image in QEMU, the gateway and Yamcs are
+up; everything below goes through yamcs-client, as an operator's tool would.
+
+Checks (each failure exits non-zero with the reason):
+ 1. ping completes, with the acceptance, start and completion stages in the command
+    history; the packet Yamcs encoded is byte-identical to `m2ground tc ping`'s;
+ 2. housekeeping parameters update (new values every period) with their units;
+ 3. a move given in um/arcsec completes with every verifier stage, byte-identical to
+    `m2ground tc move`, and the housekeeping pose (FK of the encoders) reaches the target;
+ 4. a refused move fails at the start stage with its failure code, and the refusal
+    bits show decoded in housekeeping;
+ 5. a table uploaded as LOAD_TABLE_CHUNK commands (byte-identical to `m2ground tc
+    upload`), committed and activated, is the active table in housekeeping;
+ 6. the controller's events are listed by Yamcs with their severities;
+ 7. TM time: the CUC 4+2 on-board time (seconds and fraction) turned into UTC by the
+    time-correlation coefficients the gateway set, and received after generation.
+Prints the figures: commands sent, parameters seen, packets, timings.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import timezone
+import urllib.request
+from pathlib import Path
+
+from yamcs.client import YamcsClient
+
+ROOT = Path(__file__).resolve().parents[2]
+URL = os.environ.get("M2_YAMCS_URL", "localhost:8090")
+M2GROUND = os.environ.get("M2GROUND", str(ROOT / "target/release/m2ground"))
+INSTANCE, PROCESSOR, NS = "m2", "realtime", "/M2/"
+STAGES = ("Acceptance", "Start", "Completion")
+
+failures: list[str] = []
+passed = [0]
+figures: dict[str, object] = {}
+
+
+def check(ok: bool, what: str) -> bool:
+    print(("  ok   " if ok else "  FAIL ") + what, flush=True)
+    if ok:
+        passed[0] += 1
+    else:
+        failures.append(what)
+    return ok
+
+
+def m2ground_packets(*args: str) -> list[bytes]:
+    out = subprocess.run(
+        [M2GROUND, "tc", "--unframed", *args], check=True, capture_output=True, text=True
+    ).stdout
+    return [bytes.fromhex(line) for line in out.split()]
+
+
+class Operator:
+    def __init__(self):
+        self.client = YamcsClient(URL)
+        self.proc = self.client.get_processor(INSTANCE, PROCESSOR)
+        self.conn = self.proc.create_command_connection()
+        self.mdb = self.client.get_mdb(INSTANCE)
+        self.sent = 0
+        self.stage_times: dict[str, list[float]] = {s: [] for s in STAGES}
+
+    def value(self, name: str):
+        return self.proc.get_parameter_value(NS + name)
+
+    def wait_hk(self, after=None, timeout=15.0):
+        """The next housekeeping report (its cycle counter value) after `after`."""
+        t0 = time.time()
+        while time.time() - t0 < timeout:
+            v = self.value("cycle_counter")
+            if v is not None and (after is None or v.generation_time > after.generation_time):
+                return v
+            time.sleep(0.1)
+        raise TimeoutError("no housekeeping")
+
+    def command(self, name: str, args=None, timeout=30.0):
+        cmd = self.conn.issue(NS + name, args=args or {})
+        self.sent += 1
+        try:
+            cmd.await_complete(timeout=timeout)
+        except TimeoutError:
+            pass
+        return cmd
+
+    def stages(self, cmd) -> dict[str, str]:
+        acks = cmd.acknowledgments
+        out = {}
+        for s in STAGES:
+            a = acks.get(s) or acks.get("Verifier_" + s)
+            out[s] = a.status if a else "missing"
+            if a and a.status == "OK" and a.time and cmd.generation_time:
+                self.stage_times[s].append((a.time - cmd.generation_time).total_seconds())
+        return out
+
+
+def same_bytes(op: Operator, cmd, reference_args: list[str], index: int = 0) -> bool:
+    seq = cmd.attributes.get("ccsds-seqcount")
+    sent = cmd.attributes.get("binary")  # as the PUS post-processor sent it (seq, length, CRC)
+    ours = m2ground_packets("--seq", str(seq - index), *reference_args)[index]
+    return check(
+        sent == ours,
+        f"{cmd.name.split('/')[-1]}: Yamcs' packet == m2ground tc's ({len(ours)} bytes, seq {seq})",
+    ) or print(f"       yamcs    {sent.hex() if sent else None}\n       m2ground {ours.hex()}")
+
+
+def main() -> int:
+    t_start = time.time()
+    op = Operator()
+    print("e2e: connected to Yamcs", URL)
+    hk0 = op.wait_hk()
+
+    # 1. Ping.
+    print("1. ping")
+    cmd = op.command("PING")
+    st = op.stages(cmd)
+    check(cmd.is_success(), f"PING completed ({cmd.error or 'OK'})")
+    check(all(v == "OK" for v in st.values()), f"PING verifier stages {st}")
+    same_bytes(op, cmd, ["ping"])
+
+    # 2. Housekeeping with units and correlated time.
+    print("2. housekeeping")
+    hk1 = op.wait_hk(after=hk0)
+    hk2 = op.wait_hk(after=hk1)
+    check(hk2.eng_value > hk1.eng_value > hk0.eng_value, "cycle counter updates every report")
+    period = (hk2.generation_time - hk1.generation_time).total_seconds()
+    cycles = hk2.eng_value - hk1.eng_value
+    figures["housekeeping period (UTC s, cycles)"] = (round(period, 3), cycles)
+    check(0.5 < period < 3.0, f"housekeeping every {period:.3f} s UTC ({cycles} control cycles)")
+    units = {}
+    for p in ("pose_fk_x", "pose_fk_rx", "encoder_leg1", "stroke_cmd_leg6"):
+        info = op.mdb.get_parameter(NS + p)
+        units[p] = info.units
+    check(units["pose_fk_x"] == ["um"] and units["pose_fk_rx"] == ["arcsec"] and units["encoder_leg1"] == ["um"],
+          f"units {units}")
+    state = op.value("state")
+    check(state.eng_value == "IDLE", f"state {state.eng_value} (raw {state.raw_value})")
+
+    # 3. A move in um / arcsec.
+    print("3. move")
+    target = {"x": 12.5, "y": -7.25, "z": 3.0, "rx": -3.25, "ry": 1.5, "rz": 2.0}
+    t0 = time.time()
+    cmd = op.command("MOVE_ABSOLUTE", target, timeout=120)
+    move_s = time.time() - t0
+    st = op.stages(cmd)
+    check(cmd.is_success(), f"MOVE_ABSOLUTE completed in {move_s:.1f} s ({cmd.error or 'OK'})")
+    check(all(v == "OK" for v in st.values()), f"MOVE_ABSOLUTE verifier stages {st}")
+    same_bytes(op, cmd, ["move", "--x-um", "12.5", "--y-um", "-7.25", "--z-um", "3",
+                         "--rx-arcsec", "-3.25", "--ry-arcsec", "1.5", "--rz-arcsec", "2"])
+    hk = op.wait_hk(after=op.wait_hk())
+    errs = {}
+    for axis, want in target.items():
+        fk = op.value("pose_fk_" + axis).eng_value
+        cmdv = op.value("pose_cmd_" + axis).eng_value
+        errs[axis] = round(fk - want, 4)
+        check(abs(cmdv - want) < 1e-6, f"commanded {axis} = {cmdv} (target {want})")
+    figures["pose reached - target (um, arcsec)"] = errs
+    check(all(abs(e) < 0.3 for e in errs.values()), f"housekeeping pose reaches the target: {errs}")
+    check(op.value("state").eng_value == "IDLE", "state IDLE after the move")
+
+    # 4. A refused move: 5 mm is outside the +-2 mm workspace.
+    print("4. refused move")
+    cmd = op.command("MOVE_ABSOLUTE", {"x": 5000.0, "y": 0, "z": 0, "rx": 0, "ry": 0, "rz": 0})
+    st = op.stages(cmd)
+    check(cmd.is_failure(), f"refused move failed: {cmd.error}")
+    check(st["Acceptance"] == "OK" and st["Start"] == "NOK", f"refused at the start stage: {st}")
+    check("MOTION_TARGET_REFUSED" in (cmd.error or ""), "failure code MOTION_TARGET_REFUSED in the command history")
+    op.wait_hk(after=op.wait_hk())
+    code = op.value("last_failure_code").eng_value
+    bits = {b: op.value("refusal_bits_" + b).eng_value for b in
+            ("x_outside_workspace", "y_outside_workspace", "non_finite", "leg1_above_max")}
+    check(code == "MOTION_TARGET_REFUSED", f"housekeeping last failure code {code}")
+    check(bits["x_outside_workspace"] is True and bits["y_outside_workspace"] is False
+          and bits["non_finite"] is False,
+          f"refusal bits decoded: {bits} (word 0x{op.value('refusal_bits').raw_value:08x})")
+    pose_after = op.value("pose_cmd_x").eng_value
+    check(abs(pose_after - 12.5) < 1e-6, "a refused move changes nothing (commanded x still 12.5 um)")
+
+    # 5. Table upload, commit, activate.
+    print("5. table upload")
+    work = tempfile.TemporaryDirectory()
+    geometry = Path(work.name) / "calibrated.toml"
+    geometry.write_text((ROOT / "testdata/geometry.toml").read_text()
+                        + "\n[limits]\nstroke_min_mm = -5.0\nstroke_max_mm = 5.0\n"
+                        "translation_mm = 2.0\nrotation_arcsec = 600.0\n")
+    upload_args = ["upload", str(geometry), "--table-id", "77", "--activate"]
+    reference = m2ground_packets(*upload_args)
+    chunks, commit, activate = reference[:-2], reference[-2], reference[-1]
+    for i, p in enumerate(chunks):
+        app = p[11:-2]
+        offset = int.from_bytes(app[1:3], "big")
+        n = int.from_bytes(app[3:5], "big")
+        cmd = op.command("LOAD_TABLE_CHUNK", {"offset": offset, "data": app[5:5 + n]})
+        check(cmd.is_success(), f"LOAD_TABLE_CHUNK offset {offset}, {n} bytes ({cmd.error or 'OK'})")
+        same_bytes(op, cmd, upload_args, index=i)
+    crc = int.from_bytes(commit[13:17], "big")
+    cmd = op.command("COMMIT_TABLE", {"crc32": crc}, timeout=60)
+    check(cmd.is_success(), f"COMMIT_TABLE crc32 0x{crc:08x} ({cmd.error or 'OK'})")
+    same_bytes(op, cmd, upload_args, index=len(chunks))
+    # Activate names the pending table: its ID and CRC-32.
+    cmd = op.command("ACTIVATE_TABLE", {"table_id": 77, "crc32": crc}, timeout=60)
+    check(cmd.is_success(), f"ACTIVATE_TABLE ({cmd.error or 'OK'})")
+    same_bytes(op, cmd, upload_args, index=len(chunks) + 1)
+    check(activate[13:21] == (77).to_bytes(4, "big") + crc.to_bytes(4, "big"),
+          "the activate TC names table 77 and its CRC")
+    op.wait_hk(after=op.wait_hk())
+    tid, tcrc = op.value("active_table_id").eng_value, op.value("active_table_crc32").eng_value
+    check(tid == 77 and tcrc == crc, f"housekeeping: active table {tid}, CRC-32 0x{tcrc:08x}")
+    bank = op.value("active_bank").eng_value
+    check(bank in ("BANK_A", "BANK_B"), f"active table in flash {bank}")
+
+    # 6. Events with severities.
+    print("6. events")
+    time.sleep(1.0)
+    names = {e["name"] for e in json.loads(subprocess.run(
+        [M2GROUND, "mdb-json"], check=True, capture_output=True, text=True).stdout)["events"]}
+    events = [e for e in op.client.get_archive(INSTANCE).list_events() if e.event_type in names]
+    seen = {}
+    for e in events:
+        seen.setdefault(e.event_type, set()).add(e.severity)
+    for e in events[-12:]:
+        print(f"       {e.generation_time.astimezone(timezone.utc):%H:%M:%S.%f} {e.severity:8s} {e.event_type:16s} {e.message}")
+    check(seen.get("BOOT") == {"INFO"}, f"BOOT event INFO: {seen.get('BOOT')}")
+    check(seen.get("STATE_CHANGED") == {"INFO"}, f"STATE_CHANGED INFO: {seen.get('STATE_CHANGED')}")
+    check(seen.get("MOVE_REFUSED") == {"WATCH"}, f"MOVE_REFUSED WATCH (PUS low severity): {seen.get('MOVE_REFUSED')}")
+    check("TABLE_COMMITTED" in seen and "TABLE_ACTIVATED" in seen, "table committed and activated events")
+    figures["events (type: severities)"] = {k: sorted(v) for k, v in sorted(seen.items())}
+
+    # 7. Time: CUC 4+2 decoded and correlated to UTC (checked last, when the QEMU
+    # controller's clock has settled).
+    print("7. time")
+    tco_client = op.client.get_tco_client(INSTANCE, "tco0")
+    # Packets with a non-zero CUC fraction (housekeeping comes on whole seconds): the
+    # reports of a ping. Those received since the coefficients in force were set were
+    # stamped with them (the gateway sets coefficients before it forwards a packet).
+    checked = []
+    for _ in range(5):
+        op.command("PING")
+        time.sleep(0.2)
+        st = tco_client.get_status()
+        c = st.coefficients
+        if c is None or st.coefficients_time is None:
+            continue
+        pkts = list(op.client.get_archive(INSTANCE).list_packets(descending=True, page_size=20))[:20]
+        for pkt in pkts:
+            if pkt.reception_time < st.coefficients_time:
+                continue
+            b = pkt.binary
+            raw = int.from_bytes(b[13:19], "big")
+            if raw & 0xFFFF == 0:
+                continue
+            want = c.utc.timestamp() + c.gradient * (raw - c.obt) + (c.offset or 0.0)
+            checked.append((pkt.generation_time.timestamp() - want, raw))
+        if checked:
+            figures["time correlation (gradient s/count, UTC s per OBT s)"] = (
+                c.gradient, round(c.gradient * 65536, 4))
+            break
+    if check(bool(checked), f"{len(checked)} packets with a CUC fraction stamped by the coefficients in force"):
+        worst = max(abs(e) for e, _ in checked)
+        raw = checked[0][1]
+        check(worst <= 0.0011, f"generation time = UTC(OBT) by the coefficients within {worst * 1e3:.2f} ms, "
+              f"e.g. OBT 0x{raw:012x} = {raw >> 16} s + {raw & 0xFFFF}/65536 s (CUC 4+2 decoded)")
+    lags = []
+    last = op.wait_hk()
+    for _ in range(4):
+        last = op.wait_hk(after=last)
+        lags.append((last.reception_time - last.generation_time).total_seconds())
+    figures["reception - generation of 4 reports (ms)"] = [round(x * 1e3, 1) for x in lags]
+    med = sorted(lags)[len(lags) // 2]
+    # The QEMU controller's clock is not steady (emulation speed); a real one is.
+    check(-0.5 <= med <= 0.5, f"TM time correlated to UTC: reports received {med * 1e3:.1f} ms (median) after generation")
+
+    # A parameter list of the housekeeping for the web UI (and its screenshot).
+    body = json.dumps({
+        "name": "M2 housekeeping",
+        "description": "Pose from FK, commanded pose, encoders, state, table, flags",
+        "patterns": ["/M2/state", "/M2/pose_fk_*", "/M2/pose_cmd_*", "/M2/encoder_leg*",
+                     "/M2/active_table_*", "/M2/last_failure_code", "/M2/refusal_bits",
+                     "/M2/refusal_bits_x_outside_workspace", "/M2/fault_flags", "/M2/cycle_counter",
+                     "/M2/tc_accepted", "/M2/tc_rejected"],
+    }).encode()
+    req = urllib.request.Request(f"http://{URL}/api/parameter-lists/{INSTANCE}/lists", data=body,
+                                 headers={"Content-Type": "application/json"}, method="POST")
+    info = json.load(urllib.request.urlopen(req, timeout=10))
+    out_dir = Path(os.environ.get("M2_GROUND_DIR", "."))
+    (out_dir / "plist_id").write_text(info["id"])
+    check(bool(info.get("id")), f"parameter list for the web UI: {info['id']}")
+
+    # Figures.
+    links = {l.name: l for l in op.client.list_links(INSTANCE)}
+    link = links.get("m2-gateway")
+    params = list(op.mdb.list_parameters())
+    with_values = 0
+    for p in params:
+        v = op.proc.get_parameter_value(p.qualified_name)
+        with_values += v is not None
+    packets = sum(1 for _ in op.client.get_archive(INSTANCE).list_packets())
+    figures["commands sent through Yamcs"] = op.sent
+    figures["parameters in the MDB / with a value"] = (len(params), with_values)
+    figures["TM packets in / TC packets out (link)"] = (link.in_count, link.out_count) if link else None
+    figures["TM packets archived"] = packets
+    figures["events archived"] = len(events)
+    for s in STAGES:
+        t = op.stage_times[s]
+        if t:
+            figures[f"{s} after release (s): min/median/max"] = (
+                round(min(t), 3), round(sorted(t)[len(t) // 2], 3), round(max(t), 3))
+    figures["wall time (s)"] = round(time.time() - t_start, 1)
+    print("e2e figures:")
+    for k, v in figures.items():
+        print(f"  {k}: {v}")
+    print(f"e2e: {passed[0]} passed, {len(failures)} failed")
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,493 @@
+#!/usr/bin/env python3
+"""Generate the Yamcs mission database of the M2 controller from its description.
+
+    m2ground mdb-json --out mdb.json
+    python3 yamcs/tools/gen_xtce.py mdb.json OUT_DIR
+
+writes OUT_DIR/mdb/m2.xml (XTCE 1.2, yamcs-pymdb) and OUT_DIR/etc/events.yaml (the
+event templates of Yamcs' PusEventDecoder). The JSON is the only input: this script
+knows the PUS packet structure and how Yamcs verifies a PUS command, never the
+controller's vocabulary (every telecommand, field, unit, calibration, enumeration, bit
+and event comes from `src/ground/mdb.rs`). See docs/ground-segment.md.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+from yamcs.pymdb import (
+    AcceptedVerifier,
+    AlgorithmCheck,
+    ArgumentEntry,
+    BinaryArgument,
+    BinaryEncoding,
+    BinaryParameter,
+    BooleanParameter,
+    Command,
+    CompleteVerifier,
+    Container,
+    EnumeratedArgument,
+    EnumeratedParameter,
+    ExecutionVerifier,
+    FixedValueEntry,
+    FloatArgument,
+    FloatParameter,
+    InputParameter,
+    IntegerArgument,
+    IntegerEncoding,
+    IntegerEncodingScheme,
+    IntegerParameter,
+    ParameterEntry,
+    Polynomial,
+    System,
+    UnnamedJavaAlgorithm,
+    all_of,
+    any_of,
+    eq,
+)
+
+WIRE_BITS = {"u8": 8, "u16": 16, "u32": 32, "i32": 32}
+LENGTH_PREFIX_BITS = 16
+
+
+def encoding(wire: str) -> IntegerEncoding:
+    scheme = (
+        IntegerEncodingScheme.TWOS_COMPLEMENT
+        if wire == "i32"
+        else IntegerEncodingScheme.UNSIGNED
+    )
+    return IntegerEncoding(bits=WIRE_BITS[wire], scheme=scheme)
+
+
+def uint(bits: int) -> IntegerEncoding:
+    return IntegerEncoding(bits=bits, scheme=IntegerEncodingScheme.UNSIGNED)
+
+
+class Generator:
+    def __init__(self, mdb: dict):
+        self.mdb = mdb
+        self.link = mdb["link"]
+        self.system = System(mdb["name"])
+        self.enums = {e["name"]: e["values"] for e in mdb["enums"]}
+        self.bit_fields = {b["name"]: b["bits"] for b in mdb["bit_fields"]}
+        self.params: dict[str, object] = {}
+
+    # ------------------------------------------------------------------ telemetry
+
+    def choices(self, enumeration: str):
+        return [(v, label, meaning) for v, label, meaning in self.enums[enumeration]]
+
+    def parameter(self, f: dict):
+        """The parameter of a TM field (created once, shared by containers)."""
+        name = f["name"]
+        if name in self.params:
+            return self.params[name]
+        m = f["meaning"]
+        wire = f["wire"]["type"]
+        desc = f["description"]
+        s = self.system
+        kind = m["kind"]
+        if kind == "number" and m["scale"] != 1.0:
+            p = FloatParameter(
+                s,
+                name,
+                bits=64,
+                units=m["unit"],
+                encoding=encoding(wire),
+                calibrator=Polynomial([0.0, m["scale"]]),
+                short_description=desc,
+            )
+        elif kind in ("number", "fixed", "bits"):
+            p = IntegerParameter(
+                s,
+                name,
+                signed=wire == "i32",
+                bits=64 if wire == "u32" else 32,
+                units=m.get("unit"),
+                encoding=encoding(wire),
+                short_description=desc,
+            )
+        elif kind == "enum":
+            p = EnumeratedParameter(
+                s,
+                name,
+                choices=self.choices(m["enumeration"]),
+                encoding=encoding(wire),
+                short_description=desc,
+            )
+        elif kind == "boolean":
+            p = BooleanParameter(s, name, encoding=encoding(wire), short_description=desc)
+        elif kind == "binary":
+            p = BinaryParameter(
+                s,
+                name,
+                encoding=BinaryEncoding(length_bits=LENGTH_PREFIX_BITS),
+                short_description=desc,
+            )
+        else:
+            raise ValueError(f"{name}: unknown meaning {kind}")
+        self.params[name] = p
+        return p
+
+    def entries(self, fields: list[dict], base_byte: int) -> list[ParameterEntry]:
+        """Entries at absolute bit positions; a bit-field word also gets one boolean
+        parameter per named bit, overlaid on the word."""
+        out = []
+        for f in fields:
+            at = (base_byte + f["offset"]) * 8
+            out.append(ParameterEntry(self.parameter(f), bitpos=at))
+            m = f["meaning"]
+            if m["kind"] == "bits":
+                width = WIRE_BITS[f["wire"]["type"]]
+                for bit, bname, meaning in self.bit_fields[m["bit_field"]]:
+                    pname = f"{f['name']}_{bname.lower()}"
+                    if pname not in self.params:
+                        self.params[pname] = BooleanParameter(
+                            self.system,
+                            pname,
+                            encoding=uint(1),
+                            short_description=f"{f['name']} bit {bit}: {meaning}",
+                        )
+                    out.append(
+                        ParameterEntry(self.params[pname], bitpos=at + width - 1 - bit)
+                    )
+        return out
+
+    def telemetry(self):
+        s = self.system
+        L = self.link
+        hdr = lambda name, bits, desc: IntegerParameter(  # noqa: E731
+            s, name, signed=False, bits=32, encoding=uint(bits), short_description=desc
+        )
+        self.apid = hdr("ccsds_apid", 11, "APID of the packet")
+        self.seq = hdr("ccsds_seq_count", 14, "packet sequence count")
+        ccsds = Container(
+            s,
+            "ccsds",
+            entries=[
+                ParameterEntry(self.apid, bitpos=5),
+                ParameterEntry(self.seq, bitpos=18),
+            ],
+            short_description="CCSDS space packet (root container)",
+        )
+        time_at = L["tm_time_offset"]
+        coarse = L["cuc_coarse_bytes"] * 8
+        fine = L["cuc_fine_bytes"] * 8
+        self.service = hdr("pus_service", 8, "PUS service of the TM packet")
+        self.subtype = hdr("pus_subtype", 8, "PUS subtype of the TM packet")
+        self.obt_s = hdr("obt_seconds", coarse, "on-board time: seconds since boot (CUC coarse)")
+        self.obt_f = hdr("obt_fraction", fine, "on-board time: 1/65536 s (CUC fine)")
+        pus_tm = Container(
+            s,
+            "pus_tm",
+            base=ccsds,
+            condition=eq(self.apid, L["apid"]),
+            entries=[
+                ParameterEntry(self.service, bitpos=7 * 8),
+                ParameterEntry(self.subtype, bitpos=8 * 8),
+                ParameterEntry(
+                    hdr("pus_msg_counter", 16, "message type counter (per service)"),
+                    bitpos=9 * 8,
+                ),
+                ParameterEntry(self.obt_s, bitpos=time_at * 8),
+                ParameterEntry(self.obt_f, bitpos=time_at * 8 + coarse),
+            ],
+            short_description="PUS-C TM packet of the M2 controller",
+        )
+        # Time reports (APID 0, no secondary header): the on-board time the gateway
+        # read from the controller's last TM packet, for Yamcs' time correlation.
+        Container(
+            s,
+            "time_report",
+            base=ccsds,
+            condition=eq(self.apid, 0),
+            entries=[
+                ParameterEntry(
+                    hdr("time_report_seconds", coarse, "OBT of the time report (s)"),
+                    bitpos=6 * 8,
+                ),
+                ParameterEntry(
+                    hdr("time_report_fraction", fine, "OBT of the time report (1/65536 s)"),
+                    bitpos=6 * 8 + coarse,
+                ),
+            ],
+            short_description="time correlation sample (ground segment gateway)",
+        )
+        src = L["tm_source_data_offset"]
+        packets = {p["name"]: p for p in self.mdb["telemetry"]}
+        # Service 1: the request ID's APID and sequence count and the report's subtype
+        # as parameters of the verification container only, so that no other packet
+        # re-triggers the command verifiers (Pus1Verifier) with stale values.
+        self.ver_apid = hdr("ver_tc_apid", 11, "APID of the verified TC")
+        self.ver_seq = hdr("ver_tc_seq_count", 14, "sequence count of the verified TC")
+        self.ver_sub = hdr("ver_subtype", 8, "subtype of the verification report")
+        success = packets["verification_success"]
+        failure = packets["verification_failure"]
+        ver = Container(
+            s,
+            "verification",
+            base=pus_tm,
+            condition=eq(self.service, success["service"]),
+            entries=[
+                ParameterEntry(self.ver_sub, bitpos=8 * 8),
+                ParameterEntry(self.ver_apid, bitpos=src * 8 + 5),
+                ParameterEntry(self.ver_seq, bitpos=(src + 2) * 8 + 2),
+            ]
+            + self.entries(success["fields"], src),
+            short_description=success["description"],
+        )
+        shared = {f["name"] for f in success["fields"]}
+        Container(
+            s,
+            "verification_failure",
+            base=ver,
+            condition=self.subtype_condition(failure["subtypes"]),
+            entries=self.entries([f for f in failure["fields"] if f["name"] not in shared], src),
+            short_description=failure["description"],
+        )
+        for p in self.mdb["telemetry"]:
+            if p["service"] == success["service"]:
+                continue
+            Container(
+                s,
+                p["name"],
+                base=pus_tm,
+                condition=self.packet_condition(p),
+                entries=self.entries(p["fields"], src),
+                short_description=p["description"],
+                hint_partition=True,
+            )
+
+    def subtype_condition(self, subtypes: list[int]):
+        conds = [eq(self.subtype, st) for st in subtypes]
+        return conds[0] if len(conds) == 1 else any_of(*conds)
+
+    def packet_condition(self, p: dict):
+        return all_of(eq(self.service, p["service"]), self.subtype_condition(p["subtypes"]))
+
+    # ------------------------------------------------------------------ commands
+
+    def argument(self, f: dict):
+        m = f["meaning"]
+        wire = f["wire"]
+        kind = m["kind"]
+        name, desc = f["name"], f["description"]
+        if kind == "number":
+            lo, hi = m["range"] if m["range"] else (None, None)
+            if m["scale"] != 1.0:
+                # Yamcs applies an argument's calibrator from engineering to raw.
+                return FloatArgument(
+                    name,
+                    bits=64,
+                    minimum=lo,
+                    maximum=hi,
+                    units=m["unit"],
+                    encoding=encoding(wire["type"]),
+                    calibrator=Polynomial([0.0, 1.0 / m["scale"]]),
+                    short_description=desc,
+                )
+            return IntegerArgument(
+                name,
+                signed=wire["type"] == "i32",
+                bits=64 if wire["type"] == "u32" else 32,
+                minimum=int(lo) if lo is not None else None,
+                maximum=int(hi) if hi is not None else None,
+                units=m["unit"],
+                encoding=encoding(wire["type"]),
+                short_description=desc,
+            )
+        if kind == "enum":
+            return EnumeratedArgument(
+                name,
+                choices=self.choices(m["enumeration"]),
+                encoding=encoding(wire["type"]),
+                short_description=desc,
+            )
+        if kind == "binary":
+            return BinaryArgument(
+                name,
+                min_length=wire["min_len"],
+                max_length=wire["max_len"],
+                encoding=BinaryEncoding(length_bits=LENGTH_PREFIX_BITS),
+                short_description=desc,
+            )
+        raise ValueError(f"{name}: no argument for meaning {kind}")
+
+    def verifier_check(self, stage: dict) -> AlgorithmCheck:
+        failure = self.params["failure_code"], self.params["failure_data"]
+        return AlgorithmCheck(
+            UnnamedJavaAlgorithm(
+                "org.yamcs.pus.Pus1Verifier({stage: %d, template: \"%s\"})"
+                % (
+                    stage["success_subtype"],
+                    "failure code {failure_code} data {failure_data}",
+                ),
+                inputs=[
+                    InputParameter("/yamcs/cmd/arg/apid", name="sentApid"),
+                    InputParameter("/yamcs/cmdHist/ccsds-seqcount", name="sentSeqCount"),
+                    InputParameter(self.ver_apid, name="rcvdApid"),
+                    InputParameter(self.ver_seq, name="rcvdSeqCount"),
+                    InputParameter(self.ver_sub, name="reportSubType"),
+                    InputParameter(failure[0], name="failure_code"),
+                    InputParameter(failure[1], name="failure_data"),
+                ],
+            )
+        )
+
+    def commands(self):
+        s = self.system
+        L = self.link
+        base = Command(
+            s,
+            "pus_tc",
+            abstract=True,
+            arguments=[
+                IntegerArgument("apid", signed=False, bits=32, encoding=uint(11)),
+                IntegerArgument(
+                    "ack_flags",
+                    signed=False,
+                    bits=32,
+                    minimum=0,
+                    maximum=15,
+                    default=L["default_ack_flags"],
+                    encoding=uint(4),
+                    short_description="acknowledgement flags: 8 acceptance, 4 start, 2 progress, 1 completion",
+                ),
+                IntegerArgument("service", signed=False, bits=32, encoding=uint(8)),
+                IntegerArgument("subtype", signed=False, bits=32, encoding=uint(8)),
+                IntegerArgument(
+                    "source_id",
+                    signed=False,
+                    bits=32,
+                    default=0,
+                    encoding=uint(16),
+                    short_description="PUS source ID",
+                ),
+            ],
+            short_description="PUS-C telecommand of the M2 controller",
+        )
+        base_args = {a.name: a for a in base.arguments}
+        base.entries = [
+            FixedValueEntry("00", "ccsds_version", bits=3),
+            FixedValueEntry("01", "ccsds_type_tc", bits=1),
+            FixedValueEntry("01", "ccsds_sec_header", bits=1),
+            ArgumentEntry(base_args["apid"]),
+            FixedValueEntry("03", "ccsds_seq_flags", bits=2),
+            FixedValueEntry("0000", "ccsds_seq_count", bits=14),
+            FixedValueEntry("0000", "ccsds_length", bits=16),
+            FixedValueEntry("%02x" % L["pus_version"], "pus_version", bits=4),
+            ArgumentEntry(base_args["ack_flags"]),
+            ArgumentEntry(base_args["service"]),
+            ArgumentEntry(base_args["subtype"]),
+            ArgumentEntry(base_args["source_id"]),
+        ]
+        stages = {v["name"]: v for v in self.mdb["verification"]}
+        for tc in self.mdb["telecommands"]:
+            entries = []
+            args = []
+            if tc["function_id"] is not None:
+                entries.append(FixedValueEntry("%04x" % tc["function_id"], "function_id", bits=16))
+            for f in tc["fields"]:
+                if f["meaning"]["kind"] == "fixed":
+                    bits = WIRE_BITS[f["wire"]["type"]]
+                    entries.append(
+                        FixedValueEntry(
+                            "%0*x" % (bits // 4, f["meaning"]["value"]), f["name"], bits=bits
+                        )
+                    )
+                else:
+                    a = self.argument(f)
+                    args.append(a)
+                    entries.append(ArgumentEntry(a))
+            cmd = Command(
+                s,
+                tc["name"],
+                base=base,
+                assignments={
+                    "apid": L["apid"],
+                    "service": tc["service"],
+                    "subtype": tc["subtype"],
+                },
+                arguments=args,
+                entries=entries,
+                short_description=f"TC[{tc['service']},{tc['subtype']}]"
+                + (f" function 0x{tc['function_id']:04x}" if tc["function_id"] is not None else "")
+                + f": {tc['description']}",
+            )
+            cmd.accepted_verifier = AcceptedVerifier(
+                check=self.verifier_check(stages["Acceptance"]),
+                timeout=10.0,
+                name="Acceptance",
+            )
+            cmd.execution_verifiers.append(
+                ExecutionVerifier(
+                    check=self.verifier_check(stages["Start"]), timeout=10.0, name="Start"
+                )
+            )
+            cmd.complete_verifiers.append(
+                CompleteVerifier(
+                    check=self.verifier_check(stages["Completion"]),
+                    timeout=tc["completion_timeout_s"],
+                    name="Completion",
+                )
+            )
+
+    # ------------------------------------------------------------------ events
+
+    def event_templates(self) -> str:
+        lines = [
+            "# Generated by yamcs/tools/gen_xtce.py from m2ground mdb-json: do not edit.",
+            "# Yamcs PusEventDecoder templates, one per event ID label.",
+        ]
+        for e in self.mdb["events"]:
+            msg = e["message"].replace("{aux0}", "{event_aux0}").replace("{aux1}", "{event_aux1}")
+            lines.append(f"- eventId: {json.dumps(e['name'])}")
+            lines.append(f"  template: {json.dumps(msg)}")
+        return "\n".join(lines) + "\n"
+
+
+def name_verifier_algorithms(xml: str) -> str:
+    """pymdb names every verifier algorithm "Unnamed"; Yamcs needs one name per
+    algorithm: <command>_<stage>."""
+    ns = "http://www.omg.org/spec/XTCE/20180204"
+    ET.register_namespace("", ns)
+    ET.register_namespace("xsi", "http://www.w3.org/2001/XMLSchema-instance")
+    root = ET.fromstring(xml)
+    q = lambda tag: f"{{{ns}}}{tag}"  # noqa: E731
+    for mc in root.iter(q("MetaCommand")):
+        for vs in mc.iter(q("VerifierSet")):
+            for verifier in vs:
+                for alg in verifier.iter(q("CustomAlgorithm")):
+                    alg.set("name", f"{mc.get('name')}_{verifier.get('name')}")
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode")
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) != 3:
+        print(__doc__, file=sys.stderr)
+        return 2
+    mdb = json.loads(Path(argv[1]).read_text())
+    out = Path(argv[2])
+    g = Generator(mdb)
+    g.telemetry()
+    g.commands()
+    (out / "mdb").mkdir(parents=True, exist_ok=True)
+    (out / "etc").mkdir(parents=True, exist_ok=True)
+    xml = g.system.dumps(
+        top_comment="Generated by yamcs/tools/gen_xtce.py from m2ground mdb-json: do not edit."
+    )
+    (out / "mdb" / "m2.xml").write_text(name_verifier_algorithms(xml))
+    (out / "etc" / "events.yaml").write_text(g.event_templates())
+    n_params = len(g.params)
+    print(
+        f"gen_xtce: {len(mdb['telecommands'])} commands, {len(mdb['telemetry'])} TM packets, "
+        f"{n_params} parameters, {len(mdb['events'])} events -> {out}/mdb/m2.xml"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
