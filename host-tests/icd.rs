@@ -7,17 +7,14 @@ mod common;
 use std::collections::BTreeSet;
 
 use common::{all_ok, calibrated_table, install, wire, JOB_CYCLES};
-use m2ctl::controller::{event, CommandError, State};
+use m2ctl::controller::event;
 use m2ctl::ground::station::Tm;
-use m2ctl::kinematics::Refusals;
 use m2ctl::link::command::{FunctionId, WirePose, FUNCTION_ID_LEN};
 use m2ctl::link::hk::HK_REPORT_LEN;
 use m2ctl::link::tm::EventSeverity;
-use m2ctl::link::{Command, Housekeeping, LinkError};
-use m2ctl::motion::{MotionError, StrokeMoveError};
+use m2ctl::link::{Command, Housekeeping};
 use m2ctl::sim::{Bench, InjectedFault};
-use m2ctl::supervision::FaultFlags;
-use m2ctl::table::{BankStatus, StoreError, Table, TableError, ValidationError, TABLE_LEN};
+use m2ctl::table::{Table, TABLE_LEN};
 
 fn icd() -> String {
     std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/icd.md")).unwrap()
@@ -61,121 +58,15 @@ fn hex(cell: &str) -> Option<u32> {
         .and_then(|h| u32::from_str_radix(h, 16).ok())
 }
 
-/// Every failure code the controller can report, from the enums themselves.
+/// Every failure code the controller can report in a service-1 report: the mission
+/// database's one sample of each variant (itself checked against every `code()` arm of
+/// the flight sources by `host-tests/mdb.rs`), without the nested families (geometry,
+/// IK, FK codes appear only inside another code's data).
 fn code_side_codes() -> BTreeSet<u16> {
-    let link = [
-        LinkError::Truncated { got: 0, needed: 0 },
-        LinkError::LengthMismatch {
-            got: 0,
-            declared: 0,
-        },
-        LinkError::Oversized,
-        LinkError::BadFraming,
-        LinkError::BadCrc { found: 0 },
-        LinkError::WrongApid { apid: 0 },
-        LinkError::BadPrimaryHeader,
-        LinkError::UnsupportedPusVersion { version: 0 },
-        LinkError::UnknownService { service: 0 },
-        LinkError::UnknownSubtype {
-            service: 0,
-            subtype: 0,
-        },
-        LinkError::UnknownFunction { function_id: 0 },
-        LinkError::AppDataLength {
-            got: 0,
-            expected: 0,
-        },
-        LinkError::InvalidArgument { index: 0 },
-        LinkError::ChunkOutOfRange {
-            offset: 0,
-            length: 0,
-        },
-    ]
-    .map(|e| e.code());
-    let table = [
-        TableError::WrongLength { got: 0 },
-        TableError::BadMagic,
-        TableError::UnsupportedVersion { version: 0 },
-        TableError::BadLengthField { length: 0 },
-        TableError::BadCrc,
-        TableError::ReservedNotZero,
-        TableError::MissingLimits,
-    ]
-    .map(|e| e.code());
-    let validation = [
-        ValidationError::ProvenanceNotAscii { index: 0 },
-        ValidationError::NonFinite { field: 0 },
-        ValidationError::CoordinateOffNominal { index: 0 },
-        ValidationError::RodLengthImplausible { leg: 0 },
-        ValidationError::Geometry(m2ctl::kinematics::GeometryError::NonFinite),
-        ValidationError::StrokeLimitBeyondCap { leg: 0 },
-        ValidationError::WorkspaceBeyondCap { axis: 0 },
-        ValidationError::Supervision { field: 0 },
-        ValidationError::Unreachable { legs: 0 },
-        ValidationError::StrokeLimitExceeded { legs: 0 },
-        ValidationError::FkFailed {
-            corner: 0,
-            fk_code: 0,
-        },
-        ValidationError::FkInaccurate { corner: 0 },
-        ValidationError::BadConfig,
-    ]
-    .map(|e| e.code());
-    let store = [
-        StoreError::BadLayout,
-        StoreError::Flash(embedded_storage::nor_flash::NorFlashErrorKind::Other),
-        StoreError::Invalid(ValidationError::BadConfig),
-        StoreError::VerifyFailed,
-        StoreError::NoRecord(BankStatus::Blank),
-        StoreError::Busy,
-        StoreError::NotExpected,
-    ]
-    .map(|e| e.code());
-    let motion = [
-        MotionError::NonFinite,
-        MotionError::BadLimits { leg: 0 },
-        MotionError::StartRefused(Refusals::default()),
-        MotionError::TargetRefused(Refusals::default()),
-        MotionError::PathRefused {
-            sample: 0,
-            refusals: Refusals::default(),
-        },
-        MotionError::TooLong,
-    ]
-    .map(|e| e.code());
-    let stroke = [
-        StrokeMoveError::BadLeg,
-        StrokeMoveError::NonFinite,
-        StrokeMoveError::BadLimits,
-        StrokeMoveError::DeltaTooLarge,
-        StrokeMoveError::OutsideStrokeRange,
-        StrokeMoveError::TooLong,
-    ]
-    .map(|e| e.code());
-    let f = FaultFlags::empty();
-    let controller = [
-        CommandError::Faulted(f),
-        CommandError::Busy(State::Moving),
-        CommandError::FaultPersists(f),
-        CommandError::NoPose,
-        CommandError::UploadIncomplete(0),
-        CommandError::CrcMismatch(0),
-        CommandError::NoPending,
-        CommandError::Stopped,
-        CommandError::AbortedByFault(f),
-        CommandError::PendingMismatch { pending_id: 0 },
-        CommandError::EncoderSuspect(0),
-        CommandError::NoGeometry,
-        CommandError::JobBusy(0),
-    ]
-    .map(|e| e.code());
-    link.into_iter()
-        .chain(table)
-        .chain(validation)
-        .chain(store)
-        .chain(motion)
-        .chain(stroke)
-        .chain(controller)
+    m2ctl::ground::mdb::failure_samples()
+        .into_iter()
+        .filter(|(family, _, _)| !matches!(*family, "GEOMETRY" | "IK" | "FK"))
+        .map(|(_, code, _)| code)
         .collect()
 }
 

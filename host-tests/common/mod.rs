@@ -92,6 +92,7 @@ pub fn golden() -> Vec<([f64; 6], [f64; 6])> {
 use m2ctl::link::command::{WirePose, TABLE_CHUNK_MAX_LEN};
 use m2ctl::link::tm::{dump_chunks, Verification};
 use m2ctl::link::{Command, TableChunk};
+pub use m2ctl::sim::soak::calibrated_table;
 use m2ctl::sim::Bench;
 use m2ctl::table::{Table, TABLE_LEN};
 
@@ -135,17 +136,6 @@ pub fn upload(r: &mut Bench, bytes: &[u8; TABLE_LEN], order: &[usize]) {
             r.st.reports(rid)
         );
     }
-}
-
-pub fn calibrated_table(id: u32) -> Table {
-    let mut t = Table::nominal();
-    t.table_id = id;
-    // A plausible calibration: joints moved by tens of micrometres.
-    for (i, leg) in t.legs.iter_mut().enumerate() {
-        leg.a_mm[0] += 0.01 * i as f64;
-        leg.b_mm[1] -= 0.02;
-    }
-    t
 }
 
 /// TC[8,1] activate naming `t`.
