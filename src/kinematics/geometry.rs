@@ -102,6 +102,11 @@ pub struct Leg<T> {
     pub d0_mm: [T; 3],
     /// Rod length `|d0|` (mm); derived in f64.
     pub rod_mm: T,
+    /// `2 d0_x`, `2 d0_y` (mm; exact doubles of `d0_mm`), the factors of the IK's change
+    /// of the horizontal rod length squared.
+    pub two_d0_xy_mm: [T; 2],
+    /// `d0_z^2` (mm^2); derived in f64.
+    pub d0z_sq_mm2: T,
     /// `1 / (2 d0_z)` (1/mm); derived in f64. Scales the first-order guess of the
     /// vertical rod component in the IK.
     pub inv_two_d0z_per_mm: T,
@@ -245,6 +250,8 @@ impl<T: Real> Geometry<T> {
                 a_mm: map3(leg.a_mm),
                 b_mm: map3(leg.b_mm),
                 d0_mm: map3(d0),
+                two_d0_xy_mm: [T::from_f64(2.0 * d0[0]), T::from_f64(2.0 * d0[1])],
+                d0z_sq_mm2: T::from_f64(d0[2] * d0[2]),
                 rod_mm: T::from_f64(libm::sqrt(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2])),
                 inv_two_d0z_per_mm: T::from_f64(0.5 / d0[2]),
                 fast_sqrt_delta_mm2: T::from_f64(SQRT_FAST_FRACTION * d0[2] * d0[2]),

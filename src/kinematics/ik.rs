@@ -68,8 +68,8 @@ pub(crate) struct LegState<T> {
     pub h_mm: [T; 2],
     /// Vertical rod component at the pose (mm), > 0.
     pub q_mm: T,
-    /// `(R - I) b` (mm, frame B).
-    pub wb_mm: [T; 3],
+    /// `R b = b + (R - I) b` (mm, frame B): the upper joint relative to M's origin.
+    pub rb_mm: [T; 3],
 }
 
 /// Evaluates one leg; `None` when the radicand is not positive (leg cannot reach).
@@ -82,8 +82,8 @@ pub(crate) fn leg_state<T: Real>(
     let wb = rot.apply_delta(&leg.b_mm);
     let u = [wb[0] + t[0], wb[1] + t[1], wb[2] + t[2]];
     let d0 = &leg.d0_mm;
-    let delta = u[0] * (T::TWO * d0[0] + u[0]) + u[1] * (T::TWO * d0[1] + u[1]);
-    let radicand = d0[2] * d0[2] - delta;
+    let delta = u[0] * (leg.two_d0_xy_mm[0] + u[0]) + u[1] * (leg.two_d0_xy_mm[1] + u[1]);
+    let radicand = leg.d0z_sq_mm2 - delta;
     // `!(x > 0)` also rejects NaN.
     if !(radicand > T::ZERO) {
         return None;
@@ -101,7 +101,11 @@ pub(crate) fn leg_state<T: Real>(
         stroke_mm: u[2] + delta / (q + d0[2]),
         h_mm: [d0[0] + u[0], d0[1] + u[1]],
         q_mm: q,
-        wb_mm: wb,
+        rb_mm: [
+            leg.b_mm[0] + wb[0],
+            leg.b_mm[1] + wb[1],
+            leg.b_mm[2] + wb[2],
+        ],
     })
 }
 
@@ -126,6 +130,10 @@ pub(crate) fn strokes_unchecked<T: Real>(geom: &Geometry<T>, pose: &Pose<T>) -> 
 ///
 /// When several checks fail the error reports the first in that order; use
 /// [`super::workspace::check`] for every reason at once.
+///
+/// Never inlined: one copy per float type serves every caller (flash), and it is the
+/// code the benchmarks measure.
+#[inline(never)]
 pub fn ik<T: Real>(geom: &Geometry<T>, pose: &Pose<T>) -> Result<[T; LEGS], IkError> {
     let (strokes, refusals) = super::workspace::evaluate(geom, pose);
     match refusals.first_error() {

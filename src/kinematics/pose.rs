@@ -82,6 +82,7 @@ pub struct RotationDelta<T> {
 impl<T: Real> RotationDelta<T> {
     /// Builds `R - I` for `R = Rz(gamma) Ry(beta) Rx(alpha)`. Diagonal terms are sums of
     /// `cos - 1` values, never `cos - 1` computed as a difference.
+    #[inline(always)]
     pub fn new(rotation_rad: &[T; 3]) -> Self {
         let [alpha, beta, gamma] = *rotation_rad;
         let (sa, cma) = alpha.sin_cosm1();
