@@ -35,6 +35,8 @@
 //! below the residual tolerance, else the call fails: a half-converged pose is never
 //! returned as good.
 
+use nalgebra::Vector3;
+
 use super::geometry::{Geometry, LEGS};
 use super::ik::{leg_state, LegState};
 use super::linalg::{UnitZJacobian, UnitZLu};
@@ -144,7 +146,7 @@ impl FkError {
 }
 
 /// The six legs evaluated at one pose: strokes, and what the Jacobian needs.
-struct Evaluation<T> {
+struct Evaluation<T: Real> {
     rot: RotationDelta<T>,
     legs: [LegState<T>; LEGS],
 }
@@ -188,25 +190,14 @@ impl<T: Real> Evaluation<T> {
 fn jacobian<T: Real>(ev: &Evaluation<T>) -> UnitZJacobian<T> {
     let w = &ev.rot.w;
     // R e_x (first column of R) and Rz e_y = (-sin gamma, cos gamma, 0).
-    let ax = [T::ONE + w[0][0], w[1][0], w[2][0]];
+    let ax = Vector3::new(T::ONE + w[(0, 0)], w[(1, 0)], w[(2, 0)]);
     let (sg, cg) = (ev.rot.sg, ev.rot.cg);
     let rows = ev.legs.each_ref().map(|st| {
         let inv_q = T::ONE / st.q_mm;
         let (nx, ny) = (st.h_mm[0] * inv_q, st.h_mm[1] * inv_q);
-        let rb = &st.rb_mm;
         // m = Rb x n with n = (nx, ny, 1).
-        let m = [
-            rb[1] - rb[2] * ny,
-            rb[2] * nx - rb[0],
-            rb[0] * ny - rb[1] * nx,
-        ];
-        [
-            nx,
-            ny,
-            ax[0] * m[0] + ax[1] * m[1] + ax[2] * m[2],
-            cg * m[1] - sg * m[0],
-            m[2],
-        ]
+        let m = st.rb_mm.cross(&Vector3::new(nx, ny, T::ONE));
+        [nx, ny, ax.dot(&m), cg * m[1] - sg * m[0], m[2]]
     });
     UnitZJacobian { rows }
 }

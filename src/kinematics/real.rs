@@ -25,8 +25,18 @@ use core::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
 pub const SMALL_ANGLE_RAD: f64 = 0.1;
 
 /// A real number type the kinematics can be evaluated in (`f32` or `f64`).
+///
+/// It is a nalgebra scalar with field arithmetic, so the kinematics' vectors and
+/// matrices are nalgebra's fixed-size `Vector3<T>` / `Matrix3<T>` (stack values, no
+/// allocation), the vocabulary the ground tools use too. The methods below are ours,
+/// not nalgebra's `RealField` ones, for the reasons in the module docs.
 pub trait Real:
-    Copy
+    nalgebra::Scalar
+    + nalgebra::Field
+    + nalgebra::ClosedAddAssign
+    + nalgebra::ClosedSubAssign
+    + nalgebra::ClosedMulAssign
+    + Copy
     + Debug
     + Default
     + PartialOrd
