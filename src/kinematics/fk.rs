@@ -39,7 +39,7 @@ use nalgebra::Vector3;
 
 use super::geometry::{Geometry, LEGS};
 use super::ik::{leg_state, LegState};
-use super::linalg::UnitZJacobian;
+use super::linalg::{UnitZJacobian, UnitZLu};
 use super::pose::{Pose, RotationDelta};
 use super::real::Real;
 
@@ -241,48 +241,29 @@ fn max_abs<T: Real>(r: &[T; LEGS]) -> T {
 /// Never inlined: one copy per float type serves every caller (flash), and it is the
 /// code the benchmarks measure.
 #[inline(never)]
-pub fn fk<T: Real + nalgebra::RealField>(
+pub fn fk<T: Real>(
     geom: &Geometry<T>,
     strokes_mm: &[T; LEGS],
     start: &Pose<T>,
     cfg: &FkConfig<T>,
 ) -> Result<FkSolution<T>, FkError> {
-    if !strokes_mm.iter().all(|s| Real::is_finite(*s)) || !start.is_finite() {
+    if !strokes_mm.iter().all(|s| s.is_finite()) || !start.is_finite() {
         return Err(FkError::NonFinite);
     }
-    let negligible = <T as Real>::from_f64(FK_NEGLIGIBLE_STEP);
+    let negligible = T::from_f64(FK_NEGLIGIBLE_STEP);
     let mut p = start.to_array();
     let mut iterations = 0u8;
     let mut ev = Evaluation::blank();
     let mut r = residual_at(geom, strokes_mm, &p, &mut ev, iterations)?;
+    let mut lu = UnitZLu::blank();
     loop {
         if iterations >= cfg.max_iterations {
             return Err(FkError::NotConverged { iterations });
         }
-        let full = jacobian(&ev).to_matrix();
-        let jm = nalgebra::Matrix6::from_fn(|i, k| full[i][k]);
-        let mut scale = T::ONE;
-        for v in full.iter().flatten() {
-            scale = Real::max(scale, Real::abs(*v));
+        if !lu.refactor(&jacobian(&ev), cfg.pivot_ratio) {
+            return Err(FkError::SingularJacobian { iterations });
         }
-        let threshold = cfg.pivot_ratio * scale;
-        let lu = jm.lu();
-        let u = lu.u();
-        for k in 0..6 {
-            if !(Real::abs(u[(k, k)]) > threshold) {
-                return Err(FkError::SingularJacobian { iterations });
-            }
-        }
-        let factored_at = iterations;
-        let solve = move |r: &[T; LEGS]| -> Result<[T; 6], FkError> {
-            let x = lu.solve(&nalgebra::Vector6::from_column_slice(r)).ok_or(
-                FkError::SingularJacobian {
-                    iterations: factored_at,
-                },
-            )?;
-            Ok([x[0], x[1], x[2], x[3], x[4], x[5]])
-        };
-        let step = solve(&r)?;
+        let step = lu.solve(&r);
         iterations += 1;
         apply(&mut p, &step, iterations)?;
         r = residual_at(geom, strokes_mm, &p, &mut ev, iterations)?;
@@ -291,7 +272,7 @@ pub fn fk<T: Real + nalgebra::RealField>(
             return finish(p, &r, iterations, cfg);
         }
         // The next step, estimated with this factorization (see the module docs).
-        let next = solve(&r)?;
+        let next = lu.solve(&r);
         let size = step_in_tolerances(&next, cfg);
         if size <= negligible {
             return finish(p, &r, iterations, cfg);
