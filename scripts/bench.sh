@@ -36,8 +36,8 @@ sizes() { arm-none-eabi-size "$1" | tail -1; }
 
 k=$(count "$D/m2selftest"); echo "$k"
 e=$(pick "$k" 1)
-echo "IK (one pose, six strokes, all checks):          $(( $(pick "$k" 2) - e )) instructions (goal <= 1000)"
-echo "FK (warm start within 10 um, with residual):     $(( $(pick "$k" 3) - e )) instructions (goal <= 8000)"
+echo "IK (one pose, six strokes, all checks):          $(( $(pick "$k" 2) - e )) instructions (goal <= 600)"
+echo "FK (warm start within 10 um, with residual):     $(( $(pick "$k" 3) - e )) instructions (goal <= 5000)"
 read -r text data bss _ < <(sizes "$D/m2selftest")
 stack=$(run_log "$D/m2selftest" | sed -n 's/.*STACK peak_bytes=\([0-9]*\).*/\1/p')
 echo "self-test image flash (text + data):             $((text + data)) bytes (goal <= 65536)"
