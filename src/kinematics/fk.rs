@@ -2,22 +2,44 @@
 //! `f(P) = s_measured - IK(P) = 0` with the analytic Jacobian, warm-started.
 //!
 //! Jacobian of leg i (`n = (h_x/q, h_y/q, 1)`, `h` the horizontal rod components and `q`
-//! the vertical one at the pose, `Rb = b + (R - I) b`):
+//! the vertical one at the pose, `Rb = b + (R - I) b`, `m = Rb x n`). A rotation by a
+//! small angle about a unit axis `k` (frame B) moves the upper joint by `k x Rb`, so the
+//! stroke changes by `n . (k x Rb) = k . m`; the three pose angles turn about:
 //!
 //! ```text
-//! d dl / d t     = n
-//! d dl / d alpha = n . R (e_x x b)                (dR/d alpha = R [e_x]x)
-//! d dl / d beta  = n . ((Rz e_y) x R b)           (dR/d beta  = [Rz e_y]x R)
-//! d dl / d gamma = n . (e_z x R b)                (dR/d gamma = [e_z]x R)
+//! d dl / d t     = n                       (n_z = 1: the z column is all ones)
+//! d dl / d alpha = (R e_x) . m             (dR/d alpha = R [e_x]x = [R e_x]x R)
+//! d dl / d beta  = (Rz e_y) . m            (dR/d beta  = [Rz e_y]x R)
+//! d dl / d gamma = e_z . m = m_z           (dR/d gamma = [e_z]x R)
 //! ```
 //!
-//! Termination: converged when a Newton step is below the step tolerances (the step is
-//! applied); then the residual at the result is evaluated and must be below the residual
-//! tolerance, so a half-converged pose is never returned as good.
+//! The Newton system is solved with that structure ([`UnitZJacobian::factor`]).
+//!
+//! Termination. Newton's method converges quadratically: after a step `d_k` the error
+//! left is of order `K |d_k|^2`. Steps are measured in units of the step tolerances
+//! (`|d|` = the larger of `max |d_t| / step_tol_mm` and `max |d_angle| / step_tol_rad`).
+//!
+//! * If `|d_k| <= 1` the step is applied and the iteration has converged: what is left,
+//!   `K |d_k|^2`, is below rounding.
+//! * Otherwise the strokes are evaluated at the new iterate (the next step needs them)
+//!   and the next Newton step is first estimated with the factorization of the last
+//!   Jacobian, `c = J_k^-1 r_(k+1)`: a sixth of the cost of a new factorization, and
+//!   equal to the true next step `J_(k+1)^-1 r_(k+1)` up to a relative `O(K |d_k|)`. If
+//!   `|c| <= 1` the quadratic bound is already met: `c` is applied as the final step and
+//!   what is left is `O(K |d_k| |c|)`, below rounding again; if `|c|` is even below
+//!   [`FK_NEGLIGIBLE_STEP`] the iterate is returned as it is. Only otherwise is a new
+//!   Jacobian computed. So no Jacobian is computed just to confirm convergence.
+//!
+//! The strokes are then evaluated at the pose to be returned (the last such evaluation
+//! is the residual check, never skipped) and every leg's `|s_measured - IK(P)|` must be
+//! below the residual tolerance, else the call fails: a half-converged pose is never
+//! returned as good.
+
+use nalgebra::Vector3;
 
 use super::geometry::{Geometry, LEGS};
-use super::ik::{leg_state, strokes_unchecked};
-use super::linalg::solve6;
+use super::ik::{leg_state, LegState};
+use super::linalg::{UnitZJacobian, UnitZLu};
 use super::pose::{Pose, RotationDelta};
 use super::real::Real;
 
@@ -26,9 +48,11 @@ use super::real::Real;
 pub struct FkConfig<T> {
     /// Most Newton steps before giving up.
     pub max_iterations: u8,
-    /// Converged when every translation step component is below this (mm)...
+    /// Step tolerance in translation (mm): converged when a step (a Newton step, or the
+    /// final correction with the last Jacobian) is below this on every translation
+    /// axis...
     pub step_tol_mm: T,
-    /// ...and every rotation step component is below this (rad).
+    /// ...and below this on every rotation axis (rad).
     pub step_tol_rad: T,
     /// After convergence, every leg's `|s_measured - IK(P)|` must be below this (mm).
     pub residual_tol_mm: T,
@@ -36,7 +60,7 @@ pub struct FkConfig<T> {
     pub pivot_ratio: T,
 }
 
-/// Default most Newton steps (from a 10 um warm start two are used, three from 1 mm).
+/// Default most Newton steps (from a 10 um warm start two are used, three from home).
 pub const FK_MAX_ITERATIONS: u8 = 8;
 /// Step tolerance in machine epsilons of 1 mm: far above the rounding noise of a step,
 /// far below anything physical (f32: 30 nm; the step is applied, so the error left is
@@ -48,6 +72,11 @@ pub const FK_STEP_LEVER_MM: f64 = 100.0;
 pub const FK_RESIDUAL_TOL_EPS: f64 = 64.0;
 /// Singular-pivot ratio in machine epsilons.
 pub const FK_PIVOT_RATIO_EPS: f64 = 1024.0;
+/// A final correction below this fraction of the step tolerances is not applied: with
+/// the default tolerances it is one machine epsilon of 1 mm (f32: 0.12 nm; rotation
+/// 1.2e-9 rad), below the rounding of the pose itself, so the iterate whose strokes
+/// were just evaluated is returned as it is.
+pub const FK_NEGLIGIBLE_STEP: f64 = 1.0 / FK_STEP_TOL_EPS;
 
 impl<T: Real> Default for FkConfig<T> {
     fn default() -> Self {
@@ -67,7 +96,8 @@ impl<T: Real> Default for FkConfig<T> {
 pub struct FkSolution<T> {
     /// The pose whose strokes match the measured ones.
     pub pose: Pose<T>,
-    /// Newton steps taken (Jacobian solves).
+    /// Newton steps taken (Jacobians factored); a final correction with the last
+    /// factorization is not counted.
     pub iterations: u8,
     /// Largest `|s_measured - IK(pose)|` over the legs (mm).
     pub residual_mm: T,
@@ -115,52 +145,102 @@ impl FkError {
     }
 }
 
+/// The six legs evaluated at one pose: strokes, and what the Jacobian needs.
+struct Evaluation<T: Real> {
+    rot: RotationDelta<T>,
+    legs: [LegState<T>; LEGS],
+}
+
+/// Evaluates every leg at `pose` into `ev` (in place: the evaluation is large and the
+/// iteration keeps one). `Err(mask)`: legs that cannot reach (`ev` is then partly
+/// updated and must not be used).
+#[inline(always)]
+fn evaluate_into<T: Real>(
+    geom: &Geometry<T>,
+    pose: &Pose<T>,
+    ev: &mut Evaluation<T>,
+) -> Result<(), u8> {
+    ev.rot = RotationDelta::new(&pose.rotation_rad);
+    let mut bad = 0u8;
+    for (i, (st, leg)) in ev.legs.iter_mut().zip(geom.legs.iter()).enumerate() {
+        match leg_state(leg, &ev.rot, &pose.translation_mm) {
+            Some(s) => *st = s,
+            None => bad |= 1 << i,
+        }
+    }
+    if bad == 0 {
+        Ok(())
+    } else {
+        Err(bad)
+    }
+}
+
+impl<T: Real> Evaluation<T> {
+    /// An evaluation at home of a mechanism without legs (to be overwritten).
+    fn blank() -> Self {
+        Self {
+            rot: RotationDelta::new(&[T::ZERO; 3]),
+            legs: [LegState::default(); LEGS],
+        }
+    }
+}
+
+/// The Jacobian `d strokes / d pose` at an evaluation (see the module docs).
+#[inline(always)]
+fn jacobian<T: Real>(ev: &Evaluation<T>) -> UnitZJacobian<T> {
+    let w = &ev.rot.w;
+    // R e_x (first column of R) and Rz e_y = (-sin gamma, cos gamma, 0).
+    let ax = Vector3::new(T::ONE + w[(0, 0)], w[(1, 0)], w[(2, 0)]);
+    let (sg, cg) = (ev.rot.sg, ev.rot.cg);
+    let rows = ev.legs.each_ref().map(|st| {
+        let inv_q = T::ONE / st.q_mm;
+        let (nx, ny) = (st.h_mm[0] * inv_q, st.h_mm[1] * inv_q);
+        // m = Rb x n with n = (nx, ny, 1).
+        let m = st.rb_mm.cross(&Vector3::new(nx, ny, T::ONE));
+        [nx, ny, ax.dot(&m), cg * m[1] - sg * m[0], m[2]]
+    });
+    UnitZJacobian { rows }
+}
+
 /// Strokes at `pose` and the Jacobian `d strokes / d pose` (rows legs, columns
 /// `[x, y, z, alpha, beta, gamma]`, units mm/mm and mm/rad). `Err(mask)`: unreachable legs.
 pub fn strokes_and_jacobian<T: Real>(
     geom: &Geometry<T>,
     pose: &Pose<T>,
 ) -> Result<([T; LEGS], [[T; 6]; LEGS]), u8> {
-    let rot = RotationDelta::new(&pose.rotation_rad);
-    let (sg, cg) = (rot.sg, rot.cg);
-    let mut strokes = [T::ZERO; LEGS];
-    let mut jac = [[T::ZERO; 6]; LEGS];
-    let mut bad = 0u8;
-    for (i, ((s, row), leg)) in strokes
-        .iter_mut()
-        .zip(jac.iter_mut())
-        .zip(geom.legs.iter())
-        .enumerate()
-    {
-        let Some(st) = leg_state(leg, &rot, &pose.translation_mm) else {
-            bad |= 1 << i;
-            continue;
-        };
-        *s = st.stroke_mm;
-        let inv_q = T::ONE / st.q_mm;
-        let n = [st.h_mm[0] * inv_q, st.h_mm[1] * inv_q, T::ONE];
-        let b = &leg.b_mm;
-        // R b
-        let rb = [b[0] + st.wb_mm[0], b[1] + st.wb_mm[1], b[2] + st.wb_mm[2]];
-        // R (e_x x b) = v + (R - I) v with v = (0, -b_z, b_y)
-        let v = [T::ZERO, -b[2], b[1]];
-        let wv = rot.apply_delta(&v);
-        let d_alpha = [wv[0], v[1] + wv[1], v[2] + wv[2]];
-        // (Rz e_y) x Rb with Rz e_y = (-sg, cg, 0)
-        let d_beta = [cg * rb[2], sg * rb[2], -sg * rb[1] - cg * rb[0]];
-        // e_z x Rb
-        let d_gamma = [-rb[1], rb[0], T::ZERO];
-        let dot = |d: [T; 3]| n[0] * d[0] + n[1] * d[1] + d[2];
-        *row = [n[0], n[1], T::ONE, dot(d_alpha), dot(d_beta), dot(d_gamma)];
+    let mut ev = Evaluation::blank();
+    evaluate_into(geom, pose, &mut ev)?;
+    Ok((ev.legs.map(|st| st.stroke_mm), jacobian(&ev).to_matrix()))
+}
+
+/// The largest step component in units of the step tolerances (dimensionless).
+#[inline(always)]
+fn step_in_tolerances<T: Real>(step: &[T; 6], cfg: &FkConfig<T>) -> T {
+    let [x, y, z, a, b, g] = *step;
+    let t = x.abs().max(y.abs()).max(z.abs());
+    let r = a.abs().max(b.abs()).max(g.abs());
+    (t / cfg.step_tol_mm).max(r / cfg.step_tol_rad)
+}
+
+/// The largest |residual| over the legs (mm); NaN if any is NaN.
+#[inline(always)]
+fn max_abs<T: Real>(r: &[T; LEGS]) -> T {
+    let mut m = T::ZERO;
+    for v in r.iter() {
+        // `!(a <= m)` also takes a NaN, which then sticks.
+        let a = v.abs();
+        if !(a <= m) {
+            m = a;
+        }
     }
-    if bad == 0 {
-        Ok((strokes, jac))
-    } else {
-        Err(bad)
-    }
+    m
 }
 
 /// Forward kinematics from measured strokes (mm), warm-started at `start`.
+///
+/// Never inlined: one copy per float type serves every caller (flash), and it is the
+/// code the benchmarks measure.
+#[inline(never)]
 pub fn fk<T: Real>(
     geom: &Geometry<T>,
     strokes_mm: &[T; LEGS],
@@ -170,57 +250,89 @@ pub fn fk<T: Real>(
     if !strokes_mm.iter().all(|s| s.is_finite()) || !start.is_finite() {
         return Err(FkError::NonFinite);
     }
+    let negligible = T::from_f64(FK_NEGLIGIBLE_STEP);
     let mut p = start.to_array();
     let mut iterations = 0u8;
-    while iterations < cfg.max_iterations {
-        let pose = Pose::from_array(p);
-        let (s, jac) = strokes_and_jacobian(geom, &pose)
-            .map_err(|legs| FkError::Unreachable { legs, iterations })?;
-        let mut r = [T::ZERO; LEGS];
-        for ((ri, m), c) in r.iter_mut().zip(strokes_mm.iter()).zip(s.iter()) {
-            *ri = *m - *c;
-        }
-        let step =
-            solve6(jac, r, cfg.pivot_ratio).ok_or(FkError::SingularJacobian { iterations })?;
-        iterations += 1;
-        let mut small = true;
-        for (k, (pk, dk)) in p.iter_mut().zip(step.iter()).enumerate() {
-            *pk += *dk;
-            let tol = if k < 3 {
-                cfg.step_tol_mm
-            } else {
-                cfg.step_tol_rad
-            };
-            // `!(x <= tol)` also catches NaN.
-            if !(dk.abs() <= tol) {
-                small = false;
-            }
-        }
-        if !p.iter().all(|v| v.is_finite()) {
+    let mut ev = Evaluation::blank();
+    let mut r = residual_at(geom, strokes_mm, &p, &mut ev, iterations)?;
+    let mut lu = UnitZLu::blank();
+    loop {
+        if iterations >= cfg.max_iterations {
             return Err(FkError::NotConverged { iterations });
         }
-        if small {
-            let pose = Pose::from_array(p);
-            let (s, bad) = strokes_unchecked(geom, &pose);
-            if bad != 0 {
-                return Err(FkError::Unreachable {
-                    legs: bad,
-                    iterations,
-                });
-            }
-            let mut residual = T::ZERO;
-            for (m, c) in strokes_mm.iter().zip(s.iter()) {
-                residual = residual.max((*m - *c).abs());
-            }
-            if !(residual <= cfg.residual_tol_mm) {
-                return Err(FkError::ResidualTooLarge { iterations });
-            }
-            return Ok(FkSolution {
-                pose,
-                iterations,
-                residual_mm: residual,
-            });
+        if !lu.refactor(&jacobian(&ev), cfg.pivot_ratio) {
+            return Err(FkError::SingularJacobian { iterations });
+        }
+        let step = lu.solve(&r);
+        iterations += 1;
+        apply(&mut p, &step, iterations)?;
+        r = residual_at(geom, strokes_mm, &p, &mut ev, iterations)?;
+        // `<=` is false for NaN: a NaN step never counts as converged.
+        if step_in_tolerances(&step, cfg) <= T::ONE {
+            return finish(p, &r, iterations, cfg);
+        }
+        // The next step, estimated with this factorization (see the module docs).
+        let next = lu.solve(&r);
+        let size = step_in_tolerances(&next, cfg);
+        if size <= negligible {
+            return finish(p, &r, iterations, cfg);
+        }
+        if size <= T::ONE {
+            apply(&mut p, &next, iterations)?;
+            r = residual_at(geom, strokes_mm, &p, &mut ev, iterations)?;
+            return finish(p, &r, iterations, cfg);
         }
     }
-    Err(FkError::NotConverged { iterations })
+}
+
+/// Evaluates the legs at `p` into `ev`; returns the residual `s_measured - IK(p)` (mm).
+#[inline(always)]
+fn residual_at<T: Real>(
+    geom: &Geometry<T>,
+    strokes_mm: &[T; LEGS],
+    p: &[T; 6],
+    ev: &mut Evaluation<T>,
+    iterations: u8,
+) -> Result<[T; LEGS], FkError> {
+    evaluate_into(geom, &Pose::from_array(*p), ev)
+        .map_err(|legs| FkError::Unreachable { legs, iterations })?;
+    let mut r = [T::ZERO; LEGS];
+    for ((ri, m), st) in r.iter_mut().zip(strokes_mm.iter()).zip(ev.legs.iter()) {
+        *ri = *m - st.stroke_mm;
+    }
+    Ok(r)
+}
+
+/// The residual check at the pose to be returned: every leg's `|r|` below the
+/// residual tolerance, else [`FkError::ResidualTooLarge`].
+#[inline(always)]
+fn finish<T: Real>(
+    p: [T; 6],
+    r: &[T; LEGS],
+    iterations: u8,
+    cfg: &FkConfig<T>,
+) -> Result<FkSolution<T>, FkError> {
+    let residual = max_abs(r);
+    // `!(x <= tol)` also catches NaN.
+    if !(residual <= cfg.residual_tol_mm) {
+        return Err(FkError::ResidualTooLarge { iterations });
+    }
+    Ok(FkSolution {
+        pose: Pose::from_array(p),
+        iterations,
+        residual_mm: residual,
+    })
+}
+
+/// `p += step`; a non-finite result ends the iteration.
+#[inline(always)]
+fn apply<T: Real>(p: &mut [T; 6], step: &[T; 6], iterations: u8) -> Result<(), FkError> {
+    for (pk, dk) in p.iter_mut().zip(step.iter()) {
+        *pk += *dk;
+    }
+    if p.iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(FkError::NotConverged { iterations })
+    }
 }

@@ -10,6 +10,8 @@
 //! once, so that an `f32` evaluation starts from the best `f32` approximation of each
 //! derived quantity rather than from a difference of rounded large numbers.
 
+use nalgebra::Vector3;
+
 use super::real::Real;
 
 /// Number of legs (sliders) of the 6-PSS platform.
@@ -93,15 +95,20 @@ pub const MIN_ROD_VERTICAL_MM: f64 = 1.0;
 
 /// One leg in the working float type.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Leg<T> {
+pub struct Leg<T: Real> {
     /// Lower joint at zero stroke, frame B (mm).
-    pub a_mm: [T; 3],
+    pub a_mm: Vector3<T>,
     /// Upper joint, frame M (mm).
-    pub b_mm: [T; 3],
+    pub b_mm: Vector3<T>,
     /// Rod vector at home, `b + p0 - a`, frame B (mm); derived in f64.
-    pub d0_mm: [T; 3],
+    pub d0_mm: Vector3<T>,
     /// Rod length `|d0|` (mm); derived in f64.
     pub rod_mm: T,
+    /// `2 d0_x`, `2 d0_y` (mm; exact doubles of `d0_mm`), the factors of the IK's change
+    /// of the horizontal rod length squared.
+    pub two_d0_xy_mm: [T; 2],
+    /// `d0_z^2` (mm^2); derived in f64.
+    pub d0z_sq_mm2: T,
     /// `1 / (2 d0_z)` (1/mm); derived in f64. Scales the first-order guess of the
     /// vertical rod component in the IK.
     pub inv_two_d0z_per_mm: T,
@@ -136,7 +143,7 @@ pub struct WorkspaceBounds<T> {
 
 /// The mechanism as the kinematics evaluate it, in float type `T`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Geometry<T> {
+pub struct Geometry<T: Real> {
     /// Legs 1..6.
     pub legs: [Leg<T>; LEGS],
     /// Home position (mm, frame B).
@@ -242,9 +249,11 @@ impl<T: Real> Geometry<T> {
         for (out, leg) in legs.iter_mut().zip(params.legs.iter()) {
             let d0 = home_rod(leg, &params.p0_mm);
             *out = Leg {
-                a_mm: map3(leg.a_mm),
-                b_mm: map3(leg.b_mm),
-                d0_mm: map3(d0),
+                a_mm: map3(leg.a_mm).into(),
+                b_mm: map3(leg.b_mm).into(),
+                d0_mm: map3(d0).into(),
+                two_d0_xy_mm: [T::from_f64(2.0 * d0[0]), T::from_f64(2.0 * d0[1])],
+                d0z_sq_mm2: T::from_f64(d0[2] * d0[2]),
                 rod_mm: T::from_f64(libm::sqrt(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2])),
                 inv_two_d0z_per_mm: T::from_f64(0.5 / d0[2]),
                 fast_sqrt_delta_mm2: T::from_f64(SQRT_FAST_FRACTION * d0[2] * d0[2]),

@@ -20,6 +20,8 @@
 //! `q` enters only a denominator of size ~2 d0_z, so its rounding is damped ~100-fold.
 //! A negative radicand `d0_z^2 - delta` means the leg cannot reach the pose.
 
+use nalgebra::Vector3;
+
 use super::geometry::{Geometry, Leg, LEGS};
 use super::pose::{Pose, RotationDelta};
 use super::real::Real;
@@ -61,15 +63,15 @@ impl IkError {
 
 /// One leg evaluated at a pose: the stroke and what the Jacobian needs.
 #[derive(Clone, Copy, Debug, Default)]
-pub(crate) struct LegState<T> {
+pub(crate) struct LegState<T: Real> {
     /// Slider stroke (mm).
     pub stroke_mm: T,
     /// Horizontal rod components `b'_x - a_x`, `b'_y - a_y` at the pose (mm).
     pub h_mm: [T; 2],
     /// Vertical rod component at the pose (mm), > 0.
     pub q_mm: T,
-    /// `(R - I) b` (mm, frame B).
-    pub wb_mm: [T; 3],
+    /// `R b = b + (R - I) b` (mm, frame B): the upper joint relative to M's origin.
+    pub rb_mm: Vector3<T>,
 }
 
 /// Evaluates one leg; `None` when the radicand is not positive (leg cannot reach).
@@ -80,10 +82,10 @@ pub(crate) fn leg_state<T: Real>(
     t: &[T; 3],
 ) -> Option<LegState<T>> {
     let wb = rot.apply_delta(&leg.b_mm);
-    let u = [wb[0] + t[0], wb[1] + t[1], wb[2] + t[2]];
+    let u = wb + Vector3::from(*t);
     let d0 = &leg.d0_mm;
-    let delta = u[0] * (T::TWO * d0[0] + u[0]) + u[1] * (T::TWO * d0[1] + u[1]);
-    let radicand = d0[2] * d0[2] - delta;
+    let delta = u[0] * (leg.two_d0_xy_mm[0] + u[0]) + u[1] * (leg.two_d0_xy_mm[1] + u[1]);
+    let radicand = leg.d0z_sq_mm2 - delta;
     // `!(x > 0)` also rejects NaN.
     if !(radicand > T::ZERO) {
         return None;
@@ -101,7 +103,7 @@ pub(crate) fn leg_state<T: Real>(
         stroke_mm: u[2] + delta / (q + d0[2]),
         h_mm: [d0[0] + u[0], d0[1] + u[1]],
         q_mm: q,
-        wb_mm: wb,
+        rb_mm: leg.b_mm + wb,
     })
 }
 
@@ -126,6 +128,10 @@ pub(crate) fn strokes_unchecked<T: Real>(geom: &Geometry<T>, pose: &Pose<T>) -> 
 ///
 /// When several checks fail the error reports the first in that order; use
 /// [`super::workspace::check`] for every reason at once.
+///
+/// Never inlined: one copy per float type serves every caller (flash), and it is the
+/// code the benchmarks measure.
+#[inline(never)]
 pub fn ik<T: Real>(geom: &Geometry<T>, pose: &Pose<T>) -> Result<[T; LEGS], IkError> {
     let (strokes, refusals) = super::workspace::evaluate(geom, pose);
     match refusals.first_error() {

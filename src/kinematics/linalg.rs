@@ -1,60 +1,176 @@
-//! The one dense solve the flight code needs: 6x6, Gaussian elimination with partial
-//! pivoting, fixed-size arrays, no allocation.
+//! The one dense solve the flight code needs: the 6x6 Newton system of the forward
+//! kinematics, fixed-size arrays, no allocation.
+//!
+//! The system has structure: every leg's stroke depends on the z translation with
+//! derivative exactly 1 (the sliders move along B's z, `n_z = 1`), so the z column of
+//! the Jacobian is all ones. Gaussian elimination with partial pivoting on that column
+//! may pick any row (all candidates are equal), every multiplier is exactly 1, and the
+//! first elimination step is six subtractions per row: no pivot search, no
+//! multiplication. What remains is a 5x5 system in `[x, y, alpha, beta, gamma]`, solved
+//! by Gaussian elimination with partial pivoting; z follows from the first row.
+
+// Index loops with constant bounds are deliberate here: with the elimination step a
+// constant they unroll into straight-line code (the iterator forms with `skip` did not,
+// and cost twice the instructions on the target).
+#![allow(clippy::needless_range_loop)]
 
 use super::real::Real;
 
 /// Dimension of the pose space.
 pub const N: usize = 6;
+/// Columns of the Jacobian stored explicitly: `[x, y, alpha, beta, gamma]` (the z
+/// column, all ones, is implicit).
+pub const NC: usize = N - 1;
 
-/// Solves `a x = b`. Returns `None` when a pivot is smaller than
-/// `pivot_ratio * max|a_ij|` (numerically singular for the purpose at hand).
-pub fn solve6<T: Real>(mut a: [[T; N]; N], mut b: [T; N], pivot_ratio: T) -> Option<[T; N]> {
-    let mut scale = T::ZERO;
-    for row in a.iter() {
-        for v in row.iter() {
+/// A 6x6 Jacobian whose z column (index 2 of `[x, y, z, alpha, beta, gamma]`) is all
+/// ones. Row i is leg i; the columns held are `[x, y, alpha, beta, gamma]`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct UnitZJacobian<T> {
+    /// `d stroke_i / d [x, y, alpha, beta, gamma]` (mm/mm, mm/rad).
+    pub rows: [[T; NC]; N],
+}
+
+impl<T: Real> UnitZJacobian<T> {
+    /// The full matrix, columns `[x, y, z, alpha, beta, gamma]`.
+    pub fn to_matrix(&self) -> [[T; N]; N] {
+        self.rows.map(|[x, y, a, b, g]| [x, y, T::ONE, a, b, g])
+    }
+
+    /// Factors the matrix for [`UnitZLu::solve`]. Returns `None` when a pivot is not
+    /// above `pivot_ratio * max|J_ij|` (numerically singular for the purpose at hand;
+    /// NaN entries also give `None`).
+    pub fn factor(&self, pivot_ratio: T) -> Option<UnitZLu<T>> {
+        let mut lu = UnitZLu::blank();
+        lu.refactor(self, pivot_ratio).then_some(lu)
+    }
+}
+
+/// Step `K` of Gaussian elimination with partial pivoting on the 5x5 matrix `lu`:
+/// pivot search in column `K`, row exchange, multipliers stored below the diagonal.
+/// False when the pivot is not above `threshold` (or is NaN).
+#[inline(always)]
+fn eliminate<T: Real, const K: usize>(
+    lu: &mut [[T; NC]; NC],
+    inv_pivot: &mut [T; NC],
+    swaps: &mut [u8; NC],
+    threshold: T,
+) -> bool {
+    // Partial pivoting: the largest remaining entry of column K.
+    let mut p = K;
+    let mut best = lu[K][K].abs();
+    for i in (K + 1)..NC {
+        let m = lu[i][K].abs();
+        if m > best {
+            best = m;
+            p = i;
+        }
+    }
+    // `!(x > t)` also catches NaN.
+    if !(best > threshold) {
+        return false;
+    }
+    if p != K {
+        lu.swap(K, p.min(NC - 1));
+    }
+    swaps[K] = p as u8;
+    let inv = T::ONE / lu[K][K];
+    inv_pivot[K] = inv;
+    for i in (K + 1)..NC {
+        let f = lu[i][K] * inv;
+        lu[i][K] = f;
+        for j in (K + 1)..NC {
+            lu[i][j] -= f * lu[K][j];
+        }
+    }
+    true
+}
+
+/// The factored Newton matrix: `P (J' ) = L U` for the 5x5 system left after the z
+/// column is eliminated, and the first row that gives z back. Solving with it costs
+/// about a sixth of factoring, so a later right-hand side (the residual at the next
+/// iterate) can be solved with it cheaply.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UnitZLu<T> {
+    /// Unit lower triangle (the multipliers, below the diagonal) and upper triangle.
+    lu: [[T; NC]; NC],
+    /// `1 / U_kk`.
+    inv_pivot: [T; NC],
+    /// Row exchanged with row k at step k (k <= swaps[k] < NC).
+    swaps: [u8; NC],
+    /// Row 0 of J without its z entry (which is 1).
+    row0: [T; NC],
+}
+
+impl<T: Real> UnitZLu<T> {
+    /// A factorization holding nothing yet (all zero), to be filled by
+    /// [`UnitZLu::refactor`].
+    pub fn blank() -> Self {
+        Self {
+            lu: [[T::ZERO; NC]; NC],
+            inv_pivot: [T::ZERO; NC],
+            swaps: [0; NC],
+            row0: [T::ZERO; NC],
+        }
+    }
+
+    /// Factors `jac` into `self` (in place: no copy of the factors). Returns false when
+    /// a pivot is not above `pivot_ratio * max|J_ij|` (numerically singular for the
+    /// purpose at hand; NaN entries also give false); `self` must then not be used.
+    pub fn refactor(&mut self, jac: &UnitZJacobian<T>, pivot_ratio: T) -> bool {
+        let [j0, j1, j2, j3, j4, j5] = &jac.rows;
+        // The largest entry is at least the z column's 1.
+        let mut scale = T::ONE;
+        for v in jac.rows.iter().flatten() {
             scale = scale.max(v.abs());
         }
+        let threshold = pivot_ratio * scale;
+        // Eliminate z with row 0 (multiplier 1): rows 1..5 minus row 0.
+        let sub = |row: &[T; NC]| -> [T; NC] {
+            [
+                row[0] - j0[0],
+                row[1] - j0[1],
+                row[2] - j0[2],
+                row[3] - j0[3],
+                row[4] - j0[4],
+            ]
+        };
+        self.lu = [sub(j1), sub(j2), sub(j3), sub(j4), sub(j5)];
+        self.row0 = *j0;
+        let (lu, inv, sw) = (&mut self.lu, &mut self.inv_pivot, &mut self.swaps);
+        // One call per elimination step with the step as a constant, so every loop
+        // below has a fixed trip count and unrolls into straight-line code.
+        eliminate::<T, 0>(lu, inv, sw, threshold)
+            && eliminate::<T, 1>(lu, inv, sw, threshold)
+            && eliminate::<T, 2>(lu, inv, sw, threshold)
+            && eliminate::<T, 3>(lu, inv, sw, threshold)
+            && eliminate::<T, 4>(lu, inv, sw, threshold)
     }
-    if !(scale > T::ZERO) {
-        return None;
-    }
-    let threshold = pivot_ratio * scale;
-    for k in 0..N {
-        // Partial pivoting: the largest remaining entry of column k.
-        let mut p = k;
-        let mut best = a[k][k].abs();
-        for (i, row) in a.iter().enumerate().skip(k + 1) {
-            let m = row[k].abs();
-            if m > best {
-                best = m;
-                p = i;
+
+    /// Solves `J d = r` for `d = [x, y, z, alpha, beta, gamma]`.
+    pub fn solve(&self, r: &[T; N]) -> [T; N] {
+        let [r0, r1, r2, r3, r4, r5] = *r;
+        let mut b = [r1 - r0, r2 - r0, r3 - r0, r4 - r0, r5 - r0];
+        for (k, p) in self.swaps.iter().enumerate() {
+            // `min` keeps the index provably in range (it always is).
+            b.swap(k, usize::from(*p).min(NC - 1));
+        }
+        for k in 0..NC {
+            let bk = b[k];
+            for i in (k + 1)..NC {
+                b[i] -= self.lu[i][k] * bk;
             }
         }
-        if !(best > threshold) {
-            return None;
-        }
-        a.swap(k, p);
-        b.swap(k, p);
-        let pivot_row = a[k];
-        let pivot_b = b[k];
-        let inv = T::ONE / pivot_row[k];
-        for i in (k + 1)..N {
-            let f = a[i][k] * inv;
-            if f != T::ZERO {
-                for j in (k + 1)..N {
-                    a[i][j] -= f * pivot_row[j];
-                }
-                b[i] -= f * pivot_b;
+        let mut d = [T::ZERO; NC];
+        for k in (0..NC).rev() {
+            let mut s = b[k];
+            for j in (k + 1)..NC {
+                s -= self.lu[k][j] * d[j];
             }
+            d[k] = s * self.inv_pivot[k];
         }
+        let j0 = &self.row0;
+        // z from row 0: r0 = j0 . d + z.
+        let z = r0 - (j0[0] * d[0] + j0[1] * d[1] + j0[2] * d[2] + j0[3] * d[3] + j0[4] * d[4]);
+        [d[0], d[1], z, d[2], d[3], d[4]]
     }
-    let mut x = [T::ZERO; N];
-    for k in (0..N).rev() {
-        let mut s = b[k];
-        for j in (k + 1)..N {
-            s -= a[k][j] * x[j];
-        }
-        x[k] = s / a[k][k];
-    }
-    Some(x)
 }

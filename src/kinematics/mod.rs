@@ -6,6 +6,13 @@
 //! * [`ik`]: pose -> strokes, formulated relative to the home pose for f32 accuracy.
 //! * [`fk`]: strokes -> pose, Newton-Raphson with the analytic Jacobian.
 //! * [`workspace`]: every reason a pose is refused, without motion.
+//! * [`linalg`]: the 6x6 Newton solve, using the Jacobian's structure.
+//!
+//! Joint positions, rod vectors and rotations are nalgebra's fixed-size `Vector3` and
+//! `Matrix3` (the ground tools' vocabulary); this costs no instruction and no byte on
+//! the target against plain arrays (measured, README "Kinematics and numerics"). The
+//! 6x6 solve is our own: it uses the Jacobian's structure, and nalgebra's LU measured
+//! 1.6 times the FK's instructions on the target.
 
 // Negated comparisons such as `!(x > 0.0)` are deliberate throughout: unlike `x <= 0.0`
 // they are also true for NaN, so a NaN is refused instead of passing a check.

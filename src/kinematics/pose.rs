@@ -5,6 +5,8 @@
 //! (rad) with `R = Rz(gamma) * Ry(beta) * Rx(alpha)`, exactly as in the source paper.
 //! Telecommands and files carry the angles in arcseconds; [`ARCSEC_PER_RAD`] converts.
 
+use nalgebra::{Matrix3, Vector3};
+
 use super::real::Real;
 
 /// Arcseconds per radian (180 * 3600 / pi).
@@ -70,9 +72,9 @@ impl<T: Real> Pose<T> {
 
 /// `R - I` and the sines/cosines of a pose's rotation, formed without cancellation.
 #[derive(Clone, Copy, Debug)]
-pub struct RotationDelta<T> {
-    /// `R - I`, row-major (dimensionless).
-    pub w: [[T; 3]; 3],
+pub struct RotationDelta<T: Real> {
+    /// `R - I` (dimensionless).
+    pub w: Matrix3<T>,
     /// `sin(gamma)`, `cos(gamma)`: the Jacobian needs `Rz(gamma) e_y = (-sg, cg, 0)`.
     pub sg: T,
     /// `cos(gamma)`.
@@ -82,6 +84,7 @@ pub struct RotationDelta<T> {
 impl<T: Real> RotationDelta<T> {
     /// Builds `R - I` for `R = Rz(gamma) Ry(beta) Rx(alpha)`. Diagonal terms are sums of
     /// `cos - 1` values, never `cos - 1` computed as a difference.
+    #[inline(always)]
     pub fn new(rotation_rad: &[T; 3]) -> Self {
         let [alpha, beta, gamma] = *rotation_rad;
         let (sa, cma) = alpha.sin_cosm1();
@@ -90,30 +93,23 @@ impl<T: Real> RotationDelta<T> {
         let ca = T::ONE + cma;
         let cb = T::ONE + cmb;
         let cg = T::ONE + cmg;
-        let w = [
-            [
-                cmg + cmb + cmg * cmb,
-                cg * sb * sa - sg * ca,
-                cg * sb * ca + sg * sa,
-            ],
-            [
-                sg * cb,
-                sg * sb * sa + (cmg + cma + cmg * cma),
-                sg * sb * ca - cg * sa,
-            ],
-            [-sb, cb * sa, cmb + cma + cmb * cma],
-        ];
+        let w = Matrix3::new(
+            cmg + cmb + cmg * cmb,
+            cg * sb * sa - sg * ca,
+            cg * sb * ca + sg * sa,
+            sg * cb,
+            sg * sb * sa + (cmg + cma + cmg * cma),
+            sg * sb * ca - cg * sa,
+            -sb,
+            cb * sa,
+            cmb + cma + cmb * cma,
+        );
         Self { w, sg, cg }
     }
 
     /// `(R - I) v`.
     #[inline(always)]
-    pub fn apply_delta(&self, v: &[T; 3]) -> [T; 3] {
-        let w = &self.w;
-        [
-            w[0][0] * v[0] + w[0][1] * v[1] + w[0][2] * v[2],
-            w[1][0] * v[0] + w[1][1] * v[1] + w[1][2] * v[2],
-            w[2][0] * v[0] + w[2][1] * v[1] + w[2][2] * v[2],
-        ]
+    pub fn apply_delta(&self, v: &Vector3<T>) -> Vector3<T> {
+        self.w * v
     }
 }

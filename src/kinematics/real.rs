@@ -25,8 +25,18 @@ use core::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
 pub const SMALL_ANGLE_RAD: f64 = 0.1;
 
 /// A real number type the kinematics can be evaluated in (`f32` or `f64`).
+///
+/// It is a nalgebra scalar with field arithmetic, so the kinematics' vectors and
+/// matrices are nalgebra's fixed-size `Vector3<T>` / `Matrix3<T>` (stack values, no
+/// allocation), the vocabulary the ground tools use too. The methods below are ours,
+/// not nalgebra's `RealField` ones, for the reasons in the module docs.
 pub trait Real:
-    Copy
+    nalgebra::Scalar
+    + nalgebra::Field
+    + nalgebra::ClosedAddAssign
+    + nalgebra::ClosedSubAssign
+    + nalgebra::ClosedMulAssign
+    + Copy
     + Debug
     + Default
     + PartialOrd
@@ -85,19 +95,16 @@ const COSM1_COEFF: [f64; 5] = [
 
 /// [`SMALL_ANGLE_RAD`] in f32 (compared in f32: an f64 compare is software on the target).
 const SMALL_ANGLE_RAD_F32: f32 = SMALL_ANGLE_RAD as f32;
-/// The sine coefficients rounded to f32 once, at compile time (x^3, x^5, x^7 suffice in
-/// f32 up to 0.1 rad: the x^9 term is below 3e-15).
-const SIN_COEFF_F32: [f32; 3] = [
-    SIN_COEFF[0] as f32,
-    SIN_COEFF[1] as f32,
-    SIN_COEFF[2] as f32,
-];
-/// The `cos - 1` coefficients rounded to f32 (x^2 .. x^8; the x^10 term is below 3e-17).
-const COSM1_COEFF_F32: [f32; 4] = [
+/// The sine coefficients rounded to f32 once, at compile time. x^3 and x^5 suffice in
+/// f32 up to [`SMALL_ANGLE_RAD`]: the x^7 term is at most 2.0e-11 there, 2e-10 of
+/// `sin x`, 3e-3 of an f32 rounding unit.
+const SIN_COEFF_F32: [f32; 2] = [SIN_COEFF[0] as f32, SIN_COEFF[1] as f32];
+/// The `cos - 1` coefficients rounded to f32 (x^2 .. x^6; the x^8 term is at most
+/// 2.5e-13 up to [`SMALL_ANGLE_RAD`], 5e-11 of `cos x - 1`).
+const COSM1_COEFF_F32: [f32; 3] = [
     COSM1_COEFF[0] as f32,
     COSM1_COEFF[1] as f32,
     COSM1_COEFF[2] as f32,
-    COSM1_COEFF[3] as f32,
 ];
 
 /// Horner evaluation of `sum c_k y^(k+1)` for `y = x^2`.

@@ -42,10 +42,7 @@ impl Refusals {
 /// Strokes (valid only where no leg is refused) and every refusal reason.
 pub fn evaluate<T: Real>(geom: &Geometry<T>, pose: &Pose<T>) -> ([T; LEGS], Refusals) {
     let mut r = Refusals::default();
-    if !pose.is_finite() {
-        r.non_finite = true;
-        return ([T::ZERO; LEGS], r);
-    }
+    let v = pose.to_array();
     if let Some(w) = &geom.workspace {
         let limits = [
             w.translation_mm[0],
@@ -55,9 +52,21 @@ pub fn evaluate<T: Real>(geom: &Geometry<T>, pose: &Pose<T>) -> ([T; LEGS], Refu
             w.rotation_rad[1],
             w.rotation_rad[2],
         ];
-        for (k, (v, lim)) in pose.to_array().iter().zip(limits.iter()).enumerate() {
-            r.axes_outside |= u8::from(v.abs() > *lim) << k;
+        for (k, (v, lim)) in v.iter().zip(limits.iter()).enumerate() {
+            // `!(x <= lim)` is also true for NaN and infinity: a non-finite pose always
+            // sets a bit here, so the finiteness check below runs only then.
+            r.axes_outside |= u8::from(!(v.abs() <= *lim)) << k;
         }
+    }
+    // With a workspace, a pose inside it is finite (see above).
+    if (geom.workspace.is_none() || r.axes_outside != 0) && !pose.is_finite() {
+        return (
+            [T::ZERO; LEGS],
+            Refusals {
+                non_finite: true,
+                ..Refusals::default()
+            },
+        );
     }
     let (strokes, unreachable) = strokes_unchecked(geom, pose);
     r.legs_unreachable = unreachable;

@@ -321,9 +321,9 @@ impl Problem {
                 c[2] = 1.0 - d0[2] * inv_q;
                 for k in 0..3 {
                     let w = &rot.w;
-                    let r_xk = w[0][k] + if k == 0 { 1.0 } else { 0.0 };
-                    let r_yk = w[1][k] + if k == 1 { 1.0 } else { 0.0 };
-                    let r_zk = w[2][k] + if k == 2 { 1.0 } else { 0.0 };
+                    let r_xk = w[(0, k)] + if k == 0 { 1.0 } else { 0.0 };
+                    let r_yk = w[(1, k)] + if k == 1 { 1.0 } else { 0.0 };
+                    let r_zk = w[(2, k)] + if k == 2 { 1.0 } else { 0.0 };
                     let ddl = r_zk - (d0[k] - h[0] * r_xk - h[1] * r_yk) * inv_q;
                     c[3 + k] = -ddl;
                 }
