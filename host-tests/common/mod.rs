@@ -92,7 +92,6 @@ pub fn golden() -> Vec<([f64; 6], [f64; 6])> {
 use m2ctl::link::command::{WirePose, TABLE_CHUNK_MAX_LEN};
 use m2ctl::link::tm::{dump_chunks, Verification};
 use m2ctl::link::{Command, TableChunk};
-pub use m2ctl::sim::soak::calibrated_table;
 use m2ctl::sim::Bench;
 use m2ctl::table::{Table, TABLE_LEN};
 
@@ -136,6 +135,11 @@ pub fn upload(r: &mut Bench, bytes: &[u8; TABLE_LEN], order: &[usize]) {
             r.st.reports(rid)
         );
     }
+}
+
+/// A plausible calibrated table (the soak's generator).
+pub fn calibrated_table(id: u32) -> Table {
+    m2ctl::sim::soak::calibrated_table(id)
 }
 
 /// TC[8,1] activate naming `t`.
