@@ -475,8 +475,11 @@ fn wire_pose_converts_units() {
     let f32_pose = p.to_pose::<f32>();
     assert_eq!(WirePose::from_pose(&f32_pose), p);
     let mut b = [0u8; WIRE_POSE_LEN];
-    p.emit(&mut b);
-    assert_eq!(WirePose::parse(&b), p);
+    let mut w = m2ctl::link::wire::Writer::new(&mut b, m2ctl::link::wire::Order::Big);
+    assert_eq!(w.pose(&p), Some(()));
+    assert_eq!(b[..4], 1_000_000i32.to_be_bytes());
+    let mut r = m2ctl::link::wire::Reader::new(&b, m2ctl::link::wire::Order::Big);
+    assert_eq!(r.pose(), Some(p));
     let nan = m2ctl::kinematics::Pose {
         translation_mm: [f64::NAN, 1e300, -1e300],
         rotation_rad: [0.0; 3],

@@ -2,6 +2,7 @@
 //! byte layout of each telecommand's application data (parse and emit, big-endian).
 
 use super::error::{sat_u16, LinkError};
+use super::wire::{Order, Reader, Writer};
 use super::{service, subtype};
 use crate::kinematics::{Pose, Real, ARCSEC_PER_RAD, LEGS};
 use crate::table::TABLE_LEN;
@@ -70,24 +71,6 @@ impl WirePose {
             translation_nm: [v[0], v[1], v[2]],
             rotation_uas: [v[3], v[4], v[5]],
         }
-    }
-
-    /// Writes the 24 bytes (big-endian i32 x6).
-    pub fn emit(&self, out: &mut [u8; WIRE_POSE_LEN]) {
-        for (dst, v) in out.chunks_exact_mut(4).zip(self.to_array()) {
-            dst.copy_from_slice(&v.to_be_bytes());
-        }
-    }
-
-    /// Reads the 24 bytes (big-endian i32 x6).
-    pub fn parse(bytes: &[u8; WIRE_POSE_LEN]) -> WirePose {
-        let mut v = [0i32; 6];
-        for (dst, src) in v.iter_mut().zip(bytes.chunks_exact(4)) {
-            let mut b = [0u8; 4];
-            b.copy_from_slice(src);
-            *dst = i32::from_be_bytes(b);
-        }
-        WirePose::from_array(v)
     }
 }
 
@@ -281,16 +264,6 @@ pub enum Command {
     DumpTable(MemoryId),
 }
 
-/// Big-endian reads from an exact slice.
-fn be_u16(b: &[u8], at: usize) -> Option<u16> {
-    let s: [u8; 2] = b.get(at..at.checked_add(2)?)?.try_into().ok()?;
-    Some(u16::from_be_bytes(s))
-}
-fn be_u32(b: &[u8], at: usize) -> Option<u32> {
-    let s: [u8; 4] = b.get(at..at.checked_add(4)?)?.try_into().ok()?;
-    Some(u32::from_be_bytes(s))
-}
-
 /// Exact application-data length check.
 fn expect_len(app_data: &[u8], expected: usize) -> Result<(), LinkError> {
     if app_data.len() == expected {
@@ -376,54 +349,35 @@ impl Command {
     /// Writes the application data into `out`; returns its length, or `None` if `out` is
     /// shorter than [`MAX_TC_APP_DATA_LEN`] needs for this command.
     pub fn emit_app_data(&self, out: &mut [u8]) -> Option<usize> {
-        let mut w = Writer { buf: out, pos: 0 };
+        let mut w = Writer::new(out, Order::Big);
         match self {
             Command::Ping | Command::HousekeepingOneShot => {}
             Command::LoadTableChunk(chunk) => {
-                w.put(&[MemoryId::UploadBuffer.code()])?;
-                w.put(&chunk.offset_bytes().to_be_bytes())?;
-                w.put(&sat_u16(chunk.bytes().len()).to_be_bytes())?;
+                w.u8(MemoryId::UploadBuffer.code())?;
+                w.u16(chunk.offset_bytes())?;
+                w.u16(sat_u16(chunk.bytes().len()))?;
                 w.put(chunk.bytes())?;
             }
-            Command::DumpTable(memory) => w.put(&[memory.code()])?,
+            Command::DumpTable(memory) => w.u8(memory.code())?,
             _ => {
                 let f = self.function_id()?;
-                w.put(&f.code().to_be_bytes())?;
+                w.u16(f.code())?;
                 match self {
-                    Command::MoveAbsolute(p) | Command::MoveRelative(p) => {
-                        let mut b = [0u8; WIRE_POSE_LEN];
-                        p.emit(&mut b);
-                        w.put(&b)?;
-                    }
+                    Command::MoveAbsolute(p) | Command::MoveRelative(p) => w.pose(p)?,
                     Command::DirectStroke { leg, delta_nm } => {
-                        w.put(&[*leg])?;
-                        w.put(&delta_nm.to_be_bytes())?;
+                        w.u8(*leg)?;
+                        w.i32(*delta_nm)?;
                     }
-                    Command::CommitTable { crc32 } => w.put(&crc32.to_be_bytes())?,
+                    Command::CommitTable { crc32 } => w.u32(*crc32)?,
                     Command::ActivateTable { table_id, crc32 } => {
-                        w.put(&table_id.to_be_bytes())?;
-                        w.put(&crc32.to_be_bytes())?;
+                        w.u32(*table_id)?;
+                        w.u32(*crc32)?;
                     }
                     _ => {}
                 }
             }
         }
-        Some(w.pos)
-    }
-}
-
-/// Sequential writer; `None` when the buffer is full.
-struct Writer<'a> {
-    buf: &'a mut [u8],
-    pos: usize,
-}
-
-impl Writer<'_> {
-    fn put(&mut self, bytes: &[u8]) -> Option<()> {
-        let end = self.pos.checked_add(bytes.len())?;
-        self.buf.get_mut(self.pos..end)?.copy_from_slice(bytes);
-        self.pos = end;
-        Some(())
+        Some(w.position())
     }
 }
 
@@ -433,9 +387,10 @@ fn parse_memory_load(app_data: &[u8]) -> Result<Command, LinkError> {
         got: sat_u16(app_data.len()),
         expected: sat_u16(MEMORY_LOAD_HEADER_LEN),
     };
-    let memory = app_data.first().copied().ok_or(short)?;
-    let offset = be_u16(app_data, 1).ok_or(short)?;
-    let length = be_u16(app_data, 3).ok_or(short)?;
+    let mut r = Reader::new(app_data, Order::Big);
+    let (Some(memory), Some(offset), Some(length)) = (r.u8(), r.u16(), r.u16()) else {
+        return Err(short);
+    };
     expect_len(
         app_data,
         MEMORY_LOAD_HEADER_LEN.saturating_add(usize::from(length)),
@@ -449,41 +404,41 @@ fn parse_memory_load(app_data: &[u8]) -> Result<Command, LinkError> {
 
 /// TC[8,1]: function ID u16, then the function's arguments.
 fn parse_function(app_data: &[u8]) -> Result<Command, LinkError> {
-    let id = be_u16(app_data, 0).ok_or(LinkError::AppDataLength {
-        got: sat_u16(app_data.len()),
-        expected: sat_u16(FUNCTION_ID_LEN),
-    })?;
+    let id = Reader::new(app_data, Order::Big)
+        .u16()
+        .ok_or(LinkError::AppDataLength {
+            got: sat_u16(app_data.len()),
+            expected: sat_u16(FUNCTION_ID_LEN),
+        })?;
     let f = FunctionId::from_code(id).ok_or(LinkError::UnknownFunction { function_id: id })?;
     expect_len(app_data, FUNCTION_ID_LEN + f.args_len())?;
     let args = app_data.get(FUNCTION_ID_LEN..).unwrap_or(&[]);
-    let pose = || -> Result<WirePose, LinkError> {
-        let b: &[u8; WIRE_POSE_LEN] = args
-            .try_into()
-            .map_err(|_| LinkError::InvalidArgument { index: 0 })?;
-        Ok(WirePose::parse(b))
-    };
+    // The length is exact (checked above): the reads below cannot run short; a short
+    // read would still be a refusal, never a panic.
+    let mut r = Reader::new(args, Order::Big);
+    let arg = |v: Option<u32>, index: u8| v.ok_or(LinkError::InvalidArgument { index });
+    let pose = |r: &mut Reader<'_>| r.pose().ok_or(LinkError::InvalidArgument { index: 0 });
     Ok(match f {
-        FunctionId::MoveAbsolute => Command::MoveAbsolute(pose()?),
-        FunctionId::MoveRelative => Command::MoveRelative(pose()?),
+        FunctionId::MoveAbsolute => Command::MoveAbsolute(pose(&mut r)?),
+        FunctionId::MoveRelative => Command::MoveRelative(pose(&mut r)?),
         FunctionId::Stop => Command::Stop,
         FunctionId::ClearFault => Command::ClearFault,
         FunctionId::DirectStroke => {
-            let leg = args.first().copied().unwrap_or(0);
+            let leg = r.u8().unwrap_or(0);
             if leg == 0 || usize::from(leg) > LEGS {
                 return Err(LinkError::InvalidArgument { index: 0 });
             }
-            let delta = be_u32(args, 1).ok_or(LinkError::InvalidArgument { index: 1 })?;
             Command::DirectStroke {
                 leg,
-                delta_nm: i32::from_be_bytes(delta.to_be_bytes()),
+                delta_nm: r.i32().ok_or(LinkError::InvalidArgument { index: 1 })?,
             }
         }
         FunctionId::CommitTable => Command::CommitTable {
-            crc32: be_u32(args, 0).ok_or(LinkError::InvalidArgument { index: 0 })?,
+            crc32: arg(r.u32(), 0)?,
         },
         FunctionId::ActivateTable => Command::ActivateTable {
-            table_id: be_u32(args, 0).ok_or(LinkError::InvalidArgument { index: 0 })?,
-            crc32: be_u32(args, 4).ok_or(LinkError::InvalidArgument { index: 1 })?,
+            table_id: arg(r.u32(), 0)?,
+            crc32: arg(r.u32(), 1)?,
         },
         FunctionId::SwitchBank => Command::SwitchBank,
         FunctionId::RevertToNominal => Command::RevertToNominal,

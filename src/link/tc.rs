@@ -1,5 +1,5 @@
-//! Telecommands: checked decoding of a PUS-C TC packet into a [`Telecommand`], and the
-//! encoder (ground tool, tests).
+//! Telecommands: checked decoding of a PUS-C TC packet into a [`Telecommand`] through one
+//! checked view ([`TcPacket`]), and the encoder (`spacepackets`; ground tool, tests).
 //!
 //! Checks, in this order (the first failing one is reported):
 //! 1. length: at least a primary header + TC secondary header + CRC
@@ -14,12 +14,13 @@
 //! 7. service, subtype, application data ([`Command::parse`]).
 
 use arbitrary_int::{u11, u14};
-use spacepackets::ecss::tc::{PusTcCreator, PusTcReader, PusTcSecondaryHeader};
-use spacepackets::ecss::{CreatorConfig, MessageTypeId, PusError};
+use spacepackets::ecss::tc::{PusTcCreator, PusTcSecondaryHeader};
+use spacepackets::ecss::{CreatorConfig, MessageTypeId};
 use spacepackets::{PacketId, PacketSequenceControl, SequenceFlags, SpHeader};
 
 use super::command::{Command, MAX_TC_APP_DATA_LEN};
 use super::error::{sat_u16, LinkError};
+use super::wire::{Order, Reader};
 use super::{
     CCSDS_PRIMARY_HEADER_LEN, CRC16_LEN, M2_APID, MAX_TC_PACKET_LEN, PUS_C_VERSION,
     PUS_TC_SEC_HEADER_LEN,
@@ -148,86 +149,136 @@ const DATA_LEN_OFFSET: usize = CCSDS_PRIMARY_HEADER_LEN + 1;
 const PUS_VERSION_SHIFT: u8 = 4;
 /// Mask of the ack flags in the first secondary-header byte.
 const ACK_MASK: u8 = 0x0f;
+/// The packet error control of CCSDS/PUS: CRC-16/CCITT-FALSE (= CRC-16/IBM-3740).
+pub const CRC16: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740);
+
+/// A checked view of a PUS-C telecommand packet (smoltcp style): [`TcPacket::new_checked`]
+/// runs checks 1..6 of the module documentation; afterwards no accessor can fail or panic.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TcPacket<'a> {
+    bytes: &'a [u8],
+    packet_id: u16,
+    sequence_control: u16,
+    version_ack: u8,
+    service: u8,
+    subtype: u8,
+    source_id: u16,
+}
+
+impl<'a> TcPacket<'a> {
+    /// Checks length, primary header, length field, CRC-16, APID and PUS version.
+    pub fn new_checked(packet: &'a [u8]) -> Result<Self, LinkError> {
+        let got = sat_u16(packet.len());
+        if packet.len() > MAX_TC_PACKET_LEN {
+            return Err(LinkError::Oversized);
+        }
+        let truncated = LinkError::Truncated {
+            got,
+            needed: sat_u16(MIN_TC_PACKET_LEN),
+        };
+        if packet.len() < MIN_TC_PACKET_LEN {
+            return Err(truncated);
+        }
+        let mut r = Reader::new(packet, Order::Big);
+        let (Some(packet_id), Some(sequence_control), Some(data_len)) = (r.u16(), r.u16(), r.u16())
+        else {
+            return Err(truncated);
+        };
+        if packet_id & VERSION_MASK != 0
+            || packet_id & TYPE_TC_BIT == 0
+            || packet_id & SEC_HEADER_BIT == 0
+            || sequence_control & SEQ_FLAGS_MASK != SEQ_FLAGS_UNSEGMENTED
+        {
+            return Err(LinkError::BadPrimaryHeader);
+        }
+        let declared = usize::from(data_len) + DATA_LEN_OFFSET;
+        if declared > MAX_TC_PACKET_LEN {
+            return Err(LinkError::Oversized);
+        }
+        if packet.len() < declared || declared < MIN_TC_PACKET_LEN {
+            return Err(LinkError::Truncated {
+                got,
+                needed: sat_u16(declared.max(MIN_TC_PACKET_LEN)),
+            });
+        }
+        if packet.len() > declared {
+            return Err(LinkError::LengthMismatch {
+                got,
+                declared: sat_u16(declared),
+            });
+        }
+        let (body, crc) = packet.split_at(packet.len() - CRC16_LEN);
+        let found = Reader::new(crc, Order::Big).u16().ok_or(truncated)?;
+        if CRC16.checksum(body) != found {
+            return Err(LinkError::BadCrc { found });
+        }
+        let apid = packet_id & APID_MASK;
+        if apid != M2_APID {
+            return Err(LinkError::WrongApid { apid });
+        }
+        let (Some(version_ack), Some(service), Some(subtype), Some(source_id)) =
+            (r.u8(), r.u8(), r.u8(), r.u16())
+        else {
+            return Err(truncated);
+        };
+        let version = version_ack >> PUS_VERSION_SHIFT;
+        if version != PUS_C_VERSION {
+            return Err(LinkError::UnsupportedPusVersion { version });
+        }
+        Ok(Self {
+            bytes: packet,
+            packet_id,
+            sequence_control,
+            version_ack,
+            service,
+            subtype,
+            source_id,
+        })
+    }
+
+    /// The request ID (first four bytes).
+    pub fn request_id(&self) -> RequestId {
+        RequestId {
+            packet_id: self.packet_id,
+            sequence_control: self.sequence_control,
+        }
+    }
+
+    /// The acknowledgement flags.
+    pub fn ack(&self) -> AckFlags {
+        AckFlags(self.version_ack & ACK_MASK)
+    }
+
+    /// Service type.
+    pub fn service(&self) -> u8 {
+        self.service
+    }
+
+    /// Message subtype.
+    pub fn subtype(&self) -> u8 {
+        self.subtype
+    }
+
+    /// Source ID.
+    pub fn source_id(&self) -> u16 {
+        self.source_id
+    }
+
+    /// The application data (between the secondary header and the CRC).
+    pub fn app_data(&self) -> &'a [u8] {
+        let start = CCSDS_PRIMARY_HEADER_LEN + PUS_TC_SEC_HEADER_LEN;
+        let end = self.bytes.len().saturating_sub(CRC16_LEN);
+        self.bytes.get(start..end).unwrap_or(&[])
+    }
+}
 
 fn decode_full(packet: &[u8]) -> Result<Telecommand, LinkError> {
-    let got = sat_u16(packet.len());
-    if packet.len() > MAX_TC_PACKET_LEN {
-        return Err(LinkError::Oversized);
-    }
-    let truncated = LinkError::Truncated {
-        got,
-        needed: sat_u16(MIN_TC_PACKET_LEN),
-    };
-    if packet.len() < MIN_TC_PACKET_LEN {
-        return Err(truncated);
-    }
-    let word = |at: usize| -> Result<u16, LinkError> {
-        let b: [u8; 2] = packet
-            .get(at..at + 2)
-            .and_then(|s| s.try_into().ok())
-            .ok_or(truncated)?;
-        Ok(u16::from_be_bytes(b))
-    };
-    let packet_id = word(0)?;
-    let seq_ctrl = word(2)?;
-    let data_len = word(4)?;
-    if packet_id & VERSION_MASK != 0
-        || packet_id & TYPE_TC_BIT == 0
-        || packet_id & SEC_HEADER_BIT == 0
-        || seq_ctrl & SEQ_FLAGS_MASK != SEQ_FLAGS_UNSEGMENTED
-    {
-        return Err(LinkError::BadPrimaryHeader);
-    }
-    let declared = usize::from(data_len) + DATA_LEN_OFFSET;
-    if declared > MAX_TC_PACKET_LEN {
-        return Err(LinkError::Oversized);
-    }
-    if packet.len() < declared || declared < MIN_TC_PACKET_LEN {
-        return Err(LinkError::Truncated {
-            got,
-            needed: sat_u16(declared.max(MIN_TC_PACKET_LEN)),
-        });
-    }
-    if packet.len() > declared {
-        return Err(LinkError::LengthMismatch {
-            got,
-            declared: sat_u16(declared),
-        });
-    }
-    let reader = PusTcReader::new_checksum_no_table(packet).map_err(|e| match e {
-        PusError::ChecksumFailure(found) => LinkError::BadCrc { found },
-        PusError::VersionNotSupported(v) => LinkError::UnsupportedPusVersion { version: v.value() },
-        PusError::CrcCalculationMissing | PusError::ByteConversion(_) => truncated,
-    })?;
-    let apid = packet_id & APID_MASK;
-    if apid != M2_APID {
-        return Err(LinkError::WrongApid { apid });
-    }
-    let version_ack = packet
-        .get(CCSDS_PRIMARY_HEADER_LEN)
-        .copied()
-        .ok_or(truncated)?;
-    let version = version_ack >> PUS_VERSION_SHIFT;
-    if version != PUS_C_VERSION {
-        return Err(LinkError::UnsupportedPusVersion { version });
-    }
-    let service = packet
-        .get(CCSDS_PRIMARY_HEADER_LEN + 1)
-        .copied()
-        .ok_or(truncated)?;
-    let subtype = packet
-        .get(CCSDS_PRIMARY_HEADER_LEN + 2)
-        .copied()
-        .ok_or(truncated)?;
-    let source_id = word(CCSDS_PRIMARY_HEADER_LEN + 3)?;
-    let command = Command::parse(service, subtype, reader.app_data())?;
+    let tc = TcPacket::new_checked(packet)?;
+    let command = Command::parse(tc.service(), tc.subtype(), tc.app_data())?;
     Ok(Telecommand {
-        request_id: RequestId {
-            packet_id,
-            sequence_control: seq_ctrl,
-        },
-        ack: AckFlags(version_ack & ACK_MASK),
-        source_id,
+        request_id: tc.request_id(),
+        ack: tc.ack(),
+        source_id: tc.source_id(),
         command,
     })
 }

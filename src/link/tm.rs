@@ -21,6 +21,7 @@ use super::error::{sat_u16, LinkError};
 use super::framing::{encode_frame, FrameError};
 use super::hk::{Housekeeping, HK_REPORT_LEN};
 use super::tc::{RequestId, APID_MASK, REQUEST_ID_LEN, SEQ_COUNT_MASK};
+use super::wire::{Order, Reader, Writer};
 use super::{
     service, subtype, CCSDS_PRIMARY_HEADER_LEN, CRC16_LEN, M2_APID, MAX_TM_PACKET_LEN,
     PUS_TM_SEC_HEADER_LEN_NO_TIME, TM_TIMESTAMP_LEN,
@@ -332,17 +333,15 @@ impl TmWriter {
         out: &mut [u8],
     ) -> Result<usize, EmitError> {
         let mut data = [0u8; REQUEST_ID_LEN + FAILURE_NOTICE_LEN];
-        let mut len = REQUEST_ID_LEN;
-        for (d, s) in data.iter_mut().zip(request_id.to_bytes()) {
-            *d = s;
-        }
+        let mut w = Writer::new(&mut data, Order::Big);
+        w.put(&request_id.to_bytes())
+            .ok_or(EmitError::BufferTooSmall)?;
         if let Some((code, datum)) = report.failure() {
-            let notice = code.to_be_bytes().into_iter().chain(datum.to_be_bytes());
-            for (d, s) in data.iter_mut().skip(REQUEST_ID_LEN).zip(notice) {
-                *d = s;
-            }
-            len += FAILURE_NOTICE_LEN;
+            w.u16(code)
+                .and_then(|_| w.u32(datum))
+                .ok_or(EmitError::BufferTooSmall)?;
         }
+        let len = w.position();
         let src = data.get(..len).ok_or(EmitError::BufferTooSmall)?;
         self.emit(time, (service::VERIFICATION, report.subtype()), src, out)
     }
@@ -357,14 +356,11 @@ impl TmWriter {
         out: &mut [u8],
     ) -> Result<usize, EmitError> {
         let mut data = [0u8; EVENT_REPORT_LEN];
-        let bytes = event_id
-            .to_be_bytes()
-            .into_iter()
-            .chain(aux[0].to_be_bytes())
-            .chain(aux[1].to_be_bytes());
-        for (d, s) in data.iter_mut().zip(bytes) {
-            *d = s;
-        }
+        let mut w = Writer::new(&mut data, Order::Big);
+        w.u16(event_id)
+            .and_then(|_| w.u32(aux[0]))
+            .and_then(|_| w.u32(aux[1]))
+            .ok_or(EmitError::BufferTooSmall)?;
         self.emit(time, (service::EVENT, severity.subtype()), &data, out)
     }
 
@@ -404,14 +400,13 @@ impl TmWriter {
             return Err(EmitError::BadChunk);
         }
         let mut data = [0u8; DUMP_HEADER_LEN + TABLE_CHUNK_MAX_LEN];
-        let len = DUMP_HEADER_LEN + bytes.len();
-        let head = [memory.code()]
-            .into_iter()
-            .chain(offset_bytes.to_be_bytes())
-            .chain(sat_u16(bytes.len()).to_be_bytes());
-        for (d, s) in data.iter_mut().zip(head.chain(bytes.iter().copied())) {
-            *d = s;
-        }
+        let mut w = Writer::new(&mut data, Order::Big);
+        w.u8(memory.code())
+            .and_then(|_| w.u16(offset_bytes))
+            .and_then(|_| w.u16(sat_u16(bytes.len())))
+            .and_then(|_| w.put(bytes))
+            .ok_or(EmitError::BadChunk)?;
+        let len = w.position();
         let src = data.get(..len).ok_or(EmitError::BadChunk)?;
         self.emit(
             time,
@@ -485,14 +480,10 @@ pub enum TmReport<'a> {
 }
 
 fn be_u16(b: &[u8], at: usize) -> Option<u16> {
-    Some(u16::from_be_bytes(
-        b.get(at..at.checked_add(2)?)?.try_into().ok()?,
-    ))
+    Reader::new(b.get(at..)?, Order::Big).u16()
 }
 fn be_u32(b: &[u8], at: usize) -> Option<u32> {
-    Some(u32::from_be_bytes(
-        b.get(at..at.checked_add(4)?)?.try_into().ok()?,
-    ))
+    Reader::new(b.get(at..)?, Order::Big).u32()
 }
 
 /// Checked parse of one TM packet (unframed) from the controller. Never panics.

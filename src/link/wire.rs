@@ -155,6 +155,15 @@ impl<'a> Reader<'a> {
         })
     }
 
+    /// `N` f64 in the reader's order.
+    pub fn f64s<const N: usize>(&mut self) -> Option<[f64; N]> {
+        let mut out = [0.0; N];
+        for o in out.iter_mut() {
+            *o = self.f64()?;
+        }
+        Some(out)
+    }
+
     /// Six i32 (one per leg).
     pub fn i32s(&mut self) -> Option<[i32; LEGS]> {
         let mut v = [0i32; LEGS];
@@ -234,6 +243,14 @@ impl<'a> Writer<'a> {
             Order::Big => self.put(&v.to_be_bytes()),
             Order::Little => self.put(&v.to_le_bytes()),
         }
+    }
+
+    /// f64 values in the writer's order.
+    pub fn f64s(&mut self, v: &[f64]) -> Option<()> {
+        for x in v {
+            self.f64(*x)?;
+        }
+        Some(())
     }
 
     /// Six i32.

@@ -35,6 +35,9 @@
 
 use crc::{Crc, CRC_32_ISO_HDLC};
 
+use crate::link::error::sat_u16;
+use crate::link::wire::{Order, Reader, Writer};
+
 use crate::kinematics::{GeometryParams, LegParams, StrokeLimits, WorkspaceLimits, LEGS};
 use crate::nominal;
 
@@ -198,67 +201,6 @@ impl TableError {
     }
 }
 
-/// Sequential little-endian writer over a fixed buffer. Writing past the end is ignored
-/// (cannot happen for the fixed layout; the round-trip test checks every field).
-struct Writer<'a> {
-    buf: &'a mut [u8],
-    pos: usize,
-}
-
-impl Writer<'_> {
-    fn put(&mut self, bytes: &[u8]) {
-        let end = self.pos.saturating_add(bytes.len());
-        if let Some(dst) = self.buf.get_mut(self.pos..end) {
-            dst.copy_from_slice(bytes);
-        }
-        self.pos = end;
-    }
-    fn f64s(&mut self, v: &[f64]) {
-        for x in v {
-            self.put(&x.to_le_bytes());
-        }
-    }
-}
-
-/// Sequential little-endian reader; `None` past the end.
-struct Reader<'a> {
-    buf: &'a [u8],
-    pos: usize,
-}
-
-impl Reader<'_> {
-    fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
-        let end = self.pos.checked_add(N)?;
-        let out: [u8; N] = self.buf.get(self.pos..end)?.try_into().ok()?;
-        self.pos = end;
-        Some(out)
-    }
-    fn u16(&mut self) -> Option<u16> {
-        self.take().map(u16::from_le_bytes)
-    }
-    fn u32(&mut self) -> Option<u32> {
-        self.take().map(u32::from_le_bytes)
-    }
-    fn f32(&mut self) -> Option<f32> {
-        self.take().map(f32::from_le_bytes)
-    }
-    fn f64(&mut self) -> Option<f64> {
-        self.take().map(f64::from_le_bytes)
-    }
-    fn f64s<const N: usize>(&mut self) -> Option<[f64; N]> {
-        let mut out = [0.0; N];
-        for o in out.iter_mut() {
-            *o = self.f64()?;
-        }
-        Some(out)
-    }
-}
-
-/// Saturating `usize` -> `u16` for error reports.
-fn sat_u16(v: usize) -> u16 {
-    u16::try_from(v).unwrap_or(u16::MAX)
-}
-
 impl Table {
     /// The compiled-in nominal table: [`nominal::prototype_with_flight_limits`], the
     /// default supervision thresholds, table ID [`NOMINAL_TABLE_ID`].
@@ -341,37 +283,41 @@ impl Table {
 
     /// Encodes the table into its binary layout, CRC included.
     pub fn encode(&self, out: &mut [u8; TABLE_LEN]) {
-        let mut w = Writer { buf: out, pos: 0 };
-        w.put(&TABLE_MAGIC);
-        w.put(&TABLE_FORMAT_VERSION.to_le_bytes());
-        w.put(&(TABLE_LEN as u16).to_le_bytes());
-        w.put(&self.table_id.to_le_bytes());
-        w.put(&self.provenance.calibration_id.to_le_bytes());
-        w.put(&self.provenance.tag);
-        for leg in &self.legs {
-            w.f64s(&leg.a_mm);
-            w.f64s(&leg.b_mm);
-        }
-        w.f64s(&self.p0_mm);
-        w.f64s(&self.stroke_limits.min_mm);
-        w.f64s(&self.stroke_limits.max_mm);
-        w.f64s(&self.workspace.translation_mm);
-        w.f64s(&self.workspace.rotation_rad);
-        let s = &self.supervision;
-        w.put(&s.following_error_warning_mm.to_le_bytes());
-        w.put(&s.following_error_fault_mm.to_le_bytes());
-        w.put(&s.encoder_jump_mm_per_cycle.to_le_bytes());
-        w.put(&s.stuck_min_progress_mm.to_le_bytes());
-        w.put(&s.stuck_detection_cycles.to_le_bytes());
-        w.put(&s.warning_debounce_cycles.to_le_bytes());
-        w.put(&s.fault_debounce_cycles.to_le_bytes());
-        w.put(&0u16.to_le_bytes());
+        // The buffer is exactly the layout's length: every field fits.
+        let _ = self.write(&mut Writer::new(out, Order::Little));
         let crc = out
             .get(..TABLE_CRC_OFFSET)
             .map_or(0, |body| CRC32.checksum(body));
         for (dst, src) in out.iter_mut().skip(TABLE_CRC_OFFSET).zip(crc.to_le_bytes()) {
             *dst = src;
         }
+    }
+
+    fn write(&self, w: &mut Writer<'_>) -> Option<()> {
+        w.put(&TABLE_MAGIC)?;
+        w.u16(TABLE_FORMAT_VERSION)?;
+        w.u16(TABLE_LEN as u16)?;
+        w.u32(self.table_id)?;
+        w.u32(self.provenance.calibration_id)?;
+        w.put(&self.provenance.tag)?;
+        for leg in &self.legs {
+            w.f64s(&leg.a_mm)?;
+            w.f64s(&leg.b_mm)?;
+        }
+        w.f64s(&self.p0_mm)?;
+        w.f64s(&self.stroke_limits.min_mm)?;
+        w.f64s(&self.stroke_limits.max_mm)?;
+        w.f64s(&self.workspace.translation_mm)?;
+        w.f64s(&self.workspace.rotation_rad)?;
+        let s = &self.supervision;
+        w.f32(s.following_error_warning_mm)?;
+        w.f32(s.following_error_fault_mm)?;
+        w.f32(s.encoder_jump_mm_per_cycle)?;
+        w.f32(s.stuck_min_progress_mm)?;
+        w.u16(s.stuck_detection_cycles)?;
+        w.u16(s.warning_debounce_cycles)?;
+        w.u16(s.fault_debounce_cycles)?;
+        w.u16(0)
     }
 
     /// The encoded table (convenience for callers with no buffer at hand).
@@ -396,7 +342,7 @@ impl Table {
                 got: sat_u16(bytes.len()),
             });
         }
-        let mut r = Reader { buf: bytes, pos: 0 };
+        let mut r = Reader::new(bytes, Order::Little);
         let short = TableError::WrongLength {
             got: sat_u16(bytes.len()),
         };
