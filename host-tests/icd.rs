@@ -118,24 +118,9 @@ fn documented_events() -> Vec<(u16, String)> {
 
 #[test]
 fn event_table_lists_exactly_the_event_ids_of_the_code() {
-    let code: BTreeSet<u16> = [
-        event::STATE_CHANGED,
-        event::FAULT_LATCHED,
-        event::FAULTS_CLEARED,
-        event::WARNING_CHANGED,
-        event::MOVE_REFUSED,
-        event::SETPOINT_REFUSED,
-        event::TABLE_ACTIVATED,
-        event::TABLE_REJECTED,
-        event::TABLE_COMMITTED,
-        event::TABLE_RELOADED,
-        event::BANK_HEALTH,
-        event::BOOT,
-        event::BOOT_DETAIL,
-        event::DEADLINE_MISSED,
-    ]
-    .into_iter()
-    .collect();
+    // The mission database's events, each checked against the flight constants and the
+    // emitting code by host-tests/mdb.rs.
+    let code: BTreeSet<u16> = m2ctl::ground::mdb::events().iter().map(|e| e.id).collect();
     let doc: BTreeSet<u16> = documented_events().into_iter().map(|(id, _)| id).collect();
     assert_eq!(doc, code);
 }
@@ -185,6 +170,14 @@ fn every_event_arrives_with_the_severity_the_icd_names() {
         })
     });
     r.run(20);
+    // A parameter set (persisted, then event 0x0040).
+    r.plant.with(|p| p.clear_faults());
+    r.settle(5_000);
+    r.command(&Command::ClearFault, 10);
+    let set = Command::SetParameters(
+        m2ctl::link::command::ParameterValues::new(&[(0x0003, 25_000_000)]).unwrap(),
+    );
+    assert!(all_ok(&r.command(&set, JOB_CYCLES)));
     let documented = documented_events();
     let mut seen = BTreeSet::new();
     for tm in &r.st.log {
@@ -211,6 +204,7 @@ fn every_event_arrives_with_the_severity_the_icd_names() {
         event::TABLE_COMMITTED,
         event::BOOT,
         event::BOOT_DETAIL,
+        event::PARAMETERS_CHANGED,
     ] {
         assert!(seen.contains(&id), "the scenario did not raise {id:#06x}");
     }
@@ -286,6 +280,10 @@ fn housekeeping_table_matches_the_emitted_bytes() {
         reset_cause: 0x2d,
         boot_count: 0x2e2e,
         bank_health: 0x2f,
+        pivot_nm: [0x3030_3030; 3],
+        pose_fk_operator: WirePose::from_array([0x3131_3131; 6]),
+        pose_commanded_operator: WirePose::from_array([0x3232_3232; 6]),
+        parameters_set: 0x3333_3333,
     };
     let mut bytes = [0u8; HK_REPORT_LEN];
     hk.emit(&mut bytes);
@@ -368,4 +366,33 @@ fn activate_of_a_pending_table_reports_each_stage_and_the_boot_follows() {
     );
     r.run(JOB_CYCLES);
     assert!(all_ok(&r.st.reports(rid)));
+}
+
+/// "1,000..500,000" / "±648,000,000" / "0" -> (min, max) or a single value.
+fn icd_number(cell: &str) -> Option<i64> {
+    cell.replace(',', "").trim().parse().ok()
+}
+
+#[test]
+fn parameter_table_matches_the_parameters_of_the_code() {
+    use m2ctl::controller::params::{Default, PARAMETERS};
+    let rows = table_after(&icd(), "## 5a. On-board parameters");
+    assert_eq!(rows.len(), PARAMETERS.len(), "one row per parameter");
+    for (r, d) in rows.iter().zip(PARAMETERS.iter()) {
+        assert_eq!(hex(&r[0]), Some(u32::from(d.id)), "{r:?}");
+        let unit = r[2].replace('²', "^2");
+        assert!(unit.starts_with(d.unit), "{r:?}: unit {}", d.unit);
+        let (lo, hi) = if let Some(m) = r[3].strip_prefix('±') {
+            let m = icd_number(m).unwrap();
+            (-m, m)
+        } else {
+            let (a, b) = r[3].split_once("..").unwrap_or_else(|| panic!("{r:?}"));
+            (icd_number(a).unwrap(), icd_number(b).unwrap())
+        };
+        assert_eq!((lo, hi), (i64::from(d.min), i64::from(d.max)), "{r:?}");
+        match d.default {
+            Default::Fixed(v) => assert_eq!(icd_number(&r[4]), Some(i64::from(v)), "{r:?}"),
+            Default::Table => assert!(r[4].contains("table"), "{r:?}"),
+        }
+    }
 }

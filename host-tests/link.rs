@@ -342,6 +342,10 @@ fn sample_hk() -> Housekeeping {
         reset_cause: 3,
         boot_count: 0xabcd,
         bank_health: 0b10,
+        pivot_nm: [-1_000_000_000, 25_000_000, 1_000_000_000],
+        pose_fk_operator: WirePose::from_array([10, -20, 30, -40, 50, -60]),
+        pose_commanded_operator: WirePose::from_array([-1, i32::MIN, i32::MAX, 0, 1, 2]),
+        parameters_set: 0x0007_0001,
     }
 }
 

@@ -241,6 +241,10 @@ fn distinct_housekeeping() -> Housekeeping {
         reset_cause: 4,
         boot_count: 0x1213,
         bank_health: 2,
+        pivot_nm: [-7_070_707, 8_080_808, -9_090_909],
+        pose_fk_operator: WirePose::from_array([71, -72, 73, -74_000, 75_000, -76_000]),
+        pose_commanded_operator: WirePose::from_array([-81, 82, -83, 84_000, -85_000, 86_000]),
+        parameters_set: 0x0004_0021,
     }
 }
 

@@ -134,6 +134,37 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
                 Ok(Outcome::Done)
             }
             Command::MoveAbsolute(target) => self.start_move(target.to_pose()),
+            Command::CheckMove(target) => {
+                let check = self.check_move(target.to_pose());
+                self.tm.push(
+                    self.cycle,
+                    TmRecord::MoveCheck {
+                        request_id: tc.request_id,
+                        check,
+                    },
+                );
+                Ok(Outcome::Done)
+            }
+            Command::ReportParameters(ids) => {
+                let mut mask = 0u32;
+                for id in ids.ids() {
+                    let k = super::params::index_of(*id).ok_or(CommandError::Parameter(
+                        super::params::ParamError::UnknownId(*id),
+                    ))?;
+                    mask |= 1 << k;
+                }
+                self.tm.push(self.cycle, TmRecord::Parameters { mask });
+                Ok(Outcome::Done)
+            }
+            Command::SetParameters(values) => {
+                // Applied between motions only, after they are persisted.
+                self.require_idle()?;
+                let new = self
+                    .params
+                    .with(values.entries(), &self.active.table)
+                    .map_err(CommandError::Parameter)?;
+                self.start_job(JobRequest::SaveParameters(new))
+            }
             Command::MoveRelative(delta) => {
                 let target = self.relative_target(delta.to_pose())?;
                 self.start_move(target)
@@ -214,6 +245,21 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             .submit(request)
             .map_err(|kind: JobKind| CommandError::JobBusy(kind.code()))?;
         Ok(Outcome::JobStarted)
+    }
+
+    /// The effective values (ID, value) of the parameters in `mask`, in index order (the
+    /// link service reads them when it encodes TM[20,2]).
+    pub fn parameter_values(
+        &self,
+        mask: u32,
+    ) -> heapless::Vec<(u16, i32), { super::params::N_PARAMETERS }> {
+        let mut out = heapless::Vec::new();
+        for (k, def) in super::params::PARAMETERS.iter().enumerate() {
+            if mask & (1 << k) != 0 {
+                let _ = out.push((def.id, self.params.value(k, &self.active.table)));
+            }
+        }
+        out
     }
 
     /// The bytes of a dump chunk (the link service reads them when it encodes the

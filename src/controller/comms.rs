@@ -100,6 +100,7 @@ impl Default for LinkService {
 enum Content {
     Plain(TmRecord),
     Hk(Housekeeping),
+    Params(heapless::Vec<(u16, i32), { super::params::N_PARAMETERS }>),
     Dump(crate::link::MemoryId, u16, super::commands::DumpChunk),
     Nothing,
 }
@@ -184,6 +185,7 @@ impl LinkService {
                         Some(chunk) => Content::Dump(memory, offset_bytes, chunk),
                         None => Content::Nothing,
                     },
+                    TmRecord::Parameters { mask } => Content::Params(c.parameter_values(mask)),
                     other => Content::Plain(other),
                 };
                 Some((stamped, content))
@@ -218,12 +220,18 @@ impl LinkService {
                 self.tm.emit_event(time, *severity, *id, *aux, out).ok()
             }
             Content::Plain(TmRecord::PingReply) => self.tm.emit_ping_reply(time, out).ok(),
+            Content::Plain(TmRecord::MoveCheck { request_id, check }) => {
+                self.tm.emit_move_check(time, *request_id, check, out).ok()
+            }
+            Content::Params(values) => self.tm.emit_parameter_report(time, values, out).ok(),
             Content::Hk(hk) => self.tm.emit_housekeeping(time, hk, out).ok(),
             Content::Dump(memory, offset, chunk) => self
                 .tm
                 .emit_table_dump_chunk(time, *memory, *offset, chunk.bytes(), out)
                 .ok(),
-            Content::Plain(TmRecord::Housekeeping | TmRecord::DumpChunk { .. })
+            Content::Plain(
+                TmRecord::Housekeeping | TmRecord::DumpChunk { .. } | TmRecord::Parameters { .. },
+            )
             | Content::Nothing => None,
         }
     }

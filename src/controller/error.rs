@@ -52,6 +52,8 @@ pub enum CommandError {
     NoGeometry,
     /// 0x070D: a table job (commit, selection, reload) is in progress (data: job code).
     JobBusy(u8),
+    /// An on-board parameter refused (0x0720..0x0722).
+    Parameter(super::params::ParamError),
 }
 
 /// Reasons a leg's encoder is suspect for a direct-stroke move (0x070B's data bits).
@@ -91,6 +93,7 @@ impl CommandError {
             CommandError::EncoderSuspect(_) => 0x070B,
             CommandError::NoGeometry => 0x070C,
             CommandError::JobBusy(_) => 0x070D,
+            CommandError::Parameter(e) => e.code(),
         }
     }
 
@@ -113,6 +116,7 @@ impl CommandError {
             CommandError::PendingMismatch { pending_id } => *pending_id,
             CommandError::EncoderSuspect(bits) => *bits,
             CommandError::JobBusy(job) => *job as u32,
+            CommandError::Parameter(e) => e.data(),
             _ => 0,
         }
     }

@@ -50,6 +50,8 @@ pub enum JobKind {
     Select,
     /// Re-read the running table after a RAM upset (3).
     Reload,
+    /// Persist on-board parameters (4).
+    Parameters,
 }
 
 impl JobKind {
@@ -59,6 +61,7 @@ impl JobKind {
             JobKind::Commit => 1,
             JobKind::Select => 2,
             JobKind::Reload => 3,
+            JobKind::Parameters => 4,
         }
     }
 }
@@ -72,16 +75,23 @@ pub struct ScrubImage {
     pub active: ActiveTable,
     /// The supervisor's thresholds.
     pub supervision: SupervisionConfig,
+    /// The on-board parameters.
+    pub params: super::Parameters,
+    /// What they and the table make of the settings.
+    pub ops: super::Ops,
 }
 
 impl ScrubImage {
-    /// True when the image is self-consistent: the table's CRC is the recorded one, and
-    /// the geometry and thresholds are exactly what the table derives.
+    /// True when the image is self-consistent: the table's CRC is the recorded one, the
+    /// geometry, thresholds and settings are exactly what the table and the parameters
+    /// derive, and the parameters are in range (they re-encode to themselves).
     pub fn consistent(&self) -> bool {
         let a = &self.active;
         a.table.crc32() == a.crc32
             && ActiveTable::new(a.table, a.source).is_ok_and(|d| d == *a)
-            && SupervisionConfig::from_table(&a.table) == self.supervision
+            && super::Parameters::decode(&self.params.encode()) == self.params
+            && self.params.supervision(&a.table) == self.supervision
+            && super::Ops::derive(&self.params, &a.table) == self.ops
     }
 }
 
@@ -101,6 +111,8 @@ pub enum JobRequest {
     RevertToNominal,
     /// Re-read the running table from its source.
     Reload,
+    /// Persist these on-board parameters (with the selection record).
+    SaveParameters(super::Parameters),
     /// Check this snapshot of the running configuration.
     Scrub(ScrubImage),
 }
@@ -114,6 +126,7 @@ impl JobRequest {
             | JobRequest::SwitchBank
             | JobRequest::RevertToNominal => Some(JobKind::Select),
             JobRequest::Reload => Some(JobKind::Reload),
+            JobRequest::SaveParameters(_) => Some(JobKind::Parameters),
             JobRequest::Scrub(_) => None,
         }
     }
@@ -136,6 +149,8 @@ pub enum JobResult {
         /// What was selected.
         selection: Selection,
     },
+    /// The on-board parameters were persisted: run with them.
+    ParametersSaved(super::Parameters),
     /// The running table, re-read from its source.
     Reloaded {
         /// The table.
@@ -200,6 +215,11 @@ impl JobLane {
         Ok(())
     }
 
+    /// The outstanding scrub (if any) was of an older generation: forget it.
+    pub fn scrub_done(&mut self) {
+        self.scrub_outstanding = false;
+    }
+
     /// Queues a scrub snapshot unless one is still outstanding.
     pub fn request_scrub(&mut self, image: ScrubImage) {
         if !self.scrub_outstanding {
@@ -254,6 +274,16 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
                         self.complete_pending(Err(e));
                     }
                 }
+            }
+            JobResult::ParametersSaved(params) => {
+                self.jobs.running = None;
+                self.apply_parameters(params);
+                self.event(
+                    EventSeverity::Info,
+                    super::event::PARAMETERS_CHANGED,
+                    [params.set_mask(), 0],
+                );
+                self.complete_pending(Ok(()));
             }
             JobResult::Reloaded { table, source } => {
                 self.jobs.running = None;
@@ -328,8 +358,9 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         self.geometry_ok = true;
         self.generation = self.generation.wrapping_add(1);
         self.jobs.scrub_outstanding = false;
+        self.ops = super::Ops::derive(&self.params, &act.table);
         self.supervisor
-            .set_config(SupervisionConfig::from_table(&act.table));
+            .set_config(self.params.supervision(&act.table));
         // The same strokes are a (slightly) different pose under the new geometry:
         // hold and re-derive the commanded pose.
         self.hold_here();
@@ -349,6 +380,8 @@ enum Op {
     Commit { table: Table, phase: CommitPhase },
     /// A selection being written; `table` runs when it is done.
     Select { table: Table },
+    /// On-board parameters being written.
+    Parameters(super::Parameters),
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -434,6 +467,13 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
                 self.op = Some(Op::Commit { table, phase });
                 Ok(())
             }
+            JobRequest::SaveParameters(params) => {
+                match self.store.start_parameters(&params.encode()) {
+                    Ok(()) => self.op = Some(Op::Parameters(params)),
+                    Err(e) => self.fail_later(JobKind::Parameters, e),
+                }
+                Ok(())
+            }
             _ => {
                 self.op = None;
                 // Selections start at once; a refusal is a result, given at the next step.
@@ -460,7 +500,7 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
             JobRequest::SwitchBank => self.other_bank_table(),
             JobRequest::RevertToNominal => Ok((Selection::nominal(), Table::nominal())),
             JobRequest::Reload => {
-                let sel = self.running_selection();
+                let sel = self.store.running_selection();
                 self.store.read_selected(&sel).map(|t| (sel, t))
             }
             _ => Err(StoreError::NotExpected),
@@ -474,17 +514,6 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
                 Err(e) => self.fail_later(kind, e),
             },
             Err(e) => self.fail_later(kind, e),
-        }
-    }
-
-    /// The selection describing the running table.
-    fn running_selection(&mut self) -> Selection {
-        match self.store.running().bank() {
-            None => Selection::nominal(),
-            Some(bank) => match self.store.read_header(bank) {
-                Ok(h) => Selection::bank(bank, h.sequence, h.table_crc),
-                Err(_) => Selection::bank(bank, self.store.running_sequence(), 0),
-            },
         }
     }
 
@@ -560,7 +589,7 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
             Op::Commit { table, phase } => match phase {
                 CommitPhase::Anchor => {
                     if !self.store.writing() {
-                        let sel = self.running_selection();
+                        let sel = self.store.running_selection();
                         if let Err(e) = self.store.start_select(&sel) {
                             return self.op_failed(JobKind::Commit, e);
                         }
@@ -608,6 +637,17 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
                         self.op_failed(JobKind::Commit, StoreError::Busy)
                     }
                 },
+            },
+            Op::Parameters(params) => match self.store.poll() {
+                WritePoll::Pending => None,
+                WritePoll::Done(Ok(WriteDone::Selected(_))) => {
+                    self.op = None;
+                    Some(JobResult::ParametersSaved(params))
+                }
+                WritePoll::Done(Err(e)) => self.op_failed(JobKind::Parameters, e),
+                WritePoll::Done(Ok(WriteDone::Committed(_))) | WritePoll::Idle => {
+                    self.op_failed(JobKind::Parameters, StoreError::Busy)
+                }
             },
             Op::Select { table } => match self.store.poll() {
                 WritePoll::Pending => None,

@@ -23,7 +23,8 @@
 //!    limit (a corrupted running table holds at once), latches, and is reported;
 //! 4. motion: the active trajectory's setpoint pose -> IK -> six strokes -> drives
 //!    ([`SliderDrives`]), or a direct-stroke move; at rest the drives are polled;
-//! 5. periodic work: housekeeping every [`HK_PERIOD_CYCLES`], a RAM-scrub snapshot every
+//! 5. periodic work: housekeeping every `hk_period` cycles (a parameter, default
+//!    [`crate::timing::HK_PERIOD_CYCLES`]), a RAM-scrub snapshot every
 //!    [`SCRUB_PERIOD_CYCLES`];
 //! 6. the state event if the state changed.
 //!
@@ -46,27 +47,28 @@
 pub mod comms;
 pub mod error;
 pub mod jobs;
+pub mod params;
 pub mod telemetry;
 
 mod commands;
-mod motion;
+pub mod motion;
 mod verification;
 
 use crate::hw::{counts_to_mm, DriveError, SliderDrives, StrokeEncoders};
-use crate::kinematics::{fk, FkConfig, FkError, FkSolution, Geometry, GeometryError, Pose, LEGS};
+use crate::kinematics::{
+    fk, FkConfig, FkError, FkSolution, Frames, Geometry, GeometryError, Pose, LEGS,
+};
 use crate::link::tm::EventSeverity;
 use crate::link::Housekeeping;
-use crate::motion::{
-    MotionLimits, DEFAULT_DIRECT_ACCEL_MM_PER_S2, DEFAULT_DIRECT_MAX_DELTA_MM,
-    DEFAULT_DIRECT_SPEED_MM_PER_S,
-};
+use crate::motion::MotionLimits;
 use crate::supervision::{CycleInputs, FaultFlags, SupervisionConfig, Supervisor};
 use crate::table::upload::UploadBuffer;
-use crate::table::{BootReport, BootSource, CommitReport, Table, ValidationConfig};
-use crate::timing::{cycle_to_us, HK_PERIOD_CYCLES, SCRUB_PERIOD_CYCLES};
+use crate::table::{BootReport, BootSource, CommitReport, Table};
+use crate::timing::{cycle_to_us, SCRUB_PERIOD_CYCLES};
 
 pub use error::CommandError;
 pub use jobs::{JobRequest, JobResult, Worker};
+pub use params::Parameters;
 pub use telemetry::{Stamped, TmQueue, TmRecord};
 
 /// Event IDs of service 5 (the ICD's table; aux words in the link's `event_id` docs).
@@ -162,29 +164,28 @@ pub struct ResetInfo {
     pub boot_count: u16,
 }
 
-/// Controller settings that are not in the parameter table.
+/// What the on-board parameters and the running table make of the controller's
+/// settings (derived, and checked by the RAM scrub).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ControllerConfig {
-    /// Slider limits of coordinated moves.
+pub struct Ops {
+    /// The pivot and user frame.
+    pub frames: Frames<f32>,
+    /// Coordinated-move limits.
     pub motion: MotionLimits,
-    /// Direct-stroke move speed limit (mm/s).
-    pub direct_speed_mm_per_s: f32,
-    /// Direct-stroke move acceleration limit (mm/s^2).
-    pub direct_accel_mm_per_s2: f32,
-    /// Largest direct-stroke move (mm).
-    pub direct_max_delta_mm: f32,
-    /// What uploaded tables are validated against.
-    pub validation: ValidationConfig,
+    /// Direct-stroke speed (mm/s), acceleration (mm/s^2), largest delta (mm).
+    pub direct: (f32, f32, f32),
+    /// Housekeeping period (cycles).
+    pub hk_period_cycles: u32,
 }
 
-impl Default for ControllerConfig {
-    fn default() -> Self {
+impl Ops {
+    /// The settings of `params` with `table` running.
+    pub fn derive(params: &Parameters, table: &Table) -> Self {
         Self {
-            motion: MotionLimits::default(),
-            direct_speed_mm_per_s: DEFAULT_DIRECT_SPEED_MM_PER_S,
-            direct_accel_mm_per_s2: DEFAULT_DIRECT_ACCEL_MM_PER_S2,
-            direct_max_delta_mm: DEFAULT_DIRECT_MAX_DELTA_MM,
-            validation: ValidationConfig::flight(),
+            frames: params.frames(table),
+            motion: params.motion_limits(table),
+            direct: params.direct_limits(table),
+            hk_period_cycles: params.hk_period_cycles(table),
         }
     }
 }
@@ -229,8 +230,10 @@ pub struct Controller<M> {
     /// The six slider drives and encoders (drivers on the target, the simulated plant
     /// on the host); owned: nothing else commands them.
     mech: M,
-    cfg: ControllerConfig,
     active: ActiveTable,
+    /// The on-board parameters (ST[20]) and what they make of the settings.
+    params: Parameters,
+    ops: Ops,
     /// The running geometry is usable; `false` only after a defect (the compiled-in
     /// nominal table failed to derive): every motion is refused.
     geometry_ok: bool,
@@ -286,7 +289,7 @@ pub struct Controller<M> {
 impl<M: SliderDrives + StrokeEncoders> Controller<M> {
     /// Starts on the table boot selected (`table`, `boot`: [`crate::table::TableStore::boot`]),
     /// holds the sliders where their drives are, and takes the first reading.
-    pub fn new(mech: M, table: Table, boot: BootReport, cfg: ControllerConfig) -> Self {
+    pub fn new(mech: M, table: Table, boot: BootReport) -> Self {
         let (active, geometry_ok) = match ActiveTable::new(table, boot.source) {
             Ok(a) => (a, true),
             // A booted table was validated, so this is a defect guard: fall back to the
@@ -296,11 +299,14 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
                 Err(_) => (nominal_placeholder(), false),
             },
         };
-        let supervisor = Supervisor::new(SupervisionConfig::from_table(&active.table));
+        let params = Parameters::none();
+        let supervisor = Supervisor::new(params.supervision(&active.table));
+        let ops = Ops::derive(&params, &active.table);
         let mut c = Self {
             mech,
-            cfg,
             active,
+            params,
+            ops,
             geometry_ok,
             generation: 0,
             boot,
@@ -346,6 +352,27 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             }
         }
         c
+    }
+
+    /// Restores the on-board parameters persisted with the selection record
+    /// ([`crate::table::TableStore::parameters`]); call once after [`Controller::new`].
+    pub fn restore_parameters(&mut self, persisted: &[u8; crate::table::store::PARAMETERS_LEN]) {
+        self.apply_parameters(Parameters::decode(persisted));
+    }
+
+    /// Runs with `params`: derived settings and the supervision thresholds follow.
+    fn apply_parameters(&mut self, params: Parameters) {
+        self.params = params;
+        self.ops = Ops::derive(&params, &self.active.table);
+        self.supervisor
+            .set_config(params.supervision(&self.active.table));
+        self.generation = self.generation.wrapping_add(1);
+        self.jobs.scrub_done();
+    }
+
+    /// The on-board parameters.
+    pub fn parameters(&self) -> &Parameters {
+        &self.params
     }
 
     /// Records the board's reset cause and boot counter (call once, before the first
@@ -440,7 +467,7 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         // 4. Motion.
         self.step_motion();
         // 5. Periodic work.
-        if self.cycle % HK_PERIOD_CYCLES == 0 {
+        if self.cycle % self.ops.hk_period_cycles.max(1) == 0 {
             self.tm.push(self.cycle, TmRecord::Housekeeping);
         }
         if self.cycle % SCRUB_PERIOD_CYCLES == 0 {
@@ -448,6 +475,8 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
                 generation: self.generation,
                 active: self.active,
                 supervision: *self.supervisor.config(),
+                params: self.params,
+                ops: self.ops,
             });
         }
         // 6. State.
@@ -596,7 +625,21 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             reset_cause: self.reset.cause.code(),
             boot_count: self.reset.boot_count,
             bank_health: self.bank_health,
+            pivot_nm: self.pivot_nm(),
+            pose_fk_operator: crate::link::wire::pose_to_wire_f32(
+                &self.ops.frames.to_operator(&self.pose_fk),
+            ),
+            pose_commanded_operator: crate::link::wire::pose_to_wire_f32(
+                &self.ops.frames.to_operator(&self.pose_commanded),
+            ),
+            parameters_set: self.params.set_mask(),
         }
+    }
+
+    /// The pivot (M's coordinates, nm), as set.
+    fn pivot_nm(&self) -> [i32; 3] {
+        let k = params::index::PIVOT;
+        [0, 1, 2].map(|i| self.params.value(k + i, &self.active.table))
     }
 
     /// Control cycles since boot.

@@ -7,7 +7,9 @@ use super::{event, Controller, State};
 use crate::hw::{SliderDrives, StrokeEncoders};
 use crate::kinematics::{fk, ik, Pose};
 use crate::link::tm::EventSeverity;
-use crate::motion::{DirectStrokeLimits, PlanStart, StrokeMove, Trajectory, TrajectoryPlanner};
+use crate::motion::{
+    DirectStrokeLimits, PlanStart, StrokeMove, Trajectory, TrajectoryPlanner, PATH_SAMPLE_INTERVALS,
+};
 use crate::supervision::FaultFlags;
 
 /// The motion in progress.
@@ -30,6 +32,9 @@ pub(super) enum Motion {
         stopping: bool,
     },
 }
+
+/// The answer of a move check (TM[8,130]).
+pub use crate::link::tm::MoveCheckReport as MoveCheck;
 
 /// Faults that make a leg's encoder unfit to guide a direct-stroke move of that leg.
 const ENCODER_FAULTS: [(FaultFlags, u32); 3] = [
@@ -242,29 +247,36 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         self.require_idle()
     }
 
-    /// The pose the drives hold now: the start of any move (FK of the held strokes,
-    /// warm-started from the commanded pose).
+    /// The pose the drives hold now, in the operator's frames: the start of any move
+    /// (FK of the held strokes, warm-started from the commanded pose).
     fn held_pose(&mut self) -> Result<Pose<f32>, CommandError> {
         let held = self.mech.setpoints_mm();
         self.strokes_commanded_mm = held;
         let sol = fk(&self.active.geom, &held, &self.pose_commanded, &self.fk_cfg)
             .map_err(|_| CommandError::NoPose)?;
         self.pose_commanded = sol.pose;
-        Ok(sol.pose)
+        Ok(self.ops.frames.to_operator(&sol.pose))
     }
 
-    /// Starts a coordinated move to `target` (absolute pose, mm and rad).
+    /// Starts a coordinated move to `target` (absolute pose in the operator's frames:
+    /// the pivot's displacement along the user frame's axes, the rotation in it).
     pub(super) fn start_move(&mut self, target: Pose<f32>) -> Result<Outcome, CommandError> {
         self.require_can_move()?;
         // Plan from the pose of the strokes the drives hold, so the first setpoint is
         // continuous with them. The ends are checked now (a refused target is refused at
         // once with every reason); the path samples are evaluated over the next cycles.
         let start = self.held_pose()?;
-        let begun = TrajectoryPlanner::begin(&self.active.geom, &start, &target, &self.cfg.motion)
-            .map_err(|e| {
-                self.refusal_bits = CommandError::Motion(e).data();
-                CommandError::Motion(e)
-            })?;
+        let begun = TrajectoryPlanner::begin_in(
+            &self.active.geom,
+            &self.ops.frames,
+            &start,
+            &target,
+            &self.ops.motion,
+        )
+        .map_err(|e| {
+            self.refusal_bits = CommandError::Motion(e).data();
+            CommandError::Motion(e)
+        })?;
         self.refusal_bits = 0;
         self.plan_aborted = false;
         match begun {
@@ -285,8 +297,64 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         }
     }
 
-    /// The relative-move target: the held pose plus `delta` component by component
-    /// (translations added along the base axes, Euler angles added).
+    /// Every reason a move to `target` (operator frames) would be refused now, changing
+    /// nothing: the state (fault, motion, job), the target's workspace check, the straight
+    /// path's first refused sample.
+    pub(super) fn check_move(&mut self, target: Pose<f32>) -> MoveCheck {
+        let now = self.require_can_move().err().map_or(0, |e| e.code());
+        let target_refusals =
+            crate::kinematics::check(&self.active.geom, &self.ops.frames.to_internal(&target))
+                .to_bits();
+        let held = self.mech.setpoints_mm();
+        let Ok(start) = fk(&self.active.geom, &held, &self.pose_commanded, &self.fk_cfg) else {
+            return MoveCheck {
+                code: if now != 0 {
+                    now
+                } else {
+                    CommandError::NoPose.code()
+                },
+                target_refusals,
+                path_refusals: 0,
+                path_sample: 0,
+            };
+        };
+        let start = self.ops.frames.to_operator(&start.pose);
+        let planned = TrajectoryPlanner::begin_in(
+            &self.active.geom,
+            &self.ops.frames,
+            &start,
+            &target,
+            &self.ops.motion,
+        )
+        .and_then(|b| match b {
+            PlanStart::Ready(_) => Ok(()),
+            // All the path's samples at once: a bounded cost (PATH_SAMPLE_INTERVALS + 1
+            // IK evaluations and one FK, measured in the cycle benchmark).
+            PlanStart::Sampling(mut p) => p
+                .advance(&self.active.geom, PATH_SAMPLE_INTERVALS + 1)
+                .unwrap_or(Err(crate::motion::MotionError::TooLong))
+                .map(|_| ()),
+        });
+        let (code, path_refusals, path_sample) = match planned {
+            Ok(()) => (0, 0, 0),
+            Err(crate::motion::MotionError::PathRefused { sample, refusals }) => (
+                crate::motion::MotionError::PathRefused { sample, refusals }.code(),
+                refusals.to_bits(),
+                sample,
+            ),
+            Err(e) => (e.code(), 0, 0),
+        };
+        MoveCheck {
+            code: if now != 0 { now } else { code },
+            target_refusals,
+            path_refusals,
+            path_sample,
+        }
+    }
+
+    /// The relative-move target: the held pose plus `delta` component by component, in
+    /// the operator's frames (translations added along the user frame's axes, Euler
+    /// angles added).
     pub(super) fn relative_target(&mut self, delta: Pose<f32>) -> Result<Pose<f32>, CommandError> {
         self.require_can_move()?;
         let mut target = self.held_pose()?;
@@ -342,10 +410,11 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         if why != 0 {
             return Err(CommandError::EncoderSuspect(why));
         }
+        let (speed, accel, delta) = self.ops.direct;
         let limits = DirectStrokeLimits {
-            max_speed_mm_per_s: self.cfg.direct_speed_mm_per_s,
-            max_accel_mm_per_s2: self.cfg.direct_accel_mm_per_s2,
-            max_delta_mm: self.cfg.direct_max_delta_mm,
+            max_speed_mm_per_s: speed,
+            max_accel_mm_per_s2: accel,
+            max_delta_mm: delta,
             stroke_min_mm: stroke.min_mm,
             stroke_max_mm: stroke.max_mm,
         };

@@ -48,6 +48,19 @@ pub enum TmRecord {
     Housekeeping,
     /// TM[17,2].
     PingReply,
+    /// TM[8,130]: the answer of a move check for a telecommand.
+    MoveCheck {
+        /// The telecommand.
+        request_id: RequestId,
+        /// The answer.
+        check: super::motion::MoveCheck,
+    },
+    /// TM[20,2]: the effective values of the parameters in `mask` (bit i = index i),
+    /// read when it is encoded.
+    Parameters {
+        /// The parameters to report.
+        mask: u32,
+    },
     /// TM[6,6]: the chunk of `memory` at `offset_bytes`, read when it is encoded.
     DumpChunk {
         /// Memory area.

@@ -25,13 +25,16 @@
 
 use serde::Serialize;
 
+use crate::controller::params::{ParamError, PARAMETERS};
 use crate::controller::{CommandError, State};
 use crate::kinematics::{FkError, GeometryError, IkError, Refusals, LEGS};
 use crate::link::command::{
-    FunctionId, MemoryId, TableChunk, WirePose, FUNCTION_ID_LEN, TABLE_CHUNK_MAX_LEN,
+    FunctionId, MemoryId, ParameterIds, ParameterValues, TableChunk, WirePose, FUNCTION_ID_LEN,
+    TABLE_CHUNK_MAX_LEN,
 };
 use crate::link::hk::{HK_REPORT_LEN, HK_STRUCTURE_ID};
 use crate::link::tc::{TcHeader, APID_MASK, SEQ_COUNT_MASK};
+use crate::link::tm::MOVE_CHECK_REPORT_LEN;
 use crate::link::tm::{event_id, EventSeverity, TIME_FRACTIONS_PER_SECOND};
 use crate::link::{
     encode_telecommand, service, subtype, AckFlags, Command, Housekeeping, LinkError,
@@ -338,7 +341,10 @@ pub fn telecommand_name(command: &Command) -> String {
         Command::HousekeepingOneShot => "HOUSEKEEPING_ONE_SHOT".into(),
         Command::LoadTableChunk(_) => "LOAD_TABLE_CHUNK".into(),
         Command::DumpTable(_) => "DUMP_TABLE".into(),
+        Command::ReportParameters(_) => "REPORT_PARAMETER".into(),
+        Command::SetParameters(_) => "SET_PARAMETER".into(),
         Command::MoveAbsolute(_)
+        | Command::CheckMove(_)
         | Command::MoveRelative(_)
         | Command::Stop
         | Command::ClearFault
@@ -474,6 +480,21 @@ fn pose_arg(args: &[ArgValue]) -> Result<WirePose, String> {
 fn build_move_absolute(a: &[ArgValue]) -> Result<Command, String> {
     Ok(Command::MoveAbsolute(pose_arg(a)?))
 }
+fn build_check_move(a: &[ArgValue]) -> Result<Command, String> {
+    Ok(Command::CheckMove(pose_arg(a)?))
+}
+fn build_report_parameter(a: &[ArgValue]) -> Result<Command, String> {
+    let id = u16::try_from(int_arg(a, 0)?).map_err(|e| e.to_string())?;
+    ParameterIds::new(&[id])
+        .map(Command::ReportParameters)
+        .map_err(|e| format!("{e:?}"))
+}
+fn build_set_parameter(a: &[ArgValue]) -> Result<Command, String> {
+    let id = u16::try_from(int_arg(a, 0)?).map_err(|e| e.to_string())?;
+    ParameterValues::new(&[(id, arg_i32(a, 1)?)])
+        .map(Command::SetParameters)
+        .map_err(|e| format!("{e:?}"))
+}
 fn build_move_relative(a: &[ArgValue]) -> Result<Command, String> {
     Ok(Command::MoveRelative(pose_arg(a)?))
 }
@@ -527,6 +548,12 @@ fn function_args(f: FunctionId) -> (Vec<Field>, BuildFn, &'static str, f64) {
             build_move_relative,
             "Move by an increment added component-wise to the commanded pose.",
             MOVE_COMPLETION_S,
+        ),
+        FunctionId::CheckMove => (
+            pose_fields("", at, "target pose (as MOVE_ABSOLUTE)"),
+            build_check_move,
+            "Check a move without moving: TM[8,130] gives the code MOVE_ABSOLUTE would get now and the refusal bits of the target and of the first refused path point.",
+            QUICK_COMPLETION_S,
         ),
         FunctionId::Stop => none(|_| Ok(Command::Stop), "Stop any motion (ramp down)."),
         FunctionId::ClearFault => none(|_| Ok(Command::ClearFault), "Clear latched faults."),
@@ -675,6 +702,54 @@ fn telecommands() -> Vec<Telecommand> {
             description: "Dump a table as TM[6,6] chunks.".into(),
             completion_timeout_s: QUICK_COMPLETION_S,
             build: build_dump,
+        },
+        Telecommand {
+            name: "REPORT_PARAMETER".into(),
+            service: service::PARAMETER,
+            subtype: subtype::PARAMETER_REPORT_REQUEST,
+            function_id: None,
+            fields: vec![
+                fixed("count", 0, Wire::U8, 1, "number of parameter IDs (this description: one)"),
+                field(
+                    "parameter_id",
+                    1,
+                    Wire::U16,
+                    Meaning::Enum {
+                        enumeration: "parameter_id",
+                    },
+                    "on-board parameter to report",
+                ),
+            ],
+            description: "Report an on-board parameter's effective value as TM[20,2] (the link takes up to 16 IDs).".into(),
+            completion_timeout_s: QUICK_COMPLETION_S,
+            build: build_report_parameter,
+        },
+        Telecommand {
+            name: "SET_PARAMETER".into(),
+            service: service::PARAMETER,
+            subtype: subtype::PARAMETER_SET,
+            function_id: None,
+            fields: vec![
+                fixed("count", 0, Wire::U8, 1, "number of (ID, value) pairs (this description: one)"),
+                field(
+                    "parameter_id",
+                    1,
+                    Wire::U16,
+                    Meaning::Enum {
+                        enumeration: "parameter_id",
+                    },
+                    "on-board parameter to set",
+                ),
+                count(
+                    "value",
+                    3,
+                    Wire::I32,
+                    "new value in the parameter's wire unit (parameter_id enumeration: unit and range)",
+                ),
+            ],
+            description: "Set an on-board parameter (at rest only; persisted before it applies, completion then; the link takes up to 16 pairs, all-or-nothing).".into(),
+            completion_timeout_s: QUICK_COMPLETION_S,
+            build: build_set_parameter,
         },
     ];
     for f in FunctionId::ALL {
@@ -950,7 +1025,7 @@ pub fn housekeeping_fields() -> Vec<(Field, Option<HkGetter>)> {
                 "job",
                 139,
                 Wire::U8,
-                "table job running: 0 none, 1 commit, 2 selection, 3 reload",
+                "background job running: 0 none, 1 commit, 2 selection, 3 reload, 4 parameters",
             ),
             Some(|h| i64::from(h.job)),
         ),
@@ -1022,6 +1097,53 @@ pub fn housekeeping_fields() -> Vec<(Field, Option<HkGetter>)> {
             Some(|h| i64::from(h.bank_health)),
         ),
     ]);
+    let pivot: [HkGetter; 3] = [
+        |h| i64::from(h.pivot_nm[0]),
+        |h| i64::from(h.pivot_nm[1]),
+        |h| i64::from(h.pivot_nm[2]),
+    ];
+    for (k, g) in pivot.into_iter().enumerate() {
+        let axis = POSE_AXES.get(k).copied().unwrap_or("");
+        v.push((
+            calibrated(
+                &format!("pivot_{axis}"),
+                153 + 4 * k,
+                Wire::I32,
+                UNIT_UM,
+                UM_PER_NM,
+                &format!("pivot in M's coordinates, {axis} (um; wire i32 in nm; ST[20] parameter)"),
+            ),
+            Some(g),
+        ));
+    }
+    let operator: [(&str, usize, &str, [HkGetter; 6]); 2] = [
+        (
+            "pose_fk_op_",
+            165,
+            "pose from FK in the operator's frames (about the pivot, in the user frame)",
+            pose_getters!(pose_fk_operator),
+        ),
+        (
+            "pose_cmd_op_",
+            189,
+            "commanded pose in the operator's frames (about the pivot, in the user frame)",
+            pose_getters!(pose_commanded_operator),
+        ),
+    ];
+    for (prefix, off, what, getters) in operator {
+        for (f, g) in pose_fields(prefix, off, what).into_iter().zip(getters) {
+            v.push((f, Some(g)));
+        }
+    }
+    v.push((
+        count(
+            "parameters_set",
+            213,
+            Wire::U32,
+            "on-board parameters set by TC[20,3] (bit i = parameter index i; clear: default)",
+        ),
+        Some(|h| i64::from(h.parameters_set)),
+    ));
     v
 }
 
@@ -1149,6 +1271,80 @@ fn telemetry() -> Vec<TmPacket> {
             ],
             fixed_len: None,
             description: "TM[6,6] table dump chunk".into(),
+        },
+        TmPacket {
+            name: "move_check".into(),
+            service: service::FUNCTION,
+            subtypes: vec![subtype::MOVE_CHECK_REPORT],
+            fields: {
+                let mut f = rid(0);
+                for r in &mut f {
+                    r.name = format!("check_{}", r.name);
+                }
+                f.extend([
+                    field(
+                        "check_code",
+                        4,
+                        Wire::U16,
+                        Meaning::Enum {
+                            enumeration: "failure_code",
+                        },
+                        "the code MOVE_ABSOLUTE would be refused with now (0: it would be accepted)",
+                    ),
+                    field(
+                        "check_target_refusals",
+                        6,
+                        Wire::U32,
+                        Meaning::Bits {
+                            bit_field: "refusal_bits",
+                        },
+                        "refusal bits of the target pose",
+                    ),
+                    field(
+                        "check_path_refusals",
+                        10,
+                        Wire::U32,
+                        Meaning::Bits {
+                            bit_field: "refusal_bits",
+                        },
+                        "refusal bits of the first refused path point (0: none)",
+                    ),
+                    count(
+                        "check_path_sample",
+                        14,
+                        Wire::U8,
+                        "index of that path point (0: none)",
+                    ),
+                ]);
+                f
+            },
+            fixed_len: Some(MOVE_CHECK_REPORT_LEN),
+            description: "TM[8,130] move check report (answer to CHECK_MOVE)".into(),
+        },
+        TmPacket {
+            name: "parameter_report".into(),
+            service: service::PARAMETER,
+            subtypes: vec![subtype::PARAMETER_REPORT],
+            fields: vec![
+                count("report_count", 0, Wire::U8, "number of (ID, value) pairs"),
+                field(
+                    "report_parameter_id",
+                    1,
+                    Wire::U16,
+                    Meaning::Enum {
+                        enumeration: "parameter_id",
+                    },
+                    "first parameter's ID (further pairs follow, 6 bytes each)",
+                ),
+                count(
+                    "report_value",
+                    3,
+                    Wire::I32,
+                    "first parameter's effective value (its wire unit)",
+                ),
+            ],
+            fixed_len: None,
+            description: "TM[20,2] parameter report: count, then (ID u16, value i32) pairs".into(),
         },
         TmPacket {
             name: "ping_reply".into(),
@@ -1388,6 +1584,13 @@ pub fn failure_samples() -> Vec<(&'static str, u16, String)> {
     ] {
         push("CONTROLLER", e.code(), format!("{e:?}"));
     }
+    for e in [
+        ParamError::UnknownId(0),
+        ParamError::OutOfRange(0),
+        ParamError::WarningNotBelowFault,
+    ] {
+        push("CONTROLLER", e.code(), format!("{e:?}"));
+    }
     v
 }
 
@@ -1404,6 +1607,27 @@ fn failure_codes() -> Vec<(i64, String, String)> {
         )
     }));
     v
+}
+
+/// The on-board parameters (ST[20]) with their unit, range and default.
+fn parameter_ids() -> Vec<(i64, String, String)> {
+    PARAMETERS
+        .iter()
+        .map(|d| {
+            let default = match d.default {
+                crate::controller::params::Default::Fixed(v) => format!("{v}"),
+                crate::controller::params::Default::Table => "the running table's".into(),
+            };
+            (
+                i64::from(d.id),
+                d.name.to_ascii_uppercase(),
+                format!(
+                    "{} ({}; {}..={}; default {default})",
+                    d.name, d.unit, d.min, d.max
+                ),
+            )
+        })
+        .collect()
 }
 
 /// The events (IDs from [`event_id`], severities as the controller sends them).
@@ -1522,6 +1746,14 @@ pub fn events() -> Vec<Event> {
             aux0: "consecutive overruns",
             aux1: "overruns since boot",
             message: "control cycles overran {aux0} times in a row (total {aux1}): motion stopped",
+        },
+        Event {
+            id: event_id::PARAMETERS_CHANGED,
+            name: "PARAMETERS_CHANGED",
+            severities: sev(&[info]),
+            aux0: "parameters set (bit i = parameter index i)",
+            aux1: "0",
+            message: "on-board parameters changed: set mask {aux0}",
         },
     ]
 }
@@ -1730,6 +1962,10 @@ pub fn mdb() -> Mdb {
             Enumeration {
                 name: "event_id",
                 values: event_ids,
+            },
+            Enumeration {
+                name: "parameter_id",
+                values: parameter_ids(),
             },
         ],
         bit_fields: vec![

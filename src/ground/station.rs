@@ -20,6 +20,10 @@ pub enum Tm {
     Dump(MemoryId, u16, Vec<u8>),
     /// TM[17,2].
     Ping,
+    /// TM[8,130]: the move check's answer to a telecommand.
+    MoveCheck(RequestId, crate::link::tm::MoveCheckReport),
+    /// TM[20,2]: (parameter ID, value) pairs.
+    Parameters(Vec<(u16, i32)>),
 }
 
 /// Sends telecommands, collects telemetry.
@@ -90,6 +94,18 @@ impl Station {
                         bytes,
                     } => Tm::Dump(memory, offset_bytes, bytes.to_vec()),
                     TmReport::PingReply => Tm::Ping,
+                    TmReport::MoveCheck { request_id, check } => Tm::MoveCheck(request_id, check),
+                    TmReport::Parameters { entries } => Tm::Parameters(
+                        entries
+                            .chunks_exact(6)
+                            .map(|c| {
+                                (
+                                    u16::from_be_bytes([c[0], c[1]]),
+                                    i32::from_be_bytes([c[2], c[3], c[4], c[5]]),
+                                )
+                            })
+                            .collect(),
+                    ),
                 });
             match tm {
                 Some(t) => self.log.push(t),

@@ -6,6 +6,7 @@
 //! * [`ik`]: pose -> strokes, formulated relative to the home pose for f32 accuracy.
 //! * [`fk`]: strokes -> pose, Newton-Raphson with the analytic Jacobian.
 //! * [`workspace`]: every reason a pose is refused, without motion.
+//! * [`frames`]: the operator's pivot and user frame, mapped to and from the internal pose.
 //! * [`linalg`]: the 6x6 Newton solve, using the Jacobian's structure.
 //!
 //! Joint positions, rod vectors and rotations are nalgebra's fixed-size `Vector3` and
@@ -19,6 +20,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod fk;
+pub mod frames;
 pub mod geometry;
 pub mod ik;
 pub mod linalg;
@@ -27,6 +29,7 @@ pub mod real;
 pub mod workspace;
 
 pub use fk::{fk, FkConfig, FkError, FkSolution};
+pub use frames::Frames;
 pub use geometry::{
     Geometry, GeometryError, GeometryParams, LegParams, StrokeLimits, WorkspaceLimits, LEGS,
 };

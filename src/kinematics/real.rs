@@ -72,6 +72,10 @@ pub trait Real:
     fn is_finite(self) -> bool;
     /// `(sin x, cos x - 1)` for `x` in radians.
     fn sin_cosm1(self) -> (Self, Self);
+    /// `asin x` (rad), libm (software on the Cortex-M4F; frames only, not the IK/FK).
+    fn asin(self) -> Self;
+    /// `atan2(self, x)` (rad), libm.
+    fn atan2(self, x: Self) -> Self;
     /// The larger of two values (NaN-free inputs assumed).
     fn max(self, other: Self) -> Self {
         if other > self {
@@ -155,6 +159,14 @@ impl Real for f32 {
             (libm::sinf(self), -2.0 * h * h)
         }
     }
+    #[inline]
+    fn asin(self) -> Self {
+        libm::asinf(self)
+    }
+    #[inline]
+    fn atan2(self, x: Self) -> Self {
+        libm::atan2f(self, x)
+    }
 }
 
 impl Real for f64 {
@@ -194,6 +206,14 @@ impl Real for f64 {
             let h = libm::sin(0.5 * self);
             (libm::sin(self), -2.0 * h * h)
         }
+    }
+    #[inline]
+    fn asin(self) -> Self {
+        libm::asin(self)
+    }
+    #[inline]
+    fn atan2(self, x: Self) -> Self {
+        libm::atan2(self, x)
     }
 }
 

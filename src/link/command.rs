@@ -21,11 +21,20 @@ pub const FUNCTION_ID_LEN: usize = 2;
 pub const MEMORY_LOAD_HEADER_LEN: usize = 5;
 /// Largest application data of any telecommand (bytes).
 pub const MAX_TC_APP_DATA_LEN: usize = MEMORY_LOAD_HEADER_LEN + TABLE_CHUNK_MAX_LEN;
+/// Bytes of a TC[20,3] count, and of one (ID u16, value i32) pair.
+const PARAMETER_COUNT_LEN: usize = 1;
+const PARAMETER_PAIR_LEN: usize = 6;
+/// Bytes of one TC[20,1] parameter ID.
+const PARAMETER_ID_LEN: usize = 2;
+const _: () = assert!(
+    PARAMETER_COUNT_LEN + PARAMETER_PAIR_LEN * MAX_PARAMETERS_PER_TC <= MAX_TC_APP_DATA_LEN
+);
 
 /// A pose on the wire: exact integers, big-endian i32 each, in the order
-/// `x_nm, y_nm, z_nm, alpha_uas, beta_uas, gamma_uas` (translation of M's origin from p0
-/// along B's axes in nanometres; rotation `R = Rz(gamma) Ry(beta) Rx(alpha)` in
-/// micro-arcseconds). Range: +-2.1 m, +-2147 arcsec.
+/// `x_nm, y_nm, z_nm, alpha_uas, beta_uas, gamma_uas` (in the operator's frames,
+/// `kinematics::frames`: translation of the pivot from home along the user frame's axes
+/// in nanometres, rotation `Q = Rz(gamma) Ry(beta) Rx(alpha)` in the user frame in
+/// micro-arcseconds; with the default frames, M's origin from p0 along B's axes). Range: +-2.1 m, +-2147 arcsec.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct WirePose {
     /// Translation x, y, z (nm).
@@ -152,6 +161,107 @@ impl TableChunk {
     }
 }
 
+/// Most parameters named by one TC[20,1] or TC[20,3].
+pub const MAX_PARAMETERS_PER_TC: usize = 16;
+
+/// The parameter IDs of a TC[20,1]: a count u8 (1..=16), then that many IDs u16.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ParameterIds {
+    len: u8,
+    ids: [u16; MAX_PARAMETERS_PER_TC],
+}
+
+impl ParameterIds {
+    /// From a list (1..=16 IDs).
+    pub fn new(ids: &[u16]) -> Result<Self, LinkError> {
+        let mut out = Self {
+            len: 0,
+            ids: [0; MAX_PARAMETERS_PER_TC],
+        };
+        if ids.is_empty() || ids.len() > MAX_PARAMETERS_PER_TC {
+            return Err(LinkError::InvalidArgument { index: 0 });
+        }
+        for (d, s) in out.ids.iter_mut().zip(ids) {
+            *d = *s;
+        }
+        out.len = ids.len() as u8;
+        Ok(out)
+    }
+
+    /// The IDs.
+    pub fn ids(&self) -> &[u16] {
+        self.ids.get(..usize::from(self.len)).unwrap_or(&[])
+    }
+
+    fn parse(app_data: &[u8]) -> Result<Self, LinkError> {
+        let mut r = Reader::new(app_data, Order::Big);
+        let n = usize::from(r.u8().ok_or(LinkError::AppDataLength {
+            got: sat_u16(app_data.len()),
+            expected: 1,
+        })?);
+        if n == 0 || n > MAX_PARAMETERS_PER_TC {
+            return Err(LinkError::InvalidArgument { index: 0 });
+        }
+        expect_len(app_data, PARAMETER_COUNT_LEN + PARAMETER_ID_LEN * n)?;
+        let mut ids = [0u16; MAX_PARAMETERS_PER_TC];
+        for id in ids.iter_mut().take(n) {
+            *id = r.u16().ok_or(LinkError::InvalidArgument { index: 1 })?;
+        }
+        Self::new(ids.get(..n).unwrap_or(&[]))
+    }
+}
+
+/// The (ID, value) pairs of a TC[20,3]: a count u8 (1..=16), then that many (ID u16,
+/// value i32).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ParameterValues {
+    len: u8,
+    entries: [(u16, i32); MAX_PARAMETERS_PER_TC],
+}
+
+impl ParameterValues {
+    /// From a list (1..=16 pairs).
+    pub fn new(entries: &[(u16, i32)]) -> Result<Self, LinkError> {
+        let mut out = Self {
+            len: 0,
+            entries: [(0, 0); MAX_PARAMETERS_PER_TC],
+        };
+        if entries.is_empty() || entries.len() > MAX_PARAMETERS_PER_TC {
+            return Err(LinkError::InvalidArgument { index: 0 });
+        }
+        for (d, s) in out.entries.iter_mut().zip(entries) {
+            *d = *s;
+        }
+        out.len = entries.len() as u8;
+        Ok(out)
+    }
+
+    /// The pairs.
+    pub fn entries(&self) -> &[(u16, i32)] {
+        self.entries.get(..usize::from(self.len)).unwrap_or(&[])
+    }
+
+    fn parse(app_data: &[u8]) -> Result<Self, LinkError> {
+        let mut r = Reader::new(app_data, Order::Big);
+        let n = usize::from(r.u8().ok_or(LinkError::AppDataLength {
+            got: sat_u16(app_data.len()),
+            expected: 1,
+        })?);
+        if n == 0 || n > MAX_PARAMETERS_PER_TC {
+            return Err(LinkError::InvalidArgument { index: 0 });
+        }
+        expect_len(app_data, PARAMETER_COUNT_LEN + PARAMETER_PAIR_LEN * n)?;
+        let mut entries = [(0u16, 0i32); MAX_PARAMETERS_PER_TC];
+        for e in entries.iter_mut().take(n) {
+            let (Some(id), Some(v)) = (r.u16(), r.i32()) else {
+                return Err(LinkError::InvalidArgument { index: 1 });
+            };
+            *e = (id, v);
+        }
+        Self::new(entries.get(..n).unwrap_or(&[]))
+    }
+}
+
 /// Function IDs of TC[8,1] (u16, big-endian, first two bytes of the application data).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(u16)]
@@ -166,6 +276,9 @@ pub enum FunctionId {
     ClearFault = 0x0004,
     /// Move one slider by a stroke increment (recovery). Args: leg u8 (1..6), delta i32 nm.
     DirectStroke = 0x0005,
+    /// Check a move without moving: every refusal reason for the target and the straight
+    /// path, answered by TM[8,130]. Args: [`WirePose`] (absolute, operator frames).
+    CheckMove = 0x0006,
     /// Commit the uploaded table. Args: CRC-32 u32 of the whole encoded table.
     CommitTable = 0x0010,
     /// Activate the pending (committed, validated) table. Args: the expected table ID
@@ -179,12 +292,13 @@ pub enum FunctionId {
 
 impl FunctionId {
     /// Every function ID.
-    pub const ALL: [FunctionId; 9] = [
+    pub const ALL: [FunctionId; 10] = [
         FunctionId::MoveAbsolute,
         FunctionId::MoveRelative,
         FunctionId::Stop,
         FunctionId::ClearFault,
         FunctionId::DirectStroke,
+        FunctionId::CheckMove,
         FunctionId::CommitTable,
         FunctionId::ActivateTable,
         FunctionId::SwitchBank,
@@ -204,7 +318,9 @@ impl FunctionId {
     /// Bytes of arguments after the function ID.
     pub const fn args_len(self) -> usize {
         match self {
-            FunctionId::MoveAbsolute | FunctionId::MoveRelative => WIRE_POSE_LEN,
+            FunctionId::MoveAbsolute | FunctionId::MoveRelative | FunctionId::CheckMove => {
+                WIRE_POSE_LEN
+            }
             FunctionId::DirectStroke => 1 + 4,
             FunctionId::CommitTable => 4,
             FunctionId::ActivateTable => 4 + 4,
@@ -258,6 +374,12 @@ pub enum Command {
     SwitchBank,
     /// TC[8,1] fn 0x0013: revert to the compiled-in nominal table.
     RevertToNominal,
+    /// TC[8,1] fn 0x0006: check a move to this pose without moving (TM[8,130]).
+    CheckMove(WirePose),
+    /// TC[20,1]: report these parameters (TM[20,2]).
+    ReportParameters(ParameterIds),
+    /// TC[20,3]: set these parameters (all or none; at rest only).
+    SetParameters(ParameterValues),
     /// TC[6,2]: one chunk into the upload buffer.
     LoadTableChunk(TableChunk),
     /// TC[6,5]: dump a memory area as TM[6,6] chunks.
@@ -284,6 +406,8 @@ impl Command {
             Command::HousekeepingOneShot => (service::HOUSEKEEPING, subtype::HK_ONE_SHOT),
             Command::LoadTableChunk(_) => (service::MEMORY, subtype::MEMORY_LOAD),
             Command::DumpTable(_) => (service::MEMORY, subtype::MEMORY_DUMP),
+            Command::ReportParameters(_) => (service::PARAMETER, subtype::PARAMETER_REPORT_REQUEST),
+            Command::SetParameters(_) => (service::PARAMETER, subtype::PARAMETER_SET),
             _ => (service::FUNCTION, subtype::PERFORM_FUNCTION),
         }
     }
@@ -296,6 +420,7 @@ impl Command {
             Command::Stop => Some(FunctionId::Stop),
             Command::ClearFault => Some(FunctionId::ClearFault),
             Command::DirectStroke { .. } => Some(FunctionId::DirectStroke),
+            Command::CheckMove(_) => Some(FunctionId::CheckMove),
             Command::CommitTable { .. } => Some(FunctionId::CommitTable),
             Command::ActivateTable { .. } => Some(FunctionId::ActivateTable),
             Command::SwitchBank => Some(FunctionId::SwitchBank),
@@ -303,7 +428,9 @@ impl Command {
             Command::Ping
             | Command::HousekeepingOneShot
             | Command::LoadTableChunk(_)
-            | Command::DumpTable(_) => None,
+            | Command::DumpTable(_)
+            | Command::ReportParameters(_)
+            | Command::SetParameters(_) => None,
         }
     }
 
@@ -342,6 +469,15 @@ impl Command {
                 }
                 parse_function(app_data)
             }
+            service::PARAMETER => match subtype {
+                subtype::PARAMETER_REPORT_REQUEST => {
+                    ParameterIds::parse(app_data).map(Command::ReportParameters)
+                }
+                subtype::PARAMETER_SET => {
+                    ParameterValues::parse(app_data).map(Command::SetParameters)
+                }
+                _ => Err(unknown_subtype),
+            },
             _ => Err(LinkError::UnknownService { service }),
         }
     }
@@ -359,11 +495,26 @@ impl Command {
                 w.put(chunk.bytes())?;
             }
             Command::DumpTable(memory) => w.u8(memory.code())?,
+            Command::ReportParameters(ids) => {
+                w.u8(ids.len)?;
+                for id in ids.ids() {
+                    w.u16(*id)?;
+                }
+            }
+            Command::SetParameters(values) => {
+                w.u8(values.len)?;
+                for (id, v) in values.entries() {
+                    w.u16(*id)?;
+                    w.i32(*v)?;
+                }
+            }
             _ => {
                 let f = self.function_id()?;
                 w.u16(f.code())?;
                 match self {
-                    Command::MoveAbsolute(p) | Command::MoveRelative(p) => w.pose(p)?,
+                    Command::MoveAbsolute(p) | Command::MoveRelative(p) | Command::CheckMove(p) => {
+                        w.pose(p)?
+                    }
                     Command::DirectStroke { leg, delta_nm } => {
                         w.u8(*leg)?;
                         w.i32(*delta_nm)?;
@@ -421,6 +572,7 @@ fn parse_function(app_data: &[u8]) -> Result<Command, LinkError> {
     Ok(match f {
         FunctionId::MoveAbsolute => Command::MoveAbsolute(pose(&mut r)?),
         FunctionId::MoveRelative => Command::MoveRelative(pose(&mut r)?),
+        FunctionId::CheckMove => Command::CheckMove(pose(&mut r)?),
         FunctionId::Stop => Command::Stop,
         FunctionId::ClearFault => Command::ClearFault,
         FunctionId::DirectStroke => {

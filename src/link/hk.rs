@@ -36,6 +36,10 @@
 //! |    149 |    1 | u8      | reset cause: 0 power-on, 1 watchdog, 2 software, 3 HardFault, 4 panic |
 //! |    150 |    2 | u16     | boot count (wrapping)                                        |
 //! |    152 |    1 | u8      | flash bank health: bit 0 bank A, bit 1 bank B record corrupt |
+//! |    153 |   12 | 3 x i32 | pivot in M's coordinates, x, y, z (nm; ST[20] parameters 1..3) |
+//! |    165 |   24 | 6 x i32 | pose from FK in the operator's frames (pivot, user frame; nm, uas) |
+//! |    189 |   24 | 6 x i32 | commanded pose in the operator's frames (nm, uas)            |
+//! |    213 |    4 | u32     | on-board parameters set (bit i = parameter index i)          |
 
 use super::command::WirePose;
 use super::wire::{Order, Reader, Writer};
@@ -44,7 +48,7 @@ use crate::kinematics::LEGS;
 /// Structure ID of the one housekeeping report.
 pub const HK_STRUCTURE_ID: u8 = 1;
 /// Length of the TM[3,25] source data (bytes).
-pub const HK_REPORT_LEN: usize = 153;
+pub const HK_REPORT_LEN: usize = 217;
 /// `selected_source` when no selection record exists.
 pub const NO_SELECTION: u8 = 0xFF;
 
@@ -113,6 +117,14 @@ pub struct Housekeeping {
     pub boot_count: u16,
     /// Flash bank health (bit 0 bank A, bit 1 bank B record corrupt).
     pub bank_health: u8,
+    /// The pivot in M's coordinates (nm).
+    pub pivot_nm: [i32; 3],
+    /// Pose from FK in the operator's frames (nm, uas).
+    pub pose_fk_operator: WirePose,
+    /// Commanded pose in the operator's frames (nm, uas).
+    pub pose_commanded_operator: WirePose,
+    /// On-board parameters set (bit i = parameter index i).
+    pub parameters_set: u32,
 }
 
 impl Housekeeping {
@@ -162,7 +174,13 @@ impl Housekeeping {
         }
         w.u8(self.reset_cause)?;
         w.u16(self.boot_count)?;
-        w.u8(self.bank_health)
+        w.u8(self.bank_health)?;
+        for v in self.pivot_nm {
+            w.i32(v)?;
+        }
+        w.pose(&self.pose_fk_operator)?;
+        w.pose(&self.pose_commanded_operator)?;
+        w.u32(self.parameters_set)
     }
 
     /// Checked parse of the TM[3,25] source data (exact length, structure ID 1).
@@ -206,6 +224,10 @@ impl Housekeeping {
             reset_cause: r.u8()?,
             boot_count: r.u16()?,
             bank_health: r.u8()?,
+            pivot_nm: [r.i32()?, r.i32()?, r.i32()?],
+            pose_fk_operator: r.pose()?,
+            pose_commanded_operator: r.pose()?,
+            parameters_set: r.u32()?,
         })
     }
 }

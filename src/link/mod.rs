@@ -32,7 +32,9 @@ pub mod tc;
 pub mod tm;
 pub mod wire;
 
-pub use command::{Command, FunctionId, MemoryId, TableChunk, WirePose};
+pub use command::{
+    Command, FunctionId, MemoryId, ParameterIds, ParameterValues, TableChunk, WirePose,
+};
 pub use error::LinkError;
 pub use framing::{encode_frame, Deframer, FrameError};
 pub use hk::Housekeeping;
@@ -80,6 +82,8 @@ pub mod service {
     pub const FUNCTION: u8 = 8;
     /// Test: connection (ping).
     pub const TEST: u8 = 17;
+    /// On-board parameter management.
+    pub const PARAMETER: u8 = 20;
 }
 
 /// PUS message subtypes used by the controller, per service.
@@ -120,4 +124,12 @@ pub mod subtype {
     pub const PING: u8 = 1;
     /// TM[17,2] are-you-alive connection test report.
     pub const PING_REPLY: u8 = 2;
+    /// TM[8,130] move-check report (mission-specific subtype).
+    pub const MOVE_CHECK_REPORT: u8 = 130;
+    /// TC[20,1] report parameter values.
+    pub const PARAMETER_REPORT_REQUEST: u8 = 1;
+    /// TM[20,2] parameter value report.
+    pub const PARAMETER_REPORT: u8 = 2;
+    /// TC[20,3] set parameter values.
+    pub const PARAMETER_SET: u8 = 3;
 }

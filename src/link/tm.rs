@@ -31,13 +31,35 @@ use super::{
 const DATA_LEN_FIELD_OFFSET: usize = 4;
 
 /// Largest source data of any TM packet the controller emits (bytes).
-pub const MAX_TM_SOURCE_DATA_LEN: usize = 160;
+pub const MAX_TM_SOURCE_DATA_LEN: usize = 240;
 /// Bytes of the TM[6,6] header before the data: memory ID u8, offset u16, length u16.
 pub const DUMP_HEADER_LEN: usize = 5;
 /// Bytes of a failure notice: code u16, data u32.
 pub const FAILURE_NOTICE_LEN: usize = 6;
 /// Bytes of an event report: event ID u16, two u32 auxiliary words.
 pub const EVENT_REPORT_LEN: usize = 10;
+/// Bytes of a TM[8,130] move-check report.
+pub const MOVE_CHECK_REPORT_LEN: usize = REQUEST_ID_LEN + 2 + 4 + 4 + 1;
+/// Bytes of one (ID, value) pair of TM[20,2].
+pub const PARAMETER_ENTRY_LEN: usize = 6;
+
+/// The answer of a move check, as TM[8,130] carries it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MoveCheckReport {
+    /// The code the move would be refused with now (0: accepted).
+    pub code: u16,
+    /// Refusal bits of the target.
+    pub target_refusals: u32,
+    /// Refusal bits of the first refused point of the path (0: none).
+    pub path_refusals: u32,
+    /// Index of that point (0: none).
+    pub path_sample: u8,
+}
+
+/// Saturating `usize` -> `u8`.
+fn sat_u8(v: usize) -> u8 {
+    u8::try_from(v).unwrap_or(u8::MAX)
+}
 /// Sub-second resolution of the timestamp: 2^16 fractions per second.
 pub const TIME_FRACTIONS_PER_SECOND: u64 = 1 << 16;
 /// Milliseconds per second.
@@ -234,6 +256,9 @@ pub mod event_id {
     /// 8..15, selection bits 16..18); aux1: reset cause (bits 0..7), boot count (bits
     /// 16..31).
     pub const BOOT_DETAIL: u16 = 0x0021;
+    /// On-board parameters changed (persisted and applied). aux0: the set-parameter
+    /// mask, aux1: 0.
+    pub const PARAMETERS_CHANGED: u16 = 0x0040;
     /// Control cycles overran their period several times in a row: motion stopped.
     /// aux0: consecutive overruns, aux1: overruns since boot.
     pub const DEADLINE_MISSED: u16 = 0x0030;
@@ -255,12 +280,14 @@ impl From<FrameError> for EmitError {
 }
 
 /// Message-type counters are kept per service; index in [`TmWriter`].
-const COUNTED_SERVICES: [u8; 5] = [
+const COUNTED_SERVICES: [u8; 7] = [
     service::VERIFICATION,
     service::HOUSEKEEPING,
     service::EVENT,
     service::MEMORY,
+    service::FUNCTION,
     service::TEST,
+    service::PARAMETER,
 ];
 
 /// Emits framed TM packets and counts them. One per link.
@@ -386,6 +413,57 @@ impl TmWriter {
         self.emit(time, (service::TEST, subtype::PING_REPLY), &[], out)
     }
 
+    /// TM[8,130] move-check report: request ID (4), code u16 (0: the move would be
+    /// accepted), target refusal bits u32, path refusal bits u32, refused path sample u8.
+    pub fn emit_move_check(
+        &mut self,
+        time: TmTime,
+        request_id: RequestId,
+        check: &MoveCheckReport,
+        out: &mut [u8],
+    ) -> Result<usize, EmitError> {
+        let mut data = [0u8; MOVE_CHECK_REPORT_LEN];
+        let mut w = Writer::new(&mut data, Order::Big);
+        w.put(&request_id.to_bytes())
+            .and_then(|_| w.u16(check.code))
+            .and_then(|_| w.u32(check.target_refusals))
+            .and_then(|_| w.u32(check.path_refusals))
+            .and_then(|_| w.u8(check.path_sample))
+            .ok_or(EmitError::BufferTooSmall)?;
+        self.emit(
+            time,
+            (service::FUNCTION, subtype::MOVE_CHECK_REPORT),
+            &data,
+            out,
+        )
+    }
+
+    /// TM[20,2] parameter report: count u8, then (ID u16, value i32) per parameter.
+    pub fn emit_parameter_report(
+        &mut self,
+        time: TmTime,
+        values: &[(u16, i32)],
+        out: &mut [u8],
+    ) -> Result<usize, EmitError> {
+        let mut data = [0u8; MAX_TM_SOURCE_DATA_LEN];
+        let mut w = Writer::new(&mut data, Order::Big);
+        w.u8(sat_u8(values.len()))
+            .ok_or(EmitError::BufferTooSmall)?;
+        for (id, v) in values {
+            w.u16(*id)
+                .and_then(|_| w.i32(*v))
+                .ok_or(EmitError::BufferTooSmall)?;
+        }
+        let len = w.position();
+        let src = data.get(..len).ok_or(EmitError::BufferTooSmall)?;
+        self.emit(
+            time,
+            (service::PARAMETER, subtype::PARAMETER_REPORT),
+            src,
+            out,
+        )
+    }
+
     /// TM[6,6] one dump chunk: memory ID u8, offset u16, length u16, bytes (1..=128).
     /// Returns the frame length. Use [`dump_chunks`] to split a table.
     pub fn emit_table_dump_chunk(
@@ -477,6 +555,18 @@ pub enum TmReport<'a> {
     },
     /// TM[17,2].
     PingReply,
+    /// TM[8,130].
+    MoveCheck {
+        /// The telecommand.
+        request_id: RequestId,
+        /// The answer.
+        check: MoveCheckReport,
+    },
+    /// TM[20,2]: the (ID u16, value i32) pairs, big-endian, as received.
+    Parameters {
+        /// The pairs' bytes (a multiple of 6).
+        entries: &'a [u8],
+    },
 }
 
 fn be_u16(b: &[u8], at: usize) -> Option<u16> {
@@ -600,7 +690,40 @@ pub fn parse_tm(packet: &[u8]) -> Result<TmPacket<'_>, LinkError> {
             }
             TmReport::PingReply
         }
-        service::HOUSEKEEPING | service::MEMORY | service::TEST => {
+        service::FUNCTION if sub == subtype::MOVE_CHECK_REPORT => {
+            if d.len() != MOVE_CHECK_REPORT_LEN {
+                return Err(wrong_len(MOVE_CHECK_REPORT_LEN));
+            }
+            let mut r = Reader::new(d, Order::Big);
+            let rid = r.take::<REQUEST_ID_LEN>().map(RequestId::from_bytes);
+            match (rid, r.u16(), r.u32(), r.u32(), r.u8()) {
+                (Some(request_id), Some(code), Some(t), Some(p), Some(k)) => TmReport::MoveCheck {
+                    request_id,
+                    check: MoveCheckReport {
+                        code,
+                        target_refusals: t,
+                        path_refusals: p,
+                        path_sample: k,
+                    },
+                },
+                _ => return Err(wrong_len(MOVE_CHECK_REPORT_LEN)),
+            }
+        }
+        service::PARAMETER if sub == subtype::PARAMETER_REPORT => {
+            let n = usize::from(d.first().copied().unwrap_or(0));
+            let expected = 1 + PARAMETER_ENTRY_LEN * n;
+            if d.len() != expected {
+                return Err(wrong_len(expected));
+            }
+            TmReport::Parameters {
+                entries: d.get(1..).unwrap_or(&[]),
+            }
+        }
+        service::HOUSEKEEPING
+        | service::MEMORY
+        | service::TEST
+        | service::FUNCTION
+        | service::PARAMETER => {
             return Err(LinkError::UnknownSubtype {
                 service: svc,
                 subtype: sub,

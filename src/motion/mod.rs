@@ -36,5 +36,5 @@ pub use stroke::{
 };
 pub use trajectory::{
     MotionError, MotionLimits, PathBounds, PlanStart, Setpoint, Trajectory, TrajectoryPlanner,
-    DEFAULT_MAX_ACCEL_MM_PER_S2, DEFAULT_MAX_SPEED_MM_PER_S,
+    DEFAULT_MAX_ACCEL_MM_PER_S2, DEFAULT_MAX_SPEED_MM_PER_S, PATH_SAMPLE_INTERVALS,
 };

@@ -40,7 +40,7 @@
 
 use super::ramp::{Ramp, RampError, CYCLE_S};
 use crate::kinematics::workspace::evaluate;
-use crate::kinematics::{Geometry, Pose, Real, Refusals, LEGS};
+use crate::kinematics::{Frames, Geometry, Pose, Real, Refusals, LEGS};
 
 /// Intervals of the path sampled at plan time (IK at this many + 1 points).
 pub const PATH_SAMPLE_INTERVALS: usize = 16;
@@ -137,8 +137,12 @@ pub struct PathBounds {
 /// The commanded pose at one control cycle.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Setpoint {
-    /// Commanded pose (mm, rad); the controller turns it into strokes by IK.
+    /// Commanded pose (internal: M's origin; mm, rad); the controller turns it into
+    /// strokes by IK.
     pub pose: Pose<f32>,
+    /// The same setpoint in the operator's frames (pivot, user frame): what the path is
+    /// a straight line in.
+    pub operator: Pose<f32>,
     /// The path parameter is changing at this cycle (motion commanded), for supervision.
     pub moving: bool,
     /// The move is over: at the target, or at rest after a stop. The pose no longer
@@ -149,11 +153,13 @@ pub struct Setpoint {
 /// A planned move from `start` to `target` (see the module documentation).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Trajectory {
+    /// Start, target and their difference in the operator's frames.
     start: [f32; 6],
     target: [f32; 6],
     delta: [f32; 6],
     ramp: Ramp,
     bounds: PathBounds,
+    frames: Frames<f32>,
 }
 
 fn validate_limits(limits: &MotionLimits) -> Result<(), MotionError> {
@@ -190,7 +196,20 @@ impl Trajectory {
         target: &Pose<f32>,
         limits: &MotionLimits,
     ) -> Result<Self, MotionError> {
-        match TrajectoryPlanner::begin(geom, start, target, limits)? {
+        Self::plan_in(geom, &Frames::identity(), start, target, limits)
+    }
+
+    /// [`Trajectory::plan`] with `start` and `target` given in the operator's `frames`:
+    /// the path is straight in those coordinates (a rotation about the pivot keeps the
+    /// pivot fixed), every sample is checked in internal coordinates.
+    pub fn plan_in(
+        geom: &Geometry<f32>,
+        frames: &Frames<f32>,
+        start: &Pose<f32>,
+        target: &Pose<f32>,
+        limits: &MotionLimits,
+    ) -> Result<Self, MotionError> {
+        match TrajectoryPlanner::begin_in(geom, frames, start, target, limits)? {
             PlanStart::Ready(t) => Ok(t),
             PlanStart::Sampling(mut p) => loop {
                 if let Some(done) = p.advance(geom, PATH_SAMPLE_INTERVALS) {
@@ -210,8 +229,10 @@ impl Trajectory {
         } else {
             along(&self.target, &self.delta, -smp.remaining)
         };
+        let operator = Pose::from_array(p);
         Setpoint {
-            pose: Pose::from_array(p),
+            pose: self.frames.to_internal(&operator),
+            operator,
             moving: smp.rate_per_cycle > 0.0,
             done: smp.at_rest,
         }
@@ -249,12 +270,12 @@ impl Trajectory {
         &self.bounds
     }
 
-    /// Start pose.
+    /// Start pose (operator frames).
     pub fn start(&self) -> Pose<f32> {
         Pose::from_array(self.start)
     }
 
-    /// Target pose.
+    /// Target pose (operator frames).
     pub fn target(&self) -> Pose<f32> {
         Pose::from_array(self.target)
     }
@@ -287,12 +308,24 @@ pub struct TrajectoryPlanner {
     prev2: [f32; LEGS],
     slope: [f32; LEGS],
     curvature: [f32; LEGS],
+    frames: Frames<f32>,
 }
 
 impl TrajectoryPlanner {
     /// Checks the inputs and both ends; a zero-length move is ready at once.
     pub fn begin(
         geom: &Geometry<f32>,
+        start: &Pose<f32>,
+        target: &Pose<f32>,
+        limits: &MotionLimits,
+    ) -> Result<PlanStart, MotionError> {
+        Self::begin_in(geom, &Frames::identity(), start, target, limits)
+    }
+
+    /// [`TrajectoryPlanner::begin`] with `start` and `target` in the operator's `frames`.
+    pub fn begin_in(
+        geom: &Geometry<f32>,
+        frames: &Frames<f32>,
         start: &Pose<f32>,
         target: &Pose<f32>,
         limits: &MotionLimits,
@@ -309,11 +342,11 @@ impl TrajectoryPlanner {
         if !delta.iter().all(|d| d.is_finite()) {
             return Err(MotionError::NonFinite);
         }
-        let (target_strokes, refused) = evaluate(geom, target);
+        let (target_strokes, refused) = evaluate(geom, &frames.to_internal(target));
         if !refused.is_empty() {
             return Err(MotionError::TargetRefused(refused));
         }
-        let (start_strokes, refused) = evaluate(geom, start);
+        let (start_strokes, refused) = evaluate(geom, &frames.to_internal(start));
         if !refused.is_empty() {
             return Err(MotionError::StartRefused(refused));
         }
@@ -329,6 +362,7 @@ impl TrajectoryPlanner {
                     max_rate_per_s: f32::INFINITY,
                     max_accel_per_s2: f32::INFINITY,
                 },
+                frames: *frames,
             }));
         }
         Ok(PlanStart::Sampling(TrajectoryPlanner {
@@ -342,6 +376,7 @@ impl TrajectoryPlanner {
             prev2: start_strokes,
             slope: [0.0; LEGS],
             curvature: [0.0; LEGS],
+            frames: *frames,
         }))
     }
 
@@ -362,7 +397,7 @@ impl TrajectoryPlanner {
                 self.target_strokes
             } else {
                 let pose = Pose::from_array(along(&self.start, &self.delta, k as f32 / n));
-                let (strokes, refused) = evaluate(geom, &pose);
+                let (strokes, refused) = evaluate(geom, &self.frames.to_internal(&pose));
                 if !refused.is_empty() {
                     return Some(Err(MotionError::PathRefused {
                         sample: k as u8,
@@ -437,6 +472,7 @@ impl TrajectoryPlanner {
                 max_rate_per_s: rate,
                 max_accel_per_s2: accel,
             },
+            frames: self.frames,
         })
     }
 }

@@ -14,14 +14,12 @@ use std::collections::VecDeque;
 
 use super::plant::{Plant, PlantConfig, SharedPlant};
 use crate::controller::comms::{JobPort, LinkService, RxBytes, TxBytes};
-use crate::controller::{
-    Controller, ControllerConfig, JobRequest, JobResult, ResetInfo, State, Worker,
-};
+use crate::controller::{Controller, JobRequest, JobResult, ResetInfo, State, Worker};
 use crate::ground::station::Station;
 use crate::link::{Command, Housekeeping, RequestId};
 use crate::nominal::PROTOTYPE;
 use crate::table::mock_flash::MockFlash;
-use crate::table::{BankLayout, TableStore};
+use crate::table::{BankLayout, TableStore, ValidationConfig};
 use crate::timing::CYCLE_S;
 
 /// Size of the simulated flash (bytes): the QEMU board's 4 MiB.
@@ -45,8 +43,8 @@ pub const SIM_TX_QUEUE_LEN: usize = 1024;
 /// Bench settings.
 #[derive(Clone, Copy, Debug)]
 pub struct BenchConfig {
-    /// Controller settings.
-    pub controller: ControllerConfig,
+    /// What uploaded tables are validated against.
+    pub validation: ValidationConfig,
     /// Background worker steps per control cycle.
     pub worker_steps_per_cycle: u32,
     /// Sector-erase time of the mock flash (cycles).
@@ -60,7 +58,7 @@ pub struct BenchConfig {
 impl Default for BenchConfig {
     fn default() -> Self {
         Self {
-            controller: ControllerConfig::default(),
+            validation: ValidationConfig::flight(),
             worker_steps_per_cycle: 1,
             erase_cycles: DEFAULT_ERASE_CYCLES,
             program_cycles: DEFAULT_PROGRAM_CYCLES,
@@ -184,14 +182,15 @@ impl Bench {
         flash.set_timing(cfg.erase_cycles, cfg.program_cycles);
         let mut store = TableStore::new(flash, SIM_LAYOUT)
             .unwrap_or_else(|(_, e)| panic!("simulated flash layout: {e:?}"));
-        let (table, boot) = store.boot(&cfg.controller.validation);
+        let (table, boot) = store.boot(&cfg.validation);
         // The drives come up holding where they are.
         plant.with(crate::hw::SliderDrives::hold);
-        let ctl = Controller::new(plant.clone(), table, boot, cfg.controller);
+        let mut ctl = Controller::new(plant.clone(), table, boot);
+        ctl.restore_parameters(&store.parameters());
         Self {
             ctl,
             plant,
-            worker: Worker::new(store, cfg.controller.validation),
+            worker: Worker::new(store, cfg.validation),
             link: LinkService::new(),
             st,
             cfg,

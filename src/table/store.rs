@@ -20,16 +20,18 @@
 //! the table (equal to its trailing CRC), `20` u32 CRC-32 of header bytes 0..20, `24..32`
 //! `0xFF`. Every padding byte must read `0xFF`, so every bit of the record is checked.
 //!
-//! # Selection record (one slot in each bank, 32 bytes)
+//! # Selection record (one slot in each bank, 160 bytes)
 //!
-//! What the operator selected to run: the compiled-in nominal table, or bank A's or B's
-//! record (named by its sequence number and table CRC). Little-endian: `0` magic
-//! `"M2SL"`, `4` u16 format (1), `6` u8 choice ([`BootSource::code`]: 0 nominal, 1 A, 2 B),
-//! `7` u8 reserved 0, `8` u32 selection sequence, `12` u32 record sequence of the chosen
-//! bank (0 for nominal), `16` u32 table CRC-32 of the chosen table (nominal: its CRC),
-//! `20` u32 CRC-32 of bytes 0..20, `24..32` `0xFF`. A new selection goes to the slot not
-//! holding the newest one (erase, write, read back), so a power cut leaves the old or
-//! the new selection, never neither.
+//! What the operator selected to run (the compiled-in nominal table, or bank A's or B's
+//! record, named by its sequence number and table CRC), and the operations parameters
+//! set on board (ST[20]; an opaque payload here). Little-endian: `0` magic `"M2SL"`, `4`
+//! u16 format (2), `6` u8 choice ([`BootSource::code`]: 0 nominal, 1 A, 2 B), `7` u8
+//! reserved 0, `8` u32 selection sequence, `12` u32 record sequence of the chosen bank (0
+//! for nominal), `16` u32 table CRC-32 of the chosen table (nominal: its CRC), `20`
+//! [`PARAMETERS_LEN`] bytes of parameters, `148` u32 CRC-32 of bytes 0..148, `152..160`
+//! `0xFF`. A new record (a new selection, or new parameters with the selection
+//! unchanged) goes to the slot not holding the newest one (erase, write, read back), so
+//! a power cut leaves the old or the new record, never neither.
 //!
 //! # Update order (power-cut safety)
 //! A new table goes to the bank **not** holding the running table ([`TableStore::target_bank`]):
@@ -90,10 +92,15 @@ const fn round_up(v: usize, to: usize) -> usize {
 
 /// Magic of a selection record.
 pub const SELECTION_MAGIC: [u8; 4] = *b"M2SL";
-/// Selection record format version.
-pub const SELECTION_FORMAT_VERSION: u16 = 1;
-/// Bytes of a selection record: the fields and their CRC-32.
-pub const SELECTION_LEN: usize = 24;
+/// Selection record format version (2: with the operations parameters).
+pub const SELECTION_FORMAT_VERSION: u16 = 2;
+/// Bytes of the operations-parameter payload a selection record carries (opaque here:
+/// the controller's on-board parameters, ST[20]).
+pub const PARAMETERS_LEN: usize = 128;
+/// Offset of the parameter payload in the selection record.
+const PARAMETERS_OFFSET: usize = 20;
+/// Bytes of a selection record: the fields, the parameters and their CRC-32.
+pub const SELECTION_LEN: usize = PARAMETERS_OFFSET + PARAMETERS_LEN + 4;
 /// Bytes of the selection record covered by its CRC.
 const SELECTION_CRC_OFFSET: usize = SELECTION_LEN - 4;
 /// Selection slot (bytes): the record padded to [`RECORD_ALIGN`].
@@ -480,8 +487,13 @@ impl Selection {
         }
     }
 
-    /// Encodes a selection slot with selection sequence `sequence`.
-    pub fn encode(&self, sequence: u32) -> [u8; SELECTION_SLOT_LEN] {
+    /// Encodes a selection slot with selection sequence `sequence`, carrying the
+    /// operations parameters `parameters`.
+    pub fn encode(
+        &self,
+        sequence: u32,
+        parameters: &[u8; PARAMETERS_LEN],
+    ) -> [u8; SELECTION_SLOT_LEN] {
         let mut out = [ERASED; SELECTION_SLOT_LEN];
         let mut w = [0u8; SELECTION_LEN];
         let fields = SELECTION_MAGIC
@@ -491,7 +503,8 @@ impl Selection {
             .chain([self.source.code(), 0])
             .chain(sequence.to_le_bytes())
             .chain(self.record_sequence.to_le_bytes())
-            .chain(self.table_crc.to_le_bytes());
+            .chain(self.table_crc.to_le_bytes())
+            .chain(parameters.iter().copied());
         for (d, s) in w.iter_mut().zip(fields) {
             *d = s;
         }
@@ -511,9 +524,11 @@ impl Selection {
         out
     }
 
-    /// Parses a selection slot: the selection and its sequence, or `None` unless magic,
-    /// format, choice, reserved byte, CRC and padding are all right.
-    pub fn decode(slot: &[u8; SELECTION_SLOT_LEN]) -> Option<(Selection, u32)> {
+    /// Parses a selection slot: the selection, its sequence and its parameters, or
+    /// `None` unless magic, format, choice, reserved byte, CRC and padding are all right.
+    pub fn decode(
+        slot: &[u8; SELECTION_SLOT_LEN],
+    ) -> Option<(Selection, u32, [u8; PARAMETERS_LEN])> {
         let word = |at: usize| -> Option<u32> {
             let b: [u8; 4] = slot.get(at..at + 4)?.try_into().ok()?;
             Some(u32::from_le_bytes(b))
@@ -539,6 +554,10 @@ impl Selection {
         {
             return None;
         }
+        let parameters: [u8; PARAMETERS_LEN] = slot
+            .get(PARAMETERS_OFFSET..PARAMETERS_OFFSET + PARAMETERS_LEN)?
+            .try_into()
+            .ok()?;
         Some((
             Selection {
                 source,
@@ -546,6 +565,7 @@ impl Selection {
                 table_crc: word(16)?,
             },
             word(8)?,
+            parameters,
         ))
     }
 }
@@ -575,6 +595,7 @@ enum WriteKind {
     /// A selection record into `slot` with selection sequence `sequence`.
     Select {
         selection: Selection,
+        parameters: [u8; PARAMETERS_LEN],
         slot: Slot,
         sequence: u32,
     },
@@ -660,6 +681,9 @@ pub struct TableStore<F> {
     pending: Option<CommitReport>,
     /// The newest valid selection record and its slot and sequence.
     selection: Option<(Selection, Slot, u32)>,
+    /// The operations parameters of the newest valid selection record (all zero: none
+    /// set).
+    parameters: [u8; PARAMETERS_LEN],
     write: Option<Write>,
 }
 
@@ -676,6 +700,7 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
                 running_sequence: 0,
                 pending: None,
                 selection: None,
+                parameters: [0; PARAMETERS_LEN],
                 write: None,
             })
         } else {
@@ -831,7 +856,13 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
         }
     }
 
-    fn read_slot(&mut self, slot: Slot) -> Option<(Selection, u32)> {
+    /// The operations parameters persisted with the newest selection record (all zero
+    /// when none were ever stored).
+    pub fn parameters(&self) -> [u8; PARAMETERS_LEN] {
+        self.parameters
+    }
+
+    fn read_slot(&mut self, slot: Slot) -> Option<(Selection, u32, [u8; PARAMETERS_LEN])> {
         let mut buf = [0u8; SELECTION_SLOT_LEN];
         let at = self.slot_offset(slot);
         self.flash.read(at, &mut buf).ok()?;
@@ -842,18 +873,20 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
     fn load_selection(&mut self) -> Option<Selection> {
         let a = self.read_slot(Slot::A);
         let b = self.read_slot(Slot::B);
-        self.selection = match (a, b) {
-            (Some((sa, qa)), Some((sb, qb))) => {
+        let newest = match (a, b) {
+            (Some((sa, qa, pa)), Some((sb, qb, pb))) => {
                 if seq_newer(qb, qa) {
-                    Some((sb, Slot::B, qb))
+                    Some((sb, Slot::B, qb, pb))
                 } else {
-                    Some((sa, Slot::A, qa))
+                    Some((sa, Slot::A, qa, pa))
                 }
             }
-            (Some((sa, qa)), None) => Some((sa, Slot::A, qa)),
-            (None, Some((sb, qb))) => Some((sb, Slot::B, qb)),
+            (Some((sa, qa, pa)), None) => Some((sa, Slot::A, qa, pa)),
+            (None, Some((sb, qb, pb))) => Some((sb, Slot::B, qb, pb)),
             (None, None) => None,
         };
+        self.selection = newest.map(|(s, slot, q, _)| (s, slot, q));
+        self.parameters = newest.map_or([0; PARAMETERS_LEN], |(_, _, _, p)| p);
         self.selection()
     }
 
@@ -1015,8 +1048,42 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
         Ok(report)
     }
 
-    /// Starts persisting `selection` into the slot not holding the newest selection.
+    /// Starts persisting `selection` (with the current parameters) into the slot not
+    /// holding the newest selection.
     pub fn start_select(&mut self, selection: &Selection) -> Result<(), StoreError> {
+        let parameters = self.parameters;
+        self.start_record(selection, &parameters)
+    }
+
+    /// Starts persisting new operations `parameters` with the current selection (with
+    /// none yet: the selection of the running table, so what boots does not change).
+    pub fn start_parameters(
+        &mut self,
+        parameters: &[u8; PARAMETERS_LEN],
+    ) -> Result<(), StoreError> {
+        let selection = match self.selection() {
+            Some(s) => s,
+            None => self.running_selection(),
+        };
+        self.start_record(&selection, parameters)
+    }
+
+    /// The selection describing the running table.
+    pub fn running_selection(&mut self) -> Selection {
+        match self.running.bank() {
+            None => Selection::nominal(),
+            Some(bank) => match self.read_header(bank) {
+                Ok(h) => Selection::bank(bank, h.sequence, h.table_crc),
+                Err(_) => Selection::bank(bank, self.running_sequence, 0),
+            },
+        }
+    }
+
+    fn start_record(
+        &mut self,
+        selection: &Selection,
+        parameters: &[u8; PARAMETERS_LEN],
+    ) -> Result<(), StoreError> {
         if self.write.is_some() {
             return Err(StoreError::Busy);
         }
@@ -1027,12 +1094,16 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
         };
         let base = self.slot_offset(slot);
         let mut image = [ERASED; RECORD_LEN];
-        for (d, s) in image.iter_mut().zip(selection.encode(sequence).iter()) {
+        for (d, s) in image
+            .iter_mut()
+            .zip(selection.encode(sequence, parameters).iter())
+        {
             *d = *s;
         }
         self.write = Some(Write {
             kind: WriteKind::Select {
                 selection: *selection,
+                parameters: *parameters,
                 slot,
                 sequence,
             },
@@ -1137,10 +1208,12 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
             }
             WriteKind::Select {
                 selection,
+                parameters,
                 slot,
                 sequence,
             } => {
                 self.selection = Some((selection, slot, sequence));
+                self.parameters = parameters;
                 self.running = selection.source;
                 self.running_sequence = selection.record_sequence;
                 if let (Some(p), Some(bank)) = (self.pending, selection.source.bank()) {

@@ -1,0 +1,477 @@
+//! On-board parameters (PUS ST[20]): the operator's pivot and user frame, the motion
+//! limits, the housekeeping period and overrides of the table's supervision thresholds.
+//!
+//! Every parameter is an `i32` on the wire in an integer unit (nm, nm/s, milli-arcsec,
+//! control cycles), with a validated range ([`PARAMETERS`]). A parameter that was never
+//! set has its default: a compiled-in one, or for the supervision thresholds the running
+//! table's value (so a table activation changes them unless they are overridden here).
+//!
+//! Set (TC[20,3]) is all-or-nothing, at rest only; the new set is persisted with the
+//! selection record (power-cut safe, two slots, `table::store`) by the background
+//! worker and applied when it is written (the telecommand completes then). Report
+//! (TC[20,1]) answers TM[20,2] with the effective values.
+
+use crate::kinematics::{Frames, ARCSEC_PER_RAD, LEGS};
+use crate::link::command::NM_PER_MM;
+use crate::motion::{
+    MotionLimits, DEFAULT_DIRECT_ACCEL_MM_PER_S2, DEFAULT_DIRECT_MAX_DELTA_MM,
+    DEFAULT_DIRECT_SPEED_MM_PER_S, DEFAULT_MAX_ACCEL_MM_PER_S2, DEFAULT_MAX_SPEED_MM_PER_S,
+};
+use crate::supervision::SupervisionConfig;
+use crate::table::store::PARAMETERS_LEN;
+use crate::table::Table;
+use crate::timing::HK_PERIOD_CYCLES;
+
+/// Milli-arcseconds per arcsecond.
+const MAS_PER_ARCSEC: f64 = 1_000.0;
+
+/// What a parameter's default is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Default {
+    /// A compiled-in value (wire units).
+    Fixed(i32),
+    /// The running table's supervision threshold (converted to wire units).
+    Table,
+}
+
+/// One on-board parameter.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ParamDef {
+    /// Parameter ID (ST[20]).
+    pub id: u16,
+    /// Name (mission database, ICD).
+    pub name: &'static str,
+    /// Unit of the wire value.
+    pub unit: &'static str,
+    /// Smallest accepted value.
+    pub min: i32,
+    /// Largest accepted value.
+    pub max: i32,
+    /// The value when not set.
+    pub default: Default,
+}
+
+const fn p(
+    id: u16,
+    name: &'static str,
+    unit: &'static str,
+    min: i32,
+    max: i32,
+    d: Default,
+) -> ParamDef {
+    ParamDef {
+        id,
+        name,
+        unit,
+        min,
+        max,
+        default: d,
+    }
+}
+
+const fn nm(mm: f32) -> i32 {
+    (mm * 1.0e6) as i32
+}
+
+/// Pivot / user-frame range: +-1 m (nm), +-180 deg (mas).
+const PIVOT_LIMIT_NM: i32 = 1_000_000_000;
+const USER_ROTATION_LIMIT_MAS: i32 = 648_000_000;
+
+/// Index of each parameter in [`PARAMETERS`].
+pub mod index {
+    /// Pivot x, y, z (in M, nm).
+    pub const PIVOT: usize = 0;
+    /// User frame alpha, beta, gamma (mas).
+    pub const USER: usize = 3;
+    /// Coordinated-move speed limit (nm/s).
+    pub const MOVE_SPEED: usize = 6;
+    /// Coordinated-move acceleration limit (nm/s^2).
+    pub const MOVE_ACCEL: usize = 7;
+    /// Direct-stroke speed limit (nm/s).
+    pub const DIRECT_SPEED: usize = 8;
+    /// Direct-stroke acceleration limit (nm/s^2).
+    pub const DIRECT_ACCEL: usize = 9;
+    /// Largest direct-stroke move (nm).
+    pub const DIRECT_MAX_DELTA: usize = 10;
+    /// Housekeeping period (cycles).
+    pub const HK_PERIOD: usize = 11;
+    /// Following warning threshold (nm).
+    pub const FOLLOWING_WARNING: usize = 12;
+    /// Following fault threshold (nm).
+    pub const FOLLOWING_FAULT: usize = 13;
+    /// Encoder jump threshold (nm per cycle).
+    pub const JUMP: usize = 14;
+    /// Stuck detection least progress (nm).
+    pub const STUCK_PROGRESS: usize = 15;
+    /// Stuck detection window (cycles).
+    pub const STUCK_WINDOW: usize = 16;
+    /// Warning debounce (cycles).
+    pub const WARNING_DEBOUNCE: usize = 17;
+    /// Fault debounce (cycles).
+    pub const FAULT_DEBOUNCE: usize = 18;
+}
+
+/// Number of parameters.
+pub const N_PARAMETERS: usize = 19;
+
+/// Every parameter, in index order (module [`index`]).
+pub const PARAMETERS: [ParamDef; N_PARAMETERS] = [
+    p(
+        0x0001,
+        "pivot_x",
+        "nm",
+        -PIVOT_LIMIT_NM,
+        PIVOT_LIMIT_NM,
+        Default::Fixed(0),
+    ),
+    p(
+        0x0002,
+        "pivot_y",
+        "nm",
+        -PIVOT_LIMIT_NM,
+        PIVOT_LIMIT_NM,
+        Default::Fixed(0),
+    ),
+    p(
+        0x0003,
+        "pivot_z",
+        "nm",
+        -PIVOT_LIMIT_NM,
+        PIVOT_LIMIT_NM,
+        Default::Fixed(0),
+    ),
+    p(
+        0x0004,
+        "user_alpha",
+        "mas",
+        -USER_ROTATION_LIMIT_MAS,
+        USER_ROTATION_LIMIT_MAS,
+        Default::Fixed(0),
+    ),
+    p(
+        0x0005,
+        "user_beta",
+        "mas",
+        -USER_ROTATION_LIMIT_MAS,
+        USER_ROTATION_LIMIT_MAS,
+        Default::Fixed(0),
+    ),
+    p(
+        0x0006,
+        "user_gamma",
+        "mas",
+        -USER_ROTATION_LIMIT_MAS,
+        USER_ROTATION_LIMIT_MAS,
+        Default::Fixed(0),
+    ),
+    p(
+        0x0010,
+        "move_speed",
+        "nm/s",
+        1_000,
+        500_000,
+        Default::Fixed(nm(DEFAULT_MAX_SPEED_MM_PER_S)),
+    ),
+    p(
+        0x0011,
+        "move_accel",
+        "nm/s^2",
+        1_000,
+        5_000_000,
+        Default::Fixed(nm(DEFAULT_MAX_ACCEL_MM_PER_S2)),
+    ),
+    p(
+        0x0012,
+        "direct_speed",
+        "nm/s",
+        1_000,
+        100_000,
+        Default::Fixed(nm(DEFAULT_DIRECT_SPEED_MM_PER_S)),
+    ),
+    p(
+        0x0013,
+        "direct_accel",
+        "nm/s^2",
+        1_000,
+        5_000_000,
+        Default::Fixed(nm(DEFAULT_DIRECT_ACCEL_MM_PER_S2)),
+    ),
+    p(
+        0x0014,
+        "direct_max_delta",
+        "nm",
+        1_000,
+        1_000_000,
+        Default::Fixed(nm(DEFAULT_DIRECT_MAX_DELTA_MM)),
+    ),
+    p(
+        0x0020,
+        "hk_period",
+        "cycles",
+        100,
+        60_000,
+        Default::Fixed(HK_PERIOD_CYCLES as i32),
+    ),
+    p(
+        0x0030,
+        "following_warning",
+        "nm",
+        100,
+        1_000_000,
+        Default::Table,
+    ),
+    p(
+        0x0031,
+        "following_fault",
+        "nm",
+        100,
+        1_000_000,
+        Default::Table,
+    ),
+    p(
+        0x0032,
+        "encoder_jump",
+        "nm/cycle",
+        10_000,
+        1_000_000,
+        Default::Table,
+    ),
+    p(0x0033, "stuck_progress", "nm", 100, 100_000, Default::Table),
+    p(0x0034, "stuck_window", "cycles", 10, 10_000, Default::Table),
+    p(
+        0x0035,
+        "warning_debounce",
+        "cycles",
+        1,
+        1_000,
+        Default::Table,
+    ),
+    p(0x0036, "fault_debounce", "cycles", 1, 1_000, Default::Table),
+];
+
+/// Why a parameter set or report was refused (family 0x07xx, from 0x0720).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ParamError {
+    /// 0x0720: no parameter with this ID (data: the ID).
+    UnknownId(u16),
+    /// 0x0721: a value outside its range (data: the ID).
+    OutOfRange(u16),
+    /// 0x0722: the following warning threshold would not be below the fault threshold
+    /// (data: 0).
+    WarningNotBelowFault,
+}
+
+impl ParamError {
+    /// Stable code.
+    pub const fn code(&self) -> u16 {
+        match self {
+            ParamError::UnknownId(_) => 0x0720,
+            ParamError::OutOfRange(_) => 0x0721,
+            ParamError::WarningNotBelowFault => 0x0722,
+        }
+    }
+
+    /// Failure datum.
+    pub const fn data(&self) -> u32 {
+        match self {
+            ParamError::UnknownId(id) | ParamError::OutOfRange(id) => *id as u32,
+            ParamError::WarningNotBelowFault => 0,
+        }
+    }
+}
+
+/// The index of parameter `id`.
+pub fn index_of(id: u16) -> Option<usize> {
+    PARAMETERS.iter().position(|d| d.id == id)
+}
+
+/// The parameters set on board (a bit and a value per parameter).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, core::default::Default)]
+pub struct Parameters {
+    /// Bit i: parameter i is set.
+    set: u32,
+    values: [i32; N_PARAMETERS],
+}
+
+/// Byte offsets in the persisted payload.
+const PAYLOAD_SET_MASK: usize = 0;
+const PAYLOAD_VALUES: usize = 4;
+const _: () = assert!(PAYLOAD_VALUES + 4 * N_PARAMETERS <= PARAMETERS_LEN);
+
+impl Parameters {
+    /// None set.
+    pub const fn none() -> Self {
+        Self {
+            set: 0,
+            values: [0; N_PARAMETERS],
+        }
+    }
+
+    /// The set-bit mask (housekeeping).
+    pub const fn set_mask(&self) -> u32 {
+        self.set
+    }
+
+    /// The persisted form (little-endian: set mask, then each value).
+    pub fn encode(&self) -> [u8; PARAMETERS_LEN] {
+        let mut out = [0u8; PARAMETERS_LEN];
+        for (d, s) in out
+            .iter_mut()
+            .skip(PAYLOAD_SET_MASK)
+            .zip(self.set.to_le_bytes())
+        {
+            *d = s;
+        }
+        for (k, v) in self.values.iter().enumerate() {
+            for (d, s) in out
+                .iter_mut()
+                .skip(PAYLOAD_VALUES + 4 * k)
+                .zip(v.to_le_bytes())
+            {
+                *d = s;
+            }
+        }
+        out
+    }
+
+    /// From the persisted form; values out of range (or bits of unknown parameters)
+    /// are dropped, so what runs is always in range.
+    pub fn decode(bytes: &[u8; PARAMETERS_LEN]) -> Self {
+        let word = |at: usize| -> u32 {
+            bytes
+                .get(at..at + 4)
+                .and_then(|b| b.try_into().ok())
+                .map_or(0, u32::from_le_bytes)
+        };
+        let mut p = Self::none();
+        let mask = word(PAYLOAD_SET_MASK);
+        for (k, def) in PARAMETERS.iter().enumerate() {
+            let v = word(PAYLOAD_VALUES + 4 * k) as i32;
+            if mask & (1 << k) != 0 && (def.min..=def.max).contains(&v) {
+                p.set |= 1 << k;
+                if let Some(dst) = p.values.get_mut(k) {
+                    *dst = v;
+                }
+            }
+        }
+        p
+    }
+
+    /// The effective value of parameter `k` with `table` running.
+    pub fn value(&self, k: usize, table: &Table) -> i32 {
+        if self.set & (1 << k) != 0 {
+            return self.values.get(k).copied().unwrap_or(0);
+        }
+        match PARAMETERS.get(k).map(|d| d.default) {
+            Some(Default::Fixed(v)) => v,
+            Some(Default::Table) => table_value(k, table),
+            None => 0,
+        }
+    }
+
+    /// These parameters with `updates` (ID, value) applied: all-or-nothing.
+    pub fn with(&self, updates: &[(u16, i32)], table: &Table) -> Result<Self, ParamError> {
+        let mut p = *self;
+        for (id, v) in updates {
+            let k = index_of(*id).ok_or(ParamError::UnknownId(*id))?;
+            let def = PARAMETERS.get(k).ok_or(ParamError::UnknownId(*id))?;
+            if !(def.min..=def.max).contains(v) {
+                return Err(ParamError::OutOfRange(*id));
+            }
+            p.set |= 1 << k;
+            if let Some(dst) = p.values.get_mut(k) {
+                *dst = *v;
+            }
+        }
+        if p.value(index::FOLLOWING_WARNING, table) >= p.value(index::FOLLOWING_FAULT, table) {
+            return Err(ParamError::WarningNotBelowFault);
+        }
+        Ok(p)
+    }
+
+    /// The pivot and user frame (f32 working units).
+    pub fn frames(&self, table: &Table) -> Frames<f32> {
+        let v = |k: usize| self.value(k, table);
+        let mm = |k: usize| (f64::from(v(k)) / NM_PER_MM) as f32;
+        let rad = |k: usize| (f64::from(v(k)) / MAS_PER_ARCSEC / ARCSEC_PER_RAD) as f32;
+        Frames::new(
+            [mm(index::PIVOT), mm(index::PIVOT + 1), mm(index::PIVOT + 2)],
+            [rad(index::USER), rad(index::USER + 1), rad(index::USER + 2)],
+        )
+    }
+
+    /// Coordinated-move limits (every slider the same).
+    pub fn motion_limits(&self, table: &Table) -> MotionLimits {
+        let mm = |k: usize| (f64::from(self.value(k, table)) / NM_PER_MM) as f32;
+        MotionLimits {
+            max_speed_mm_per_s: [mm(index::MOVE_SPEED); LEGS],
+            max_accel_mm_per_s2: [mm(index::MOVE_ACCEL); LEGS],
+        }
+    }
+
+    /// Direct-stroke speed, acceleration, largest delta (mm/s, mm/s^2, mm).
+    pub fn direct_limits(&self, table: &Table) -> (f32, f32, f32) {
+        let mm = |k: usize| (f64::from(self.value(k, table)) / NM_PER_MM) as f32;
+        (
+            mm(index::DIRECT_SPEED),
+            mm(index::DIRECT_ACCEL),
+            mm(index::DIRECT_MAX_DELTA),
+        )
+    }
+
+    /// Housekeeping period (cycles).
+    pub fn hk_period_cycles(&self, table: &Table) -> u32 {
+        self.value(index::HK_PERIOD, table).unsigned_abs().max(1)
+    }
+
+    /// The supervision configuration: the table's exactly, with the overrides set here.
+    pub fn supervision(&self, table: &Table) -> SupervisionConfig {
+        let mut c = SupervisionConfig::from_table(table);
+        let set = |k: usize| self.set & (1 << k) != 0;
+        let raw = |k: usize| self.values.get(k).copied().unwrap_or(0);
+        let mm = |k: usize| (f64::from(raw(k)) / NM_PER_MM) as f32;
+        let cycles = |k: usize| u16::try_from(raw(k)).unwrap_or(u16::MAX);
+        if set(index::FOLLOWING_WARNING) {
+            c.following_warning_mm = mm(index::FOLLOWING_WARNING);
+        }
+        if set(index::FOLLOWING_FAULT) {
+            c.following_fault_mm = mm(index::FOLLOWING_FAULT);
+        }
+        if set(index::JUMP) {
+            c.jump_mm_per_cycle = mm(index::JUMP);
+        }
+        if set(index::STUCK_PROGRESS) {
+            c.stuck_min_progress_mm = mm(index::STUCK_PROGRESS);
+        }
+        if set(index::STUCK_WINDOW) {
+            c.stuck_window_cycles = cycles(index::STUCK_WINDOW);
+        }
+        if set(index::WARNING_DEBOUNCE) {
+            c.debounce.following_warning = cycles(index::WARNING_DEBOUNCE);
+        }
+        if set(index::FAULT_DEBOUNCE) {
+            let fault = cycles(index::FAULT_DEBOUNCE);
+            c.debounce.following_fault = fault;
+            c.debounce.soft_limit = fault;
+            c.debounce.fk = fault;
+            c.debounce.workspace = fault;
+        }
+        c
+    }
+}
+
+/// The table's value of supervision parameter `k`, in wire units.
+fn table_value(k: usize, table: &Table) -> i32 {
+    let s = &table.supervision;
+    let nm = |mm: f32| crate::link::wire::mm_to_nm_f32(mm);
+    match k {
+        index::FOLLOWING_WARNING => nm(s.following_error_warning_mm),
+        index::FOLLOWING_FAULT => nm(s.following_error_fault_mm),
+        index::JUMP => nm(s.encoder_jump_mm_per_cycle),
+        index::STUCK_PROGRESS => nm(s.stuck_min_progress_mm),
+        index::STUCK_WINDOW => i32::from(s.stuck_detection_cycles),
+        index::WARNING_DEBOUNCE => i32::from(s.warning_debounce_cycles),
+        index::FAULT_DEBOUNCE => i32::from(s.fault_debounce_cycles),
+        _ => 0,
+    }
+}
