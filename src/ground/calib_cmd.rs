@@ -5,7 +5,9 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use super::calib::{calibrate, parse_measurements, CalibConfig, CalibResult, Measurement};
+use super::calib::{
+    calibrate, parse_measurements, CalibConfig, CalibError, CalibResult, Measurement,
+};
 use super::campaign::{perturbed, simulate, true_motion, Tracker};
 use super::eval::{accuracy, max_param_error_mm, random_poses, Accuracy, AXES};
 use super::eval::{DEFAULT_EVAL_POSES, DEFAULT_EVAL_ROTATION_ARCSEC, DEFAULT_EVAL_TRANSLATION_MM};
@@ -70,8 +72,13 @@ pub struct CalibrateArgs {
 pub fn run_calibrate(a: &CalibrateArgs) -> Result<(String, String), String> {
     let meas = read_measurements(&a.data)?;
     let nominal = read_geometry(&a.nominal)?;
-    let r: CalibResult =
-        calibrate(&nominal.params, &meas, &a.cfg).map_err(|e| format!("calibration: {e}"))?;
+    let r: CalibResult = calibrate(&nominal.params, &meas, &a.cfg).map_err(|e| match e {
+        CalibError::Implausible(fe) => format!("{}: {fe}", a.data.display()),
+        e => format!("calibration: {e}"),
+    })?;
+    // Nothing is written (file or plot) unless the table would pass on board.
+    super::files::validate_for_flight(&r.params)
+        .map_err(|e| format!("calibration result ({} solver): {e}", a.cfg.solver))?;
     let mut summary = format!(
         "calibrated {} joint coordinates from {} poses ({}), solver {}, seed {}\n{}\n",
         super::calib::N_PARAMS,
