@@ -8,13 +8,14 @@ use std::path::{Path, PathBuf};
 use super::calib::{
     calibrate, parse_measurements, CalibConfig, CalibError, CalibResult, Measurement,
 };
-use super::campaign::{perturbed, simulate, true_motion, Tracker};
+use super::campaign::{perturbed, simulate, true_motion};
 use super::eval::{accuracy, max_param_error_mm, random_poses, Accuracy, AXES};
 use super::eval::{DEFAULT_EVAL_POSES, DEFAULT_EVAL_ROTATION_ARCSEC, DEFAULT_EVAL_TRANSLATION_MM};
 use super::files::{format_geometry, read_geometry, GeometryFile};
 use super::plan::{format_plan, plan_poses, PlanConfig};
 use super::report::{plot_per_pose, DEFAULT_EVAL_SEED};
 use crate::kinematics::{Geometry, GeometryParams};
+use crate::sim::tracker::PoseTracker;
 
 /// Reads and parses a measurement file; errors are prefixed with the path.
 pub fn read_measurements(path: &Path) -> Result<Vec<Measurement>, String> {
@@ -199,7 +200,7 @@ pub struct CampaignArgs {
     /// Seed of the true geometry.
     pub geometry_seed: u64,
     /// Tracker model.
-    pub tracker: Tracker,
+    pub tracker: PoseTracker,
     /// Seed of the tracker noise.
     pub noise_seed: u64,
     /// Sampling plan.

@@ -23,7 +23,6 @@ use rand::SeedableRng;
 use rand_pcg::Pcg64;
 
 use super::calib::{calibrate, CalibConfig, CalibResult, Measurement, SolverKind};
-use super::campaign::Tracker;
 use super::eval::{pose_error, random_poses, Accuracy, UM_PER_MM};
 use super::plan::{plan_poses, PlanConfig};
 use super::station::Station;
@@ -34,6 +33,7 @@ use crate::link::tm::Verification;
 use crate::link::{Command, WirePose};
 use crate::motion::CYCLE_S;
 use crate::sim::manufacturing::perturbed;
+use crate::sim::tracker::PoseTracker;
 use crate::sim::{Plant, PlantConfig};
 use crate::table::mock_flash::MockFlash;
 use crate::table::{Provenance, Table, TableStore, DEFAULT_SUPERVISION, FLIGHT_LAYOUT};
@@ -60,7 +60,7 @@ pub struct MissionConfig {
     /// Standard deviation of each joint coordinate's manufacturing error (mm).
     pub manufacturing_sigma_mm: f64,
     /// Laser-tracker noise.
-    pub tracker: Tracker,
+    pub tracker: PoseTracker,
     /// Number of operator targets.
     pub n_targets: usize,
     /// Targets are drawn uniformly within +- this translation (mm)...
@@ -91,7 +91,7 @@ impl Default for MissionConfig {
         Self {
             seed: 1,
             manufacturing_sigma_mm: DEFAULT_MANUFACTURING_SIGMA_MM,
-            tracker: Tracker::PAPER,
+            tracker: PoseTracker::PAPER,
             n_targets: DEFAULT_TARGETS,
             target_translation_mm: DEFAULT_TARGET_TRANSLATION_MM,
             target_rotation_arcsec: DEFAULT_TARGET_ROTATION_ARCSEC,
@@ -207,7 +207,7 @@ fn bar(show: bool, len: u64, msg: &'static str) -> ProgressBar {
 fn visit_targets(
     m: &mut Mission,
     targets: &[Pose<f64>],
-    tracker: &Tracker,
+    tracker: &PoseTracker,
     rng: &mut Pcg64,
     pb: &ProgressBar,
 ) -> Result<Accuracy, String> {

@@ -4,8 +4,11 @@
 //! * [`plant`]: six sliders with finite speed and encoders with 0.1 um quantisation and
 //!   noise, implementing the same [`crate::hw`] traits the board glue implements on the
 //!   target; everything is deterministic from a seed.
+//! * [`tracker`]: the measuring instruments: the idealised pose tracker and a laser
+//!   tracker measuring target balls in its own frame, with its noise model.
 
 pub mod manufacturing;
 pub mod plant;
+pub mod tracker;
 
 pub use plant::{InjectedFault, Plant, PlantConfig};

@@ -12,8 +12,11 @@
 //! Solvers: [`lm`] (Levenberg-Marquardt, analytic Jacobian, regularised toward nominal and
 //! kept inside Omega) and [`cuckoo`] (the paper's SMCS and its improved variant).
 
+pub mod bundle;
 pub mod cuckoo;
+pub mod design;
 pub mod lm;
+pub mod registration;
 
 use std::fmt;
 use std::time::Duration;
@@ -385,18 +388,9 @@ impl Problem {
     }
 
     /// Analytic Jacobian `d e_ij / d v_k` (dimensionless), row-major, rows
-    /// measurement-major like the residuals, 36 columns. Residual `e = s* - dl` with
-    /// (`h` horizontal rod components and `q` vertical one at the pose, `d0` home rod,
-    /// `R = I + W`):
-    ///
-    /// ```text
-    /// d dl / d a_x = -(h_x - d0_x) / q      d dl / d a_y = -(h_y - d0_y) / q
-    /// d dl / d a_z = d0_z / q - 1
-    /// d dl / d b_k = R_zk - (d0_k - h_x R_xk - h_y R_yk) / q
-    /// ```
-    ///
-    /// Every column of leg i is zero in the rows of the other legs. Unreachable legs
-    /// get zero rows.
+    /// measurement-major like the residuals, 36 columns: residual `e = s* - dl`, so the
+    /// entries are minus [`stroke_gradient`]. Every column of leg i is zero in the rows of
+    /// the other legs. Unreachable legs get zero rows.
     pub fn jacobian_into(&self, v: &ParamVec, out: &mut [f64]) {
         out.iter_mut().for_each(|x| *x = 0.0);
         let Some(legs) = self.legs(v) else {
@@ -409,19 +403,8 @@ impl Problem {
                 };
                 let row = &mut out[(j * LEGS + i) * N_PARAMS..(j * LEGS + i + 1) * N_PARAMS];
                 let c = &mut row[i * PARAMS_PER_LEG..(i + 1) * PARAMS_PER_LEG];
-                let inv_q = 1.0 / st.q_mm;
-                let d0 = &leg.d0_mm;
-                let h = &st.h_mm;
-                c[0] = (h[0] - d0[0]) * inv_q;
-                c[1] = (h[1] - d0[1]) * inv_q;
-                c[2] = 1.0 - d0[2] * inv_q;
-                for k in 0..3 {
-                    let w = &rot.w;
-                    let r_xk = w[0][k] + if k == 0 { 1.0 } else { 0.0 };
-                    let r_yk = w[1][k] + if k == 1 { 1.0 } else { 0.0 };
-                    let r_zk = w[2][k] + if k == 2 { 1.0 } else { 0.0 };
-                    let ddl = r_zk - (d0[k] - h[0] * r_xk - h[1] * r_yk) * inv_q;
-                    c[3 + k] = -ddl;
+                for (ck, g) in c.iter_mut().zip(stroke_gradient(leg, rot, &st)) {
+                    *ck = -g;
                 }
             }
         }
@@ -442,6 +425,38 @@ impl Problem {
         sv.sort_by(|a, b| b.total_cmp(a));
         sv
     }
+}
+
+/// Gradient of leg `i`'s stroke `dl_i` at a pose (its [`leg_state`] `st` under rotation
+/// `rot`) with respect to the leg's own parameters `[a_x, a_y, a_z, b_x, b_y, b_z]`
+/// (dimensionless), p0 fixed and the rod length derived (`h` horizontal rod components and
+/// `q` vertical one at the pose, `d0` home rod, `R = I + W`):
+///
+/// ```text
+/// d dl / d a_x = -(h_x - d0_x) / q      d dl / d a_y = -(h_y - d0_y) / q
+/// d dl / d a_z = d0_z / q - 1
+/// d dl / d b_k = R_zk - (d0_k - h_x R_xk - h_y R_yk) / q
+/// ```
+pub(crate) fn stroke_gradient(
+    leg: &Leg<f64>,
+    rot: &RotationDelta<f64>,
+    st: &crate::kinematics::ik::LegState<f64>,
+) -> [f64; PARAMS_PER_LEG] {
+    let inv_q = 1.0 / st.q_mm;
+    let d0 = &leg.d0_mm;
+    let h = &st.h_mm;
+    let w = &rot.w;
+    let mut g = [0.0; PARAMS_PER_LEG];
+    g[0] = -(h[0] - d0[0]) * inv_q;
+    g[1] = -(h[1] - d0[1]) * inv_q;
+    g[2] = d0[2] * inv_q - 1.0;
+    for k in 0..3 {
+        let r_xk = w[0][k] + if k == 0 { 1.0 } else { 0.0 };
+        let r_yk = w[1][k] + if k == 1 { 1.0 } else { 0.0 };
+        let r_zk = w[2][k] + if k == 2 { 1.0 } else { 0.0 };
+        g[3 + k] = r_zk - (d0[k] - h[0] * r_xk - h[1] * r_yk) * inv_q;
+    }
+    g
 }
 
 /// Which solver to run.
