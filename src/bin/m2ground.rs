@@ -76,12 +76,10 @@ struct MissionCli {
     /// Manufacturing error of each joint coordinate (mm, standard deviation).
     #[arg(long, default_value_t = m2ctl::ground::mission::DEFAULT_MANUFACTURING_SIGMA_MM)]
     sigma_mm: f64,
-    /// Tracker noise: "paper" (0.1 um, 0.1 arcsec) or "realistic" (5 um, 1 arcsec).
+    /// Laser tracker measuring the target balls: "paper" (0.07 um per point, the
+    /// paper's ~0.1" per pose) or "realistic" (the +-(15 um + 6 um/m) class, 2.5 m away).
     #[arg(long, default_value = "paper")]
     tracker: String,
-    /// Calibration solver: lm, smcs, improved, improved+lm.
-    #[arg(long, default_value = "improved+lm")]
-    solver: String,
     /// Write the per-target error plot (SVG) here.
     #[arg(long)]
     plot: Option<PathBuf>,
@@ -91,30 +89,31 @@ struct MissionCli {
 }
 
 fn mission_cmd(a: &MissionCli) -> Result<(), String> {
-    use m2ctl::ground::calib::SolverKind;
     use m2ctl::ground::mission::{format_summary, run_mission, MissionConfig};
-    use m2ctl::sim::tracker::PoseTracker;
-    let tracker = match a.tracker.as_str() {
-        "paper" => PoseTracker::PAPER,
-        "realistic" => PoseTracker::REALISTIC,
-        other => {
-            return Err(format!(
-                "--tracker: '{other}' is neither 'paper' nor 'realistic'"
-            ))
-        }
-    };
-    let solver = SolverKind::parse(&a.solver)
-        .ok_or_else(|| format!("--solver: unknown solver '{}'", a.solver))?;
-    let mut cfg = MissionConfig {
+    use m2ctl::ground::tracker::campaign::{noise_preset, TrackerSetup};
+    let noise = match a.tracker.as_str() {
+        "paper" => noise_preset("paper"),
+        "realistic" => noise_preset("class15+6"),
+        _ => None,
+    }
+    .ok_or_else(|| {
+        format!(
+            "--tracker: '{}' is neither 'paper' nor 'realistic'",
+            a.tracker
+        )
+    })?;
+    let cfg = MissionConfig {
         seed: a.seed,
         n_targets: a.targets,
         manufacturing_sigma_mm: a.sigma_mm,
-        tracker,
+        tracker: TrackerSetup {
+            noise,
+            ..TrackerSetup::default()
+        },
         plot: a.plot.clone(),
         progress: !a.quiet,
         ..MissionConfig::default()
     };
-    cfg.calib.solver = solver;
     let report = run_mission(&cfg, &mut |line: &str| println!("{line}"))?;
     println!();
     print!("{}", format_summary(&report));

@@ -154,6 +154,8 @@ impl TrackerNoise {
     }
     /// No noise.
     pub const PERFECT: TrackerNoise = TrackerNoise::isotropic(0.0);
+    /// The paper's simulation: [`PAPER_POINT_NOISE_UM`] per coordinate, isotropic.
+    pub const PAPER: TrackerNoise = TrackerNoise::isotropic(PAPER_POINT_NOISE_UM);
 
     /// Every sigma multiplied by `k` (0.1: a tracker ten times better).
     pub fn scaled(&self, k: f64) -> TrackerNoise {

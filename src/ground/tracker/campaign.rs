@@ -15,7 +15,7 @@ use crate::kinematics::{ik, Geometry, GeometryParams, Pose};
 use crate::sim::manufacturing::perturbed;
 use crate::sim::tracker::{
     scatter_points, true_motion, LaserTracker, TrackerNoise, TrackerPlacement, TrackerScene,
-    ISOTROPIC_15_UM, PAPER_POINT_NOISE_UM,
+    ISOTROPIC_15_UM,
 };
 
 /// Named tracker noise presets of the command line.
@@ -29,7 +29,7 @@ pub fn noise_preset(name: &str) -> Option<TrackerNoise> {
     match name {
         "class15+6" => Some(TrackerNoise::CLASS_15_6),
         "iso15" => Some(TrackerNoise::isotropic(ISOTROPIC_15_UM)),
-        "paper" => Some(TrackerNoise::isotropic(PAPER_POINT_NOISE_UM)),
+        "paper" => Some(TrackerNoise::PAPER),
         "perfect" => Some(TrackerNoise::PERFECT),
         _ => None,
     }

@@ -17,7 +17,7 @@ pub mod campaign;
 pub mod commands;
 pub mod files;
 pub mod plots;
-// pub mod session;
+pub mod session;
 pub mod study;
 
 use nalgebra::{Matrix3, Point3, Vector3};
@@ -115,9 +115,14 @@ pub fn bundle_data(
     let to: Vec<[f64; 3]> = fiducials.iter().map(|f| f.obs.y_mm).collect();
     let reg = kabsch(&from, &to, None)
         .map_err(|e| data_err(Which::Points, 0, format!("fiducial registration: {e}")))?;
-    for f in &fiducials {
-        let y = reg * Point3::from(f.drawing_b_mm);
-        let d = (Vector3::from(f.obs.y_mm) - y.coords).norm();
+    let worst = fiducials
+        .iter()
+        .map(|f| {
+            let y = reg * Point3::from(f.drawing_b_mm);
+            (f, (Vector3::from(f.obs.y_mm) - y.coords).norm())
+        })
+        .max_by(|a, b| a.1.total_cmp(&b.1));
+    if let Some((f, d)) = worst {
         if d > MAX_FIDUCIAL_MISMATCH_MM {
             return Err(data_err(
                 Which::Points,
