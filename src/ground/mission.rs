@@ -352,6 +352,7 @@ pub fn run_mission(
         after.max_um(),
         after.max_arcsec()
     ));
+    log(&format!("   {}", tracker.verification_note(&targets)));
     if m.ground.bad_frames != 0 {
         return Err(format!(
             "{} telemetry frames did not parse",

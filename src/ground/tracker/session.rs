@@ -226,6 +226,28 @@ impl TrackerSession {
         )
     }
 
+    /// What the tracker can tell after calibration: the fit's predicted accuracy of the
+    /// calibrated table at `targets` (its covariance propagated) against the noise of one
+    /// tracker pose measurement, so that a tracker-measured error can be read.
+    pub fn verification_note(&self, targets: &[Pose<f64>]) -> String {
+        let (Some(f), Some(n)) = (&self.fit, self.pose_noise_sigma()) else {
+            return "not calibrated".into();
+        };
+        let rms3 = super::study::rms3;
+        match bundle::predict_accuracy(&f.params, &f.joint_covariance(), targets, bundle::DEFAULT_MC_DRAWS, 1) {
+            Ok(p) => format!(
+                "predicted accuracy of the calibrated table at these targets (fit covariance): RMS {:.3} um / {:.3} arcsec, expected max {:.3} um / {:.3} arcsec; one tracker pose measurement: 1 sigma {:.3} um / {:.3} arcsec (RMS of the axes), so errors measured below ~3 sigma of that are the tracker's own",
+                rms3(&p.rms_sigma[..3]),
+                rms3(&p.rms_sigma[3..]),
+                p.expected_max_combined[0],
+                p.expected_max_combined[1],
+                rms3(&n[..3]),
+                rms3(&n[3..])
+            ),
+            Err(e) => format!("no prediction: {e}"),
+        }
+    }
+
     /// One line on the fit for the mission's narrative.
     pub fn summary(&self) -> String {
         match &self.fit {
