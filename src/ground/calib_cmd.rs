@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use super::calib::{
     calibrate, parse_measurements, CalibConfig, CalibError, CalibResult, Measurement,
 };
-use super::campaign::{perturbed, simulate, true_motion};
+use super::campaign::{perturbed, reached, simulate};
 use super::eval::{accuracy, max_param_error_mm, random_poses, Accuracy, AXES};
 use super::eval::{DEFAULT_EVAL_POSES, DEFAULT_EVAL_ROTATION_ARCSEC, DEFAULT_EVAL_TRANSLATION_MM};
 use super::files::{format_geometry, read_geometry, GeometryFile};
@@ -32,8 +32,7 @@ pub fn measured_pose_errors(
     let g = Geometry::<f64>::new(params).map_err(|e| super::files::describe_geometry_error(&e))?;
     let mut errors = Vec::with_capacity(meas.len());
     for m in meas {
-        let p =
-            true_motion(&g, &m.strokes_mm, &m.pose).map_err(|e| format!("line {}: {e}", m.line))?;
+        let p = reached(&g, &m.strokes_mm, &m.pose).map_err(|e| format!("line {}: {e}", m.line))?;
         errors.push(super::eval::pose_error(&p, &m.pose));
     }
     Ok(Accuracy::from_errors(errors))

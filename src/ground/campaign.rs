@@ -33,9 +33,9 @@ impl std::fmt::Display for CampaignError {
 
 impl std::error::Error for CampaignError {}
 
-/// [`sim::tracker::true_motion`](crate::sim::tracker::true_motion) with the error in
-/// words.
-pub fn true_motion(
+/// Where the true mechanism goes for `strokes_mm` (the simulated instrument's
+/// [`sim::tracker::true_motion`](crate::sim::tracker::true_motion)), the error in words.
+pub(crate) fn reached(
     truth: &Geometry<f64>,
     strokes_mm: &[f64; 6],
     near: &Pose<f64>,
@@ -72,7 +72,7 @@ pub fn simulate(
                 super::ikfk::describe_ik_error(&e)
             ))
         })?;
-        let actual = true_motion(&tru, &strokes, target)?;
+        let actual = reached(&tru, &strokes, target)?;
         out.push(Measurement {
             line: 0,
             pose: tracker.measure(&actual, &mut rng),
