@@ -392,3 +392,60 @@ fn tc_upload_refuses_tables_the_flight_validation_refuses() {
     assert!(ok && stdout.lines().count() > 2, "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn calibrate_from_tracker_points_writes_a_table_or_nothing() {
+    let dir = tmp_dir("points");
+    let d = dir.to_str().unwrap();
+    let (ok, _, err) = m2ground(&[
+        "simulate-tracker-campaign",
+        "--out-dir",
+        d,
+        "--campaign",
+        "4",
+    ]);
+    assert!(ok, "{err}");
+    let out = dir.join("cal.toml");
+    let run = || {
+        let _ = std::fs::remove_file(&out);
+        let r = m2ground(&[
+            "calibrate",
+            "--points",
+            &format!("{d}/points.csv"),
+            "--strokes",
+            &format!("{d}/strokes.csv"),
+            "--targets",
+            &format!("{d}/targets.toml"),
+            "--nominal",
+            GEOMETRY,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        (r, out.exists())
+    };
+    let ((ok, stdout, err), wrote) = run();
+    assert!(ok && wrote, "{err}");
+    assert!(
+        stdout.contains("predicted accuracy") && stdout.contains("observability"),
+        "{stdout}"
+    );
+    // A ball of pose 20 renamed to another ball of the same pose: refused with the line.
+    let points = std::fs::read_to_string(dir.join("points.csv")).unwrap();
+    let line = points
+        .lines()
+        .position(|l| l.starts_with("20,B1,"))
+        .unwrap()
+        + 1;
+    std::fs::write(
+        dir.join("points.csv"),
+        points.replacen("\n20,B1,", "\n20,B2,", 1),
+    )
+    .unwrap();
+    let ((ok, stdout, err), wrote) = run();
+    assert!(!ok && !wrote && stdout.is_empty(), "accepted: {err}");
+    assert!(
+        err.contains("points.csv") && err.contains(&format!("line {line}")),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
