@@ -12,6 +12,7 @@ use std::path::Path;
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::kinematics::Pose;
 
@@ -458,17 +459,25 @@ pub fn predicted_vs_measured(
                 .collect();
             draw_markers(&mut chart, Marker::Dot, &pts, LIGHT_BLUE, 2)?;
         }
-        for g in groups {
+        for (gi, g) in groups.iter().enumerate() {
             let n = g.points.len().max(1) as f64;
             let mp = g.points.iter().map(|(p, _)| p * p).sum::<f64>() / n;
             let mm = g.points.iter().map(|(_, m)| m * m).sum::<f64>() / n;
             let at = (mp.sqrt().log10(), mm.sqrt().log10());
             draw_markers(&mut chart, Marker::Cross, &[at], COLOURS[0], 7)?;
+            // Labels alternate: right and below, left and above their cross.
+            let d = 0.03 * (hi - lo);
+            let (pos, dx, dy) = if gi % 2 == 0 {
+                (Pos::new(HPos::Left, VPos::Top), d, -d)
+            } else {
+                (Pos::new(HPos::Right, VPos::Bottom), -d, d)
+            };
+            let style = TextStyle::from(("sans-serif", 14).into_font()).pos(pos);
             chart
                 .draw_series(std::iter::once(Text::new(
-                    format!("     {}", g.label),
-                    at,
-                    ("sans-serif", 14).into_font(),
+                    g.label.clone(),
+                    (at.0 + dx, at.1 + dy),
+                    style,
                 )))
                 .map_err(|x| e(&x))?;
         }
