@@ -7,11 +7,12 @@ use m2ctl::ground::calib::{
     self, calibrate, cuckoo, parse_measurements, CalibConfig, Measurement, ParamBox, Problem,
     SolverKind, N_PARAMS,
 };
-use m2ctl::ground::campaign::{perturbed, simulate, Tracker};
+use m2ctl::ground::campaign::{perturbed, simulate};
 use m2ctl::ground::eval::{accuracy, random_poses};
 use m2ctl::ground::plan::{plan_poses, PlanConfig};
 use m2ctl::kinematics::GeometryParams;
 use m2ctl::nominal::PROTOTYPE;
+use m2ctl::sim::tracker::PoseTracker;
 
 /// Manufacturing error sigma of the test campaigns (mm).
 const SIGMA_MM: f64 = 0.1;
@@ -26,7 +27,7 @@ fn truth() -> GeometryParams {
     perturbed(&PROTOTYPE, SIGMA_MM, GEOMETRY_SEED)
 }
 
-fn campaign(tracker: &Tracker) -> Vec<Measurement> {
+fn campaign(tracker: &PoseTracker) -> Vec<Measurement> {
     simulate(
         &PROTOTYPE,
         &truth(),
@@ -39,7 +40,7 @@ fn campaign(tracker: &Tracker) -> Vec<Measurement> {
 
 #[test]
 fn jacobian_matches_finite_differences() {
-    let meas = campaign(&Tracker::PAPER);
+    let meas = campaign(&PoseTracker::PAPER);
     let problem = Problem::new(meas, PROTOTYPE.p0_mm);
     let v = calib::to_vec(&truth());
     let j = problem.jacobian(&v);
@@ -65,7 +66,7 @@ fn jacobian_matches_finite_differences() {
 
 #[test]
 fn lm_recovers_noise_free_to_nanometres() {
-    let meas = campaign(&Tracker::PERFECT);
+    let meas = campaign(&PoseTracker::PERFECT);
     let cfg = CalibConfig::default();
     let r = calibrate(&PROTOTYPE, &meas, &cfg).expect("lm");
     let targets = random_poses(EVAL_POSES, 1.0, 60.0, 99);
@@ -97,7 +98,7 @@ fn small_cuckoo() -> cuckoo::CuckooConfig {
 
 #[test]
 fn cuckoo_is_deterministic_per_seed() {
-    let meas = campaign(&Tracker::PAPER);
+    let meas = campaign(&PoseTracker::PAPER);
     for solver in [SolverKind::Smcs, SolverKind::Improved] {
         let cfg = |seed| CalibConfig {
             solver,
@@ -121,7 +122,7 @@ fn cuckoo_is_deterministic_per_seed() {
 
 #[test]
 fn improved_stays_in_omega_and_beats_random_start() {
-    let meas = campaign(&Tracker::PAPER);
+    let meas = campaign(&PoseTracker::PAPER);
     let problem = Problem::new(meas.clone(), PROTOTYPE.p0_mm);
     let nominal = calib::to_vec(&PROTOTYPE);
     for (half_width_mm, coordinates) in [0.05, 0.5]
@@ -159,7 +160,7 @@ fn improved_stays_in_omega_and_beats_random_start() {
 /// on a budget where the paper's original coordinates do not; both stay in Omega.
 #[test]
 fn whitened_coordinates_reach_the_lm_fit() {
-    let meas = campaign(&Tracker::PAPER);
+    let meas = campaign(&PoseTracker::PAPER);
     let lm = calibrate(&PROTOTYPE, &meas, &CalibConfig::default()).expect("lm");
     let run = |coordinates| {
         let cfg = CalibConfig {
@@ -254,7 +255,7 @@ fn clamp_never_leaves_omega() {
 
 #[test]
 fn clamped_nelder_mead_evaluates_only_points_in_omega() {
-    let meas = campaign(&Tracker::PAPER);
+    let meas = campaign(&PoseTracker::PAPER);
     let problem = Problem::new(meas, PROTOTYPE.p0_mm);
     let nominal = calib::to_vec(&PROTOTYPE);
     let omega = ParamBox::around(&nominal, 0.01);
@@ -291,7 +292,7 @@ fn clamped_nelder_mead_evaluates_only_points_in_omega() {
 
 #[test]
 fn bounded_lm_beats_unbounded_with_realistic_noise() {
-    let meas = campaign(&Tracker::REALISTIC);
+    let meas = campaign(&PoseTracker::REALISTIC);
     let targets = random_poses(EVAL_POSES, 1.0, 60.0, 3);
     let run = |solver| {
         let r = calibrate(
@@ -319,7 +320,7 @@ fn bounded_lm_beats_unbounded_with_realistic_noise() {
 
 #[test]
 fn lm_reaches_noise_floor_with_paper_noise() {
-    let meas = campaign(&Tracker::PAPER);
+    let meas = campaign(&PoseTracker::PAPER);
     let r = calibrate(&PROTOTYPE, &meas, &CalibConfig::default()).expect("lm");
     let targets = random_poses(EVAL_POSES, 1.0, 60.0, 4);
     let acc = accuracy(&r.params, &truth(), &targets).expect("eval");
@@ -354,7 +355,7 @@ fn csv_of(meas: &[Measurement]) -> String {
 
 #[test]
 fn measurement_file_round_trips() {
-    let meas = campaign(&Tracker::PAPER);
+    let meas = campaign(&PoseTracker::PAPER);
     let back = parse_measurements(&csv_of(&meas)).expect("parse");
     assert_eq!(back.len(), meas.len());
     for (a, b) in back.iter().zip(meas.iter()) {
@@ -370,7 +371,7 @@ fn measurement_file_round_trips() {
 
 #[test]
 fn bad_measurement_files_are_rejected_with_line_numbers() {
-    let good = csv_of(&campaign(&Tracker::PAPER));
+    let good = csv_of(&campaign(&PoseTracker::PAPER));
     let lines: Vec<&str> = good.lines().collect();
     // Line 1 is the comment, line 2 the header, data from line 3.
     let edit = |line_no: usize, new: &str| {
@@ -416,7 +417,7 @@ fn bad_measurement_files_are_rejected_with_line_numbers() {
     // Empty file.
     assert!(parse_measurements("").is_err());
     // And calibrate() itself refuses too few measurements.
-    let meas = campaign(&Tracker::PAPER);
+    let meas = campaign(&PoseTracker::PAPER);
     assert!(calibrate(&PROTOTYPE, &meas[..N_PARAMS - 1], &CalibConfig::default()).is_err());
 }
 
@@ -445,7 +446,7 @@ fn calibrate_command_writes_a_geometry_file_that_round_trips() {
     std::fs::create_dir_all(&dir).expect("tmp dir");
     let data = dir.join("meas.csv");
     let nominal = dir.join("nominal.toml");
-    std::fs::write(&data, csv_of(&campaign(&Tracker::PAPER))).expect("write");
+    std::fs::write(&data, csv_of(&campaign(&PoseTracker::PAPER))).expect("write");
     std::fs::write(
         &nominal,
         std::fs::read_to_string(concat!(

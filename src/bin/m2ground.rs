@@ -8,7 +8,7 @@ use m2ctl::ground::calib::{cuckoo::CuckooConfig, CalibConfig, SolverKind};
 use m2ctl::ground::calib_cmd::{
     run_calibrate, run_campaign, run_plan, CalibrateArgs, CampaignArgs,
 };
-use m2ctl::ground::campaign::{Tracker, DEFAULT_MANUFACTURING_SIGMA_MM};
+use m2ctl::ground::campaign::DEFAULT_MANUFACTURING_SIGMA_MM;
 use m2ctl::ground::ikfk::{run_file, IkFk};
 use m2ctl::ground::plan::{
     PlanConfig, DEFAULT_AXIS_MM, DEFAULT_CUBE_HALF_MM, DEFAULT_ROTATION_ARCSEC,
@@ -16,6 +16,7 @@ use m2ctl::ground::plan::{
 use m2ctl::ground::report::{bench, compare_cuckoo, table3, TableConfig};
 use m2ctl::ground::tc::{run_tc, TcOutput, TcRequest, TcSequencer};
 use m2ctl::link::AckFlags;
+use m2ctl::sim::tracker::PoseTracker;
 
 #[derive(Parser)]
 #[command(
@@ -46,6 +47,18 @@ enum Cmd {
     Bench(BenchCli),
     /// Compare SMCS and the improved algorithm over several solver seeds.
     CompareCuckoo(CompareCli),
+    /// Write a simulated laser-tracker campaign: targets.toml, points.csv, strokes.csv,
+    /// truth.toml (input of `calibrate --points`).
+    SimulateTrackerCampaign(SimulateTrackerCli),
+    /// Tracker path: before / two-step / bundle without and with prior, three tracker
+    /// classes, over many simulated campaigns.
+    TrackerTable(StudyCli),
+    /// Tracker path: predicted vs measured held-out accuracy over many campaigns.
+    TrackerStats(TrackerStatsCli),
+    /// Tracker path: optimal measurement plan vs the paper's 120 poses.
+    TrackerPlan(TrackerPlanCli),
+    /// Tracker path: the paper's prototype experiment reproduced and explained.
+    PaperExperiment(PaperExperimentCli),
     /// Encode telecommands (framed PUS-C packets, docs/icd.md) as hex lines or binary.
     Tc(TcCli),
     /// The whole mission story on the simulated plant: move, calibrate, upload, move again.
@@ -72,12 +85,10 @@ struct MissionCli {
     /// Manufacturing error of each joint coordinate (mm, standard deviation).
     #[arg(long, default_value_t = m2ctl::ground::mission::DEFAULT_MANUFACTURING_SIGMA_MM)]
     sigma_mm: f64,
-    /// Tracker noise: "paper" (0.1 um, 0.1 arcsec) or "realistic" (5 um, 1 arcsec).
+    /// Laser tracker measuring the target balls: "paper" (0.07 um per point, the
+    /// paper's ~0.1" per pose) or "realistic" (the +-(15 um + 6 um/m) class, 2.5 m away).
     #[arg(long, default_value = "paper")]
     tracker: String,
-    /// Calibration solver: lm, smcs, improved, improved+lm.
-    #[arg(long, default_value = "improved+lm")]
-    solver: String,
     /// Write the per-target error plot (SVG) here.
     #[arg(long)]
     plot: Option<PathBuf>,
@@ -87,30 +98,31 @@ struct MissionCli {
 }
 
 fn mission_cmd(a: &MissionCli) -> Result<(), String> {
-    use m2ctl::ground::calib::SolverKind;
-    use m2ctl::ground::campaign::Tracker;
     use m2ctl::ground::mission::{format_summary, run_mission, MissionConfig};
-    let tracker = match a.tracker.as_str() {
-        "paper" => Tracker::PAPER,
-        "realistic" => Tracker::REALISTIC,
-        other => {
-            return Err(format!(
-                "--tracker: '{other}' is neither 'paper' nor 'realistic'"
-            ))
-        }
-    };
-    let solver = SolverKind::parse(&a.solver)
-        .ok_or_else(|| format!("--solver: unknown solver '{}'", a.solver))?;
-    let mut cfg = MissionConfig {
+    use m2ctl::ground::tracker::campaign::{noise_preset, TrackerSetup};
+    let noise = match a.tracker.as_str() {
+        "paper" => noise_preset("paper"),
+        "realistic" => noise_preset("class15+6"),
+        _ => None,
+    }
+    .ok_or_else(|| {
+        format!(
+            "--tracker: '{}' is neither 'paper' nor 'realistic'",
+            a.tracker
+        )
+    })?;
+    let cfg = MissionConfig {
         seed: a.seed,
         n_targets: a.targets,
         manufacturing_sigma_mm: a.sigma_mm,
-        tracker,
+        tracker: TrackerSetup {
+            noise,
+            ..TrackerSetup::default()
+        },
         plot: a.plot.clone(),
         progress: !a.quiet,
         ..MissionConfig::default()
     };
-    cfg.calib.solver = solver;
     let report = run_mission(&cfg, &mut |line: &str| println!("{line}"))?;
     println!();
     print!("{}", format_summary(&report));
@@ -410,11 +422,186 @@ impl SolverCli {
     }
 }
 
+/// The laser tracker of the tracker path.
+#[derive(clap::Args, Clone)]
+struct TrackerCli {
+    /// Tracker noise preset: class15+6 (the +-(15 um + 6 um/m) class), iso15 (isotropic
+    /// 15 um), paper (0.07 um, the paper's ~0.1" per pose), perfect.
+    #[arg(long, default_value = "class15+6")]
+    tracker: String,
+    /// Multiply every sigma of the preset (0.1: a tracker ten times better).
+    #[arg(long, default_value_t = 1.0)]
+    tracker_scale: f64,
+    /// Tracker distance from the mechanism (m; simulation only).
+    #[arg(long, default_value_t = m2ctl::sim::tracker::DEFAULT_TRACKER_DISTANCE_MM / m2ctl::sim::tracker::MM_PER_M)]
+    distance_m: f64,
+    /// Distance of the target balls from the platform axis (mm; simulation only).
+    #[arg(long, default_value_t = m2ctl::ground::tracker::files::DEFAULT_BALL_RADIUS_MM)]
+    ball_radius_mm: f64,
+}
+
+impl TrackerCli {
+    fn noise(&self) -> Result<m2ctl::sim::tracker::TrackerNoise, String> {
+        use m2ctl::ground::tracker::campaign::{noise_preset, NOISE_PRESETS};
+        let n = noise_preset(&self.tracker).ok_or_else(|| {
+            format!(
+                "--tracker: '{}' is not one of {}",
+                self.tracker,
+                NOISE_PRESETS.join(", ")
+            )
+        })?;
+        if !(self.tracker_scale.is_finite() && self.tracker_scale >= 0.0) {
+            return Err("--tracker-scale must be a non-negative number".into());
+        }
+        Ok(n.scaled(self.tracker_scale))
+    }
+
+    fn setup(&self) -> Result<m2ctl::ground::tracker::campaign::TrackerSetup, String> {
+        if !(self.distance_m > 0.5 && self.distance_m < 40.0) {
+            return Err("--distance-m must be between 0.5 and 40 m".into());
+        }
+        if !(self.ball_radius_mm >= 20.0 && self.ball_radius_mm <= 1000.0) {
+            return Err("--ball-radius-mm must be between 20 and 1000 mm".into());
+        }
+        let mut s = m2ctl::ground::tracker::campaign::TrackerSetup {
+            noise: self.noise()?,
+            targets: m2ctl::ground::tracker::files::TargetFile::with_ball_radius(
+                self.ball_radius_mm,
+            ),
+            ..Default::default()
+        };
+        s.placement.distance_mm = self.distance_m * m2ctl::sim::tracker::MM_PER_M;
+        Ok(s)
+    }
+}
+
+/// Settings of the tracker-path studies.
+#[derive(clap::Args, Clone)]
+struct StudyCli {
+    #[command(flatten)]
+    tracker: TrackerCli,
+    /// True joints: gauss:SIGMA_MM (truncated at 3 sigma) or uniform:HALF_MM.
+    #[arg(long, default_value = "gauss:0.1")]
+    truth: String,
+    /// Prior spread of the joints in the bundle fit (mm); default: the truth's sigma.
+    #[arg(long)]
+    joint_prior_mm: Option<f64>,
+    /// Number of simulated campaigns.
+    #[arg(long, default_value_t = m2ctl::ground::tracker::study::DEFAULT_TABLE_CAMPAIGNS)]
+    campaigns: usize,
+    /// Number of the first campaign (seeds).
+    #[arg(long, default_value_t = 1)]
+    first_campaign: u64,
+}
+
+impl StudyCli {
+    fn config(&self) -> Result<m2ctl::ground::tracker::study::StudyConfig, String> {
+        use m2ctl::ground::tracker::study::{StudyConfig, TruthModel};
+        let truth = TruthModel::parse(&self.truth).ok_or_else(|| {
+            format!(
+                "--truth: '{}' is neither gauss:SIGMA nor uniform:HALF",
+                self.truth
+            )
+        })?;
+        if let Some(p) = self.joint_prior_mm {
+            if !(p.is_finite() && p > 0.0) {
+                return Err("--joint-prior-mm must be a positive number".into());
+            }
+        }
+        Ok(StudyConfig {
+            truth,
+            setup: self.tracker.setup()?,
+            joint_prior_sigma_mm: self.joint_prior_mm,
+            campaigns: self.campaigns.max(1),
+            first_campaign: self.first_campaign,
+            ..StudyConfig::default()
+        })
+    }
+}
+
+#[derive(clap::Args)]
+struct SimulateTrackerCli {
+    #[command(flatten)]
+    tracker: TrackerCli,
+    /// Output directory (created).
+    #[arg(long)]
+    out_dir: PathBuf,
+    /// Campaign number (seeds of the truth, the scene and the noise).
+    #[arg(long, default_value_t = 1)]
+    campaign: u64,
+    /// True joints: gauss:SIGMA_MM or uniform:HALF_MM.
+    #[arg(long, default_value = "gauss:0.1")]
+    truth: String,
+    /// Plan poses (6-column pose CSV, e.g. from `plan` or `tracker-plan --out`); default:
+    /// the paper's 120 poses.
+    #[arg(long)]
+    plan: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct TrackerStatsCli {
+    #[command(flatten)]
+    study: StudyCli,
+    /// Tracker noise scales (the --tracker preset times each).
+    #[arg(long, value_delimiter = ',', default_values_t = m2ctl::ground::tracker::study::DEFAULT_SWEEP_SCALES)]
+    scales: Vec<f64>,
+    /// Write the predicted-vs-measured plot (SVG).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct TrackerPlanCli {
+    #[command(flatten)]
+    study: StudyCli,
+    /// Plan sizes to compare with the paper's plan.
+    #[arg(long, value_delimiter = ',', default_value = "20,30,40,60,120")]
+    sizes: Vec<usize>,
+    /// Design criterion: i-optimal or d-optimal.
+    #[arg(long, default_value = "i-optimal")]
+    criterion: String,
+    /// Write the plan of this size (from --sizes) as a pose CSV to --out.
+    #[arg(long, default_value_t = 40)]
+    poses: usize,
+    /// Output pose CSV of the --poses plan.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Write the plan map (SVG): the --poses plan against the paper's.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct PaperExperimentCli {
+    #[command(flatten)]
+    study: StudyCli,
+    /// Write the per-pose error plot (SVG).
+    #[arg(long)]
+    plot: Option<PathBuf>,
+}
+
 #[derive(clap::Args)]
 struct CalibrateCli {
-    /// Measurement CSV (12 columns: pose mm/arcsec, strokes mm).
+    /// Measurement CSV (12 columns: pose mm/arcsec, strokes mm): the idealised pose path.
+    #[arg(long, required_unless_present = "points", conflicts_with = "points")]
+    data: Option<PathBuf>,
+    /// Tracker point export (the tracker path; with --strokes and --targets).
+    #[arg(long, requires_all = ["strokes", "targets"])]
+    points: Option<PathBuf>,
+    /// Encoder strokes per pose (tracker path).
     #[arg(long)]
-    data: PathBuf,
+    strokes: Option<PathBuf>,
+    /// Target balls and fiducials (tracker path).
+    #[arg(long)]
+    targets: Option<PathBuf>,
+    #[command(flatten)]
+    tracker: TrackerCli,
+    /// Tracker path: prior spread of the joints (mm).
+    #[arg(long, default_value_t = m2ctl::ground::calib::bundle::DEFAULT_JOINT_PRIOR_SIGMA_MM)]
+    joint_prior_mm: f64,
+    /// Tracker path: no priors (the plain maximum-likelihood bundle fit).
+    #[arg(long)]
+    no_prior: bool,
     /// Nominal geometry file.
     #[arg(long)]
     nominal: PathBuf,
@@ -491,10 +678,10 @@ struct CampaignCli {
     #[arg(long, default_value_t = 1)]
     geometry_seed: u64,
     /// Tracker noise on the translation (um, per axis).
-    #[arg(long, default_value_t = Tracker::PAPER.noise_um)]
+    #[arg(long, default_value_t = PoseTracker::PAPER.noise_um)]
     noise_um: f64,
     /// Tracker noise on the rotation (arcsec, per axis).
-    #[arg(long, default_value_t = Tracker::PAPER.noise_arcsec)]
+    #[arg(long, default_value_t = PoseTracker::PAPER.noise_arcsec)]
     noise_arcsec: f64,
     /// Seed of the tracker noise.
     #[arg(long, default_value_t = 2)]
@@ -536,8 +723,40 @@ fn calibrate_cmd(a: &CalibrateCli) -> Result<(), String> {
             a.solver
         )
     })?;
+    if let (Some(points), Some(strokes), Some(targets)) = (&a.points, &a.strokes, &a.targets) {
+        use m2ctl::ground::calib::bundle::BundleConfig;
+        use m2ctl::ground::tracker::commands::{run_point_calibrate, PointCalibrateArgs};
+        if !(a.joint_prior_mm.is_finite() && a.joint_prior_mm > 0.0) {
+            return Err("--joint-prior-mm must be a positive number".into());
+        }
+        let ball_sigma = m2ctl::ground::tracker::files::parse_targets(
+            &std::fs::read_to_string(targets).map_err(|e| format!("{}: {e}", targets.display()))?,
+        )
+        .map_err(|e| format!("{}: {e}", targets.display()))?
+        .ball_sigma_mm;
+        let (text, summary) = run_point_calibrate(&PointCalibrateArgs {
+            points: points.clone(),
+            strokes: strokes.clone(),
+            targets: targets.clone(),
+            nominal: a.nominal.clone(),
+            noise: a.tracker.noise()?,
+            cfg: if a.no_prior {
+                BundleConfig::unbounded()
+            } else {
+                BundleConfig::with_priors(a.joint_prior_mm, ball_sigma)
+            },
+            report: a.report,
+            truth: a.truth.clone(),
+            plot: a.plot.clone(),
+        })?;
+        std::fs::write(&a.out, text).map_err(|e| format!("{}: {e}", a.out.display()))?;
+        print!("{summary}");
+        println!("wrote {}", a.out.display());
+        return Ok(());
+    }
+    let data = a.data.clone().ok_or("--data or --points is required")?;
     let args = CalibrateArgs {
-        data: a.data.clone(),
+        data,
         nominal: a.nominal.clone(),
         cfg: a.solver_cli.config(solver),
         report: a.report,
@@ -551,6 +770,195 @@ fn calibrate_cmd(a: &CalibrateCli) -> Result<(), String> {
     Ok(())
 }
 
+fn simulate_tracker_cmd(a: &SimulateTrackerCli) -> Result<(), String> {
+    use m2ctl::ground::tracker::commands::{run_simulate, SimulateArgs, SIMULATED_FILES};
+    use m2ctl::ground::tracker::study::TruthModel;
+    let truth = TruthModel::parse(&a.truth).ok_or_else(|| {
+        format!(
+            "--truth: '{}' is neither gauss:SIGMA nor uniform:HALF",
+            a.truth
+        )
+    })?;
+    let plan = match &a.plan {
+        Some(p) => {
+            let text = std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?;
+            m2ctl::ground::files::parse_csv(&text, m2ctl::ground::files::POSE_COLUMNS)
+                .map_err(|e| format!("{}: {e}", p.display()))?
+                .iter()
+                .map(|r| {
+                    let v = &r.values;
+                    m2ctl::kinematics::Pose::from_mm_arcsec([v[0], v[1], v[2]], [v[3], v[4], v[5]])
+                })
+                .collect()
+        }
+        None => m2ctl::ground::plan::plan_poses(&PlanConfig::default()),
+    };
+    let files = run_simulate(&SimulateArgs {
+        nominal: m2ctl::nominal::PROTOTYPE,
+        truth,
+        setup: a.tracker.setup()?,
+        plan,
+        campaign: a.campaign,
+    })?;
+    std::fs::create_dir_all(&a.out_dir).map_err(|e| format!("{}: {e}", a.out_dir.display()))?;
+    for (name, text) in SIMULATED_FILES.iter().zip(files.iter()) {
+        let p = a.out_dir.join(name);
+        std::fs::write(&p, text).map_err(|e| format!("{}: {e}", p.display()))?;
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}
+
+fn tracker_stats_cmd(a: &TrackerStatsCli) -> Result<(), String> {
+    use m2ctl::ground::tracker::plots::PredictionGroup;
+    use m2ctl::ground::tracker::study::{format_prediction_sweep, prediction_sweep, rms3};
+    let cfg = a.study.config()?;
+    if a.scales.iter().any(|k| !(k.is_finite() && *k > 0.0)) {
+        return Err("--scales: every scale must be a positive number".into());
+    }
+    let rows = prediction_sweep(&cfg, &a.scales)?;
+    print!("{}", format_prediction_sweep(&cfg, &rows));
+    if let Some(p) = &a.plot {
+        let groups = |rot: bool| -> Vec<PredictionGroup> {
+            let range = if rot { 3..6 } else { 0..3 };
+            rows.iter()
+                .map(|(k, r)| PredictionGroup {
+                    label: format!("noise x{k}"),
+                    points: r
+                        .points
+                        .iter()
+                        .map(|q| {
+                            (
+                                rms3(&q.predicted_rms[range.clone()]),
+                                rms3(&q.measured_rms[range.clone()]),
+                            )
+                        })
+                        .collect(),
+                })
+                .collect()
+        };
+        m2ctl::ground::tracker::plots::predicted_vs_measured(
+            p,
+            &format!(
+                "Predicted vs measured held-out RMS, bundle fit with prior, {} campaigns per tracker noise scale",
+                cfg.campaigns
+            ),
+            &[
+                ("translation (x, y, z combined)".into(), "um".into(), groups(false)),
+                ("rotation (alpha, beta, gamma combined)".into(), "arcsec".into(), groups(true)),
+            ],
+        )?;
+        println!("\nplot: {}", p.display());
+    }
+    Ok(())
+}
+
+fn tracker_plan_cmd(a: &TrackerPlanCli) -> Result<(), String> {
+    use m2ctl::ground::calib::design::Criterion;
+    use m2ctl::ground::tracker::study::plan_study;
+    let cfg = a.study.config()?;
+    let criterion = Criterion::parse(&a.criterion).ok_or_else(|| {
+        format!(
+            "--criterion: '{}' is neither i-optimal nor d-optimal",
+            a.criterion
+        )
+    })?;
+    let mut sizes = a.sizes.clone();
+    if !sizes.contains(&a.poses) {
+        sizes.push(a.poses);
+    }
+    let (text, plans) = plan_study(&cfg, criterion, &sizes)?;
+    print!("{text}");
+    let chosen = plans
+        .iter()
+        .skip(1)
+        .find(|(_, p)| p.len() == a.poses)
+        .ok_or("no plan of that size")?;
+    if let Some(out) = &a.out {
+        let csv = m2ctl::ground::plan::format_plan(
+            &chosen.1,
+            &format!(
+                "Optimal calibration plan ({}), m2ground tracker-plan",
+                chosen.0
+            ),
+        );
+        std::fs::write(out, csv).map_err(|e| format!("{}: {e}", out.display()))?;
+        println!("\nwrote {}", out.display());
+    }
+    if let Some(p) = &a.plot {
+        m2ctl::ground::tracker::plots::plan_map(
+            p,
+            &format!(
+                "Plan map: {} against the paper's {} poses",
+                chosen.0,
+                cfg.plan.len()
+            ),
+            &[plans[0].clone(), chosen.clone()],
+        )?;
+        println!("plot: {}", p.display());
+    }
+    Ok(())
+}
+
+fn paper_experiment_cmd(a: &PaperExperimentCli) -> Result<(), String> {
+    use m2ctl::ground::tracker::commands::noise_band;
+    use m2ctl::ground::tracker::plots::{per_pose, Panel, Series};
+    use m2ctl::ground::tracker::study::{format_paper_experiment, paper_experiment};
+    let cfg = a.study.config()?;
+    let r = paper_experiment(&cfg)?;
+    print!("{}", format_paper_experiment(&cfg, &r));
+    if let Some(p) = &a.plot {
+        let s = &r.pose_noise_sigma;
+        let series = |rot: bool| {
+            [
+                (
+                    "before (poses from nominal ball centres)",
+                    &r.sampling_before_naive,
+                ),
+                (
+                    "before (poses from fitted ball centres)",
+                    &r.sampling_before,
+                ),
+                ("after calibration", &r.sampling_after),
+            ]
+            .iter()
+            .map(|(l, acc)| Series {
+                label: l.to_string(),
+                values: acc
+                    .per_pose_max()
+                    .iter()
+                    .map(|(t, q)| if rot { *q } else { *t })
+                    .collect(),
+            })
+            .collect::<Vec<_>>()
+        };
+        per_pose(
+            p,
+            &format!("The paper's experiment, simulated: pose error at the {} sampling poses, FK(strokes) - tracker-measured pose", cfg.plan.len()),
+            "sampling pose",
+            &[
+                Panel {
+                    caption: "largest |translation error| of each pose (um, log scale)".into(),
+                    y_label: "um".into(),
+                    series: series(false),
+                    band: Some(noise_band(&s[..3])),
+                    log: true,
+                },
+                Panel {
+                    caption: "largest |rotation error| of each pose (arcsec, log scale)".into(),
+                    y_label: "arcsec".into(),
+                    series: series(true),
+                    band: Some(noise_band(&s[3..])),
+                    log: true,
+                },
+            ],
+            Some("tracker noise floor (90 % of pure-noise poses)"),
+        )?;
+        println!("\nplot: {}", p.display());
+    }
+    Ok(())
+}
+
 fn campaign_cmd(a: &CampaignCli) -> Result<(), String> {
     let nominal = match &a.nominal {
         Some(p) => m2ctl::ground::files::read_geometry(p)?.params,
@@ -560,7 +968,7 @@ fn campaign_cmd(a: &CampaignCli) -> Result<(), String> {
         nominal,
         sigma_mm: a.sigma_mm,
         geometry_seed: a.geometry_seed,
-        tracker: Tracker {
+        tracker: PoseTracker {
             noise_um: a.noise_um,
             noise_arcsec: a.noise_arcsec,
         },
@@ -613,6 +1021,14 @@ fn main() -> ExitCode {
             Cmd::CompareCuckoo(a) => {
                 compare_cuckoo(&table_config(&a.solver_cli, None), a.seeds).map(|t| print!("{t}"))
             }
+            Cmd::SimulateTrackerCampaign(a) => simulate_tracker_cmd(a),
+            Cmd::TrackerTable(a) => a
+                .config()
+                .and_then(|c| m2ctl::ground::tracker::study::campaign_table(&c))
+                .map(|t| print!("{t}")),
+            Cmd::TrackerStats(a) => tracker_stats_cmd(a),
+            Cmd::TrackerPlan(a) => tracker_plan_cmd(a),
+            Cmd::PaperExperiment(a) => paper_experiment_cmd(a),
             Cmd::Tc(a) => tc_cmd(a),
             Cmd::Mission(a) => mission_cmd(a),
             Cmd::Gateway(a) => gateway_cmd(a),

@@ -5,14 +5,17 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use super::calib::{calibrate, parse_measurements, CalibConfig, CalibResult, Measurement};
-use super::campaign::{perturbed, simulate, true_motion, Tracker};
+use super::calib::{
+    calibrate, parse_measurements, CalibConfig, CalibError, CalibResult, Measurement,
+};
+use super::campaign::{perturbed, reached, simulate};
 use super::eval::{accuracy, max_param_error_mm, random_poses, Accuracy, AXES};
 use super::eval::{DEFAULT_EVAL_POSES, DEFAULT_EVAL_ROTATION_ARCSEC, DEFAULT_EVAL_TRANSLATION_MM};
 use super::files::{format_geometry, read_geometry, GeometryFile};
 use super::plan::{format_plan, plan_poses, PlanConfig};
 use super::report::{plot_per_pose, DEFAULT_EVAL_SEED};
 use crate::kinematics::{Geometry, GeometryParams};
+use crate::sim::tracker::PoseTracker;
 
 /// Reads and parses a measurement file; errors are prefixed with the path.
 pub fn read_measurements(path: &Path) -> Result<Vec<Measurement>, String> {
@@ -29,8 +32,7 @@ pub fn measured_pose_errors(
     let g = Geometry::<f64>::new(params).map_err(|e| super::files::describe_geometry_error(&e))?;
     let mut errors = Vec::with_capacity(meas.len());
     for m in meas {
-        let p =
-            true_motion(&g, &m.strokes_mm, &m.pose).map_err(|e| format!("line {}: {e}", m.line))?;
+        let p = reached(&g, &m.strokes_mm, &m.pose).map_err(|e| format!("line {}: {e}", m.line))?;
         errors.push(super::eval::pose_error(&p, &m.pose));
     }
     Ok(Accuracy::from_errors(errors))
@@ -70,8 +72,13 @@ pub struct CalibrateArgs {
 pub fn run_calibrate(a: &CalibrateArgs) -> Result<(String, String), String> {
     let meas = read_measurements(&a.data)?;
     let nominal = read_geometry(&a.nominal)?;
-    let r: CalibResult =
-        calibrate(&nominal.params, &meas, &a.cfg).map_err(|e| format!("calibration: {e}"))?;
+    let r: CalibResult = calibrate(&nominal.params, &meas, &a.cfg).map_err(|e| match e {
+        CalibError::Implausible(fe) => format!("{}: {fe}", a.data.display()),
+        e => format!("calibration: {e}"),
+    })?;
+    // Nothing is written (file or plot) unless the table would pass on board.
+    super::files::validate_for_flight(&r.params)
+        .map_err(|e| format!("calibration result ({} solver): {e}", a.cfg.solver))?;
     let mut summary = format!(
         "calibrated {} joint coordinates from {} poses ({}), solver {}, seed {}\n{}\n",
         super::calib::N_PARAMS,
@@ -192,7 +199,7 @@ pub struct CampaignArgs {
     /// Seed of the true geometry.
     pub geometry_seed: u64,
     /// Tracker model.
-    pub tracker: Tracker,
+    pub tracker: PoseTracker,
     /// Seed of the tracker noise.
     pub noise_seed: u64,
     /// Sampling plan.

@@ -6,7 +6,7 @@
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 
-use super::campaign::{true_motion, CampaignError};
+use super::campaign::{reached, CampaignError};
 use super::plan::DEFAULT_AXIS_MM;
 use crate::kinematics::{ik, Geometry, GeometryParams, Pose, ARCSEC_PER_RAD};
 
@@ -94,7 +94,7 @@ pub fn accuracy(
                 super::ikfk::describe_ik_error(&e)
             ))
         })?;
-        let p = true_motion(&tru, &s, t)?;
+        let p = reached(&tru, &s, t)?;
         errors.push(pose_error(&p, t));
     }
     Ok(Accuracy::from_errors(errors))

@@ -19,6 +19,8 @@
 //! calibration_id = "..."
 //! ```
 //! Within `[limits]`, the stroke pair and the workspace pair are each all-or-nothing.
+//! Two legs whose lower (or upper) joints are closer than [`MIN_JOINT_SPACING_MM`] are
+//! refused: a duplicated leg is a copy-paste error, and its Jacobian is singular.
 
 use std::fmt;
 use std::ops::Range;
@@ -29,6 +31,11 @@ use toml::Spanned;
 use crate::kinematics::{
     GeometryError, GeometryParams, LegParams, StrokeLimits, WorkspaceLimits, ARCSEC_PER_RAD, LEGS,
 };
+use crate::table::{ValidationConfig, ValidationError};
+
+/// Smallest distance between the lower joints (or between the upper joints) of two legs
+/// (mm). Real spherical joints are tens of mm apart; closer than this is a duplicated leg.
+pub const MIN_JOINT_SPACING_MM: f64 = 1.0;
 
 /// A file problem, with the 1-based line where it was found (0 when it concerns the
 /// whole file).
@@ -179,6 +186,7 @@ pub fn parse_geometry(text: &str) -> Result<GeometryFile, FileError> {
             b_mm: *l.b.get_ref(),
         };
     }
+    check_distinct_legs(text, legs_raw, &legs)?;
     let mut params = GeometryParams::new(legs, *raw.p0.get_ref());
     if let Some(lim) = &raw.limits {
         let lim_line = line_of(text, &lim.span());
@@ -248,6 +256,143 @@ pub fn parse_geometry(text: &str) -> Result<GeometryFile, FileError> {
         })
         .unwrap_or_default();
     Ok(GeometryFile { params, provenance })
+}
+
+fn distance_mm(p: &[f64; 3], q: &[f64; 3]) -> f64 {
+    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+}
+
+/// Refuses two legs sharing a lower or an upper joint (closer than
+/// [`MIN_JOINT_SPACING_MM`]), at the later leg's line.
+fn check_distinct_legs(
+    text: &str,
+    raw: &[RawLeg],
+    legs: &[LegParams; LEGS],
+) -> Result<(), FileError> {
+    for (j, (lj, rj)) in legs.iter().zip(raw.iter()).enumerate() {
+        for (i, li) in legs.iter().enumerate().take(j) {
+            for (what, p, q, span) in [
+                ("lower joint a", &lj.a_mm, &li.a_mm, rj.a.span()),
+                ("upper joint b", &lj.b_mm, &li.b_mm, rj.b.span()),
+            ] {
+                let d = distance_mm(p, q);
+                if d < MIN_JOINT_SPACING_MM {
+                    return Err(err(
+                        line_of(text, &span),
+                        format!(
+                            "leg {}: {what} is {d:.3} mm from leg {}'s (a duplicated leg?); joints of different legs must be at least {MIN_JOINT_SPACING_MM} mm apart",
+                            j + 1,
+                            i + 1
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Plain-words description of a flight-validation refusal
+/// ([`crate::table::validate()`]), with its telemetry code and detail word.
+pub fn describe_validation_error(e: &ValidationError) -> String {
+    let legs = |mask: u8| {
+        (0..LEGS)
+            .filter(|i| mask & (1 << i) != 0)
+            .map(|i| (i + 1).to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let what = match e {
+        ValidationError::ProvenanceNotAscii { index } => {
+            format!("provenance tag byte {index} is not printable ASCII")
+        }
+        ValidationError::NonFinite { field } => format!("field {field} is not finite"),
+        ValidationError::CoordinateOffNominal { index } => {
+            let name = if usize::from(*index) < crate::table::layout::JOINT_COORDS {
+                crate::ground::calib::param_name(usize::from(*index))
+            } else {
+                format!(
+                    "p0[{}]",
+                    usize::from(*index) - crate::table::layout::JOINT_COORDS
+                )
+            };
+            format!(
+                "{name} is more than {} mm from nominal",
+                crate::table::validate::DEFAULT_MAX_COORDINATE_DEVIATION_MM
+            )
+        }
+        ValidationError::RodLengthImplausible { leg } => format!(
+            "rod {} is more than {} mm longer or shorter than nominal",
+            leg + 1,
+            crate::table::validate::DEFAULT_MAX_ROD_DEVIATION_MM
+        ),
+        ValidationError::Geometry(g) => describe_geometry_error(g),
+        ValidationError::StrokeLimitBeyondCap { leg } => format!(
+            "slider {} stroke limit beyond the compiled-in +-{} mm",
+            leg + 1,
+            crate::nominal::STROKE_LIMIT_MM
+        ),
+        ValidationError::WorkspaceBeyondCap { axis } => format!(
+            "workspace half-range of axis {} beyond the compiled-in cap",
+            ["x", "y", "z", "alpha", "beta", "gamma"]
+                .get(usize::from(*axis))
+                .unwrap_or(&"?")
+        ),
+        ValidationError::Supervision { field } => {
+            format!("supervision threshold {field} not positive or not ordered")
+        }
+        ValidationError::Unreachable { legs: m } => {
+            format!("leg {} cannot reach part of the workspace", legs(*m))
+        }
+        ValidationError::StrokeLimitExceeded { legs: m } => format!(
+            "slider {} would exceed its stroke limits inside the workspace",
+            legs(*m)
+        ),
+        ValidationError::FkFailed { corner, .. } => {
+            format!("forward kinematics fails at workspace corner {corner}")
+        }
+        ValidationError::FkInaccurate { corner } => {
+            format!("forward kinematics inaccurate at workspace corner {corner}")
+        }
+        ValidationError::BadConfig => "validation configuration out of range".into(),
+    };
+    format!(
+        "the flight validation refuses this table: {what} (code {:#06x}, detail {:#06x})",
+        e.code(),
+        e.detail()
+    )
+}
+
+/// Runs the flight code's table validation ([`crate::table::validate()`] with
+/// [`ValidationConfig::flight`]) on a geometry, as the controller will before it stores
+/// the table. A geometry without `[limits]` is checked with the compiled-in flight
+/// limits (those a table built from it for upload would need to carry).
+pub fn validate_for_flight(params: &GeometryParams) -> Result<(), String> {
+    let mut g = *params;
+    let flight = crate::nominal::prototype_with_flight_limits();
+    if g.stroke_limits.is_none() {
+        g.stroke_limits = flight.stroke_limits;
+    }
+    if g.workspace.is_none() {
+        g.workspace = flight.workspace;
+    }
+    let table = crate::table::Table::from_geometry(
+        &g,
+        0,
+        crate::table::Provenance {
+            calibration_id: 0,
+            tag: [b' '; crate::table::layout::PROVENANCE_TAG_LEN],
+        },
+        crate::table::DEFAULT_SUPERVISION,
+    )
+    .map_err(|e| format!("table: {e:?}"))?;
+    validate_table_for_flight(&table)
+}
+
+/// [`validate_for_flight`] for a table already built.
+pub fn validate_table_for_flight(table: &crate::table::Table) -> Result<(), String> {
+    crate::table::validate(table, &ValidationConfig::flight())
+        .map_err(|e| describe_validation_error(&e))
 }
 
 /// Plain-words description of a geometry error.

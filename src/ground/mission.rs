@@ -3,11 +3,13 @@
 //! 1. a mechanism with manufacturing errors (the "true" geometry) and the controller,
 //!    running its real code, booted on the nominal table;
 //! 2. the operator moves the mirror to a set of targets by telecommand; a simulated
-//!    laser tracker measures where it really went (pose error before calibration);
+//!    laser tracker measures its target balls and the ground derives where it really
+//!    went (pose error before calibration; ball centres from a survey at home);
 //! 3. a calibration campaign: the paper's sampling plan, each pose commanded by
-//!    telecommand, the tracker's pose and the encoder strokes (from housekeeping
-//!    telemetry) recorded;
-//! 4. ground calibration: the improved cuckoo search followed by Levenberg-Marquardt;
+//!    telecommand, the tracker's ball points and the encoder strokes (from housekeeping
+//!    telemetry) recorded as a tracker point export and a stroke file;
+//! 4. ground calibration from the export: the bundle fit in ball coordinates
+//!    (`ground::tracker`);
 //! 5. the calibrated table uploaded by telecommands (chunks, commit with CRC-32),
 //!    validated on board and activated;
 //! 6. the same targets again: pose error after calibration;
@@ -19,14 +21,13 @@
 use std::path::PathBuf;
 
 use indicatif::{ProgressBar, ProgressStyle};
-use rand::SeedableRng;
-use rand_pcg::Pcg64;
 
-use super::calib::{calibrate, CalibConfig, CalibResult, Measurement, SolverKind};
-use super::campaign::Tracker;
-use super::eval::{pose_error, random_poses, Accuracy, UM_PER_MM};
+use super::calib::bundle::{BundleConfig, BundleFit};
+use super::eval::{pose_error, random_poses, Accuracy};
 use super::plan::{plan_poses, PlanConfig};
 use super::tc::{activate_command, upload_commands};
+use super::tracker::campaign::TrackerSetup;
+use super::tracker::session::TrackerSession;
 use crate::controller::State;
 use crate::kinematics::{Pose, LEGS};
 use crate::link::tm::Verification;
@@ -55,8 +56,8 @@ pub struct MissionConfig {
     pub seed: u64,
     /// Standard deviation of each joint coordinate's manufacturing error (mm).
     pub manufacturing_sigma_mm: f64,
-    /// Laser-tracker noise.
-    pub tracker: Tracker,
+    /// The laser tracker, its target balls and the base fiducials.
+    pub tracker: TrackerSetup,
     /// Number of operator targets.
     pub n_targets: usize,
     /// Targets are drawn uniformly within +- this translation (mm)...
@@ -65,8 +66,8 @@ pub struct MissionConfig {
     pub target_rotation_arcsec: f64,
     /// The calibration sampling plan.
     pub plan: PlanConfig,
-    /// Calibration settings (solver: improved+lm by default).
-    pub calib: CalibConfig,
+    /// Bundle-fit settings.
+    pub bundle: BundleConfig,
     /// Show progress bars.
     pub progress: bool,
     /// Write the per-target error plot here (SVG).
@@ -87,15 +88,18 @@ impl Default for MissionConfig {
         Self {
             seed: 1,
             manufacturing_sigma_mm: DEFAULT_MANUFACTURING_SIGMA_MM,
-            tracker: Tracker::PAPER,
+            tracker: TrackerSetup {
+                noise: crate::sim::tracker::TrackerNoise::PAPER,
+                ..TrackerSetup::default()
+            },
             n_targets: DEFAULT_TARGETS,
             target_translation_mm: DEFAULT_TARGET_TRANSLATION_MM,
             target_rotation_arcsec: DEFAULT_TARGET_ROTATION_ARCSEC,
             plan: PlanConfig::default(),
-            calib: CalibConfig {
-                solver: SolverKind::ImprovedLm,
-                ..CalibConfig::default()
-            },
+            bundle: BundleConfig::with_priors(
+                super::calib::bundle::DEFAULT_JOINT_PRIOR_SIGMA_MM,
+                super::tracker::files::DEFAULT_BALL_SIGMA_MM,
+            ),
             progress: true,
             plot: None,
         }
@@ -110,7 +114,7 @@ pub struct MissionReport {
     /// The same targets with the calibrated table.
     pub after: Accuracy,
     /// The calibration run.
-    pub calib: CalibResult,
+    pub calib: BundleFit,
     /// Calibration measurements taken.
     pub n_measurements: usize,
     /// Telecommands sent and telemetry packets received.
@@ -195,15 +199,14 @@ fn bar(show: bool, len: u64, msg: &'static str) -> ProgressBar {
 fn visit_targets(
     m: &mut Mission,
     targets: &[Pose<f64>],
-    tracker: &Tracker,
-    rng: &mut Pcg64,
+    tracker: &mut TrackerSession,
     pb: &ProgressBar,
 ) -> Result<Accuracy, String> {
     let mut errors = Vec::with_capacity(targets.len());
     for t in targets {
         m.move_to(t)?;
         let truth = m.true_pose()?;
-        errors.push(pose_error(&tracker.measure(&truth, rng), t));
+        errors.push(pose_error(&tracker.measure_pose(&truth)?, t));
         pb.inc(1);
     }
     pb.finish();
@@ -234,7 +237,9 @@ pub fn run_mission(
         bench: Bench::with_plant(plant),
     };
     m.bench.tick();
-    let mut rng = Pcg64::seed_from_u64(cfg.seed ^ 0x5eed_7a46_e75a_11ce);
+    let mut tracker = TrackerSession::new(&cfg.tracker, &nominal_params.p0_mm, cfg.seed);
+    let home = m.true_pose()?;
+    tracker.survey_home(&home)?;
     let targets = random_poses(
         cfg.n_targets,
         cfg.target_translation_mm,
@@ -247,49 +252,34 @@ pub fn run_mission(
         targets.len() as u64,
         "2. targets, nominal table",
     );
-    let before = visit_targets(&mut m, &targets, &cfg.tracker, &mut rng, &pb)?;
+    let before = visit_targets(&mut m, &targets, &mut tracker, &pb)?;
     log(&format!(
-        "2. {} targets with the nominal table: max error {:.3} um, {:.3} arcsec (tracker noise {} um, {} arcsec)",
+        "2. {} targets with the nominal table: max error {:.3} um, {:.3} arcsec (tracker: {})",
         targets.len(),
         before.max_um(),
         before.max_arcsec(),
-        cfg.tracker.noise_um,
-        cfg.tracker.noise_arcsec
+        cfg.tracker.noise.describe()
     ));
 
     let plan = plan_poses(&cfg.plan);
     let pb = bar(cfg.progress, plan.len() as u64, "3. calibration campaign");
-    let mut meas = Vec::with_capacity(plan.len());
-    for (k, p) in plan.iter().enumerate() {
+    for p in &plan {
         m.move_to(p)?;
         let strokes_mm = m.strokes_from_hk()?;
         let truth_pose = m.true_pose()?;
-        meas.push(Measurement {
-            line: k + 1,
-            pose: cfg.tracker.measure(&truth_pose, &mut rng),
-            strokes_mm,
-        });
+        tracker.record(&truth_pose, strokes_mm);
         pb.inc(1);
     }
     pb.finish();
     log(&format!(
-        "3. campaign: {} poses of the paper's sampling plan, tracker pose + encoder strokes from housekeeping",
-        meas.len()
+        "3. campaign: {} poses of the paper's sampling plan, tracker ball points + encoder strokes from housekeeping",
+        tracker.poses()
     ));
 
-    let mut ccfg = cfg.calib.clone();
-    ccfg.seed = cfg.seed;
-    ccfg.progress = cfg.progress;
-    let calib =
-        calibrate(&nominal_params, &meas, &ccfg).map_err(|e| format!("calibration: {e}"))?;
+    let calib = tracker.calibrate(&nominal_params, &cfg.bundle)?.clone();
     log(&format!(
-        "4. calibration ({}): residual RMS {:.4} um -> {:.4} um, condition {:.2e}, {} evaluations, {:.2} s",
-        ccfg.solver.name(),
-        calib.rms_before_mm * UM_PER_MM,
-        calib.rms_after_mm * UM_PER_MM,
-        calib.condition(),
-        calib.evaluations,
-        calib.elapsed.as_secs_f64()
+        "4. calibration from the tracker export: {}",
+        tracker.summary()
     ));
 
     let table = Table::from_geometry(
@@ -329,12 +319,13 @@ pub fn run_mission(
         targets.len() as u64,
         "6. targets, calibrated table",
     );
-    let after = visit_targets(&mut m, &targets, &cfg.tracker, &mut rng, &pb)?;
+    let after = visit_targets(&mut m, &targets, &mut tracker, &pb)?;
     log(&format!(
         "6. the same targets with the calibrated table: max error {:.3} um, {:.3} arcsec",
         after.max_um(),
         after.max_arcsec()
     ));
+    log(&format!("   {}", tracker.verification_note(&targets)));
     if m.bench.st.bad_frames != 0 {
         return Err(format!(
             "{} telemetry frames did not parse",
@@ -342,9 +333,10 @@ pub fn run_mission(
         ));
     }
     if let Some(path) = &cfg.plot {
-        super::report::plot_per_pose(
+        super::report::plot_per_pose_with_floor(
             path,
             &[("nominal table", &before), ("calibrated table", &after)],
+            tracker.pose_noise_sigma(),
         )?;
         log(&format!("7. plot: {}", path.display()));
     }
@@ -352,7 +344,7 @@ pub fn run_mission(
         before,
         after,
         calib,
-        n_measurements: meas.len(),
+        n_measurements: tracker.poses(),
         tc_sent: m.bench.st.tc_sent,
         tm_received: m.bench.st.log.len(),
         sim_time_s: m.bench.cycles as f64 * f64::from(CYCLE_S),

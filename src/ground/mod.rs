@@ -13,3 +13,4 @@ pub mod plan;
 pub mod report;
 pub mod station;
 pub mod tc;
+pub mod tracker;

@@ -11,9 +11,7 @@ use std::path::Path;
 
 use super::calib::cuckoo::Coordinates;
 use super::calib::{calibrate, CalibConfig, CalibResult, Measurement, SolverKind};
-use super::campaign::{
-    perturbed, simulate, CampaignError, Tracker, DEFAULT_MANUFACTURING_SIGMA_MM,
-};
+use super::campaign::{perturbed, simulate, CampaignError, DEFAULT_MANUFACTURING_SIGMA_MM};
 use super::eval::{
     accuracy, max_param_error_mm, random_poses, Accuracy, DEFAULT_EVAL_POSES,
     DEFAULT_EVAL_ROTATION_ARCSEC, DEFAULT_EVAL_TRANSLATION_MM,
@@ -21,6 +19,7 @@ use super::eval::{
 use super::plan::{plan_poses, PlanConfig};
 use crate::kinematics::{GeometryParams, Pose};
 use crate::nominal::PROTOTYPE;
+use crate::sim::tracker::PoseTracker;
 
 /// Default seed of the true geometry of the table campaign.
 pub const DEFAULT_GEOMETRY_SEED: u64 = 2018;
@@ -77,7 +76,7 @@ pub struct Prepared {
 
 impl Experiment {
     /// Builds the truth, simulates the campaign with `tracker`, draws the targets.
-    pub fn prepare(&self, tracker: &Tracker) -> Result<Prepared, CampaignError> {
+    pub fn prepare(&self, tracker: &PoseTracker) -> Result<Prepared, CampaignError> {
         let truth = perturbed(&self.nominal, self.sigma_mm, self.geometry_seed);
         let meas = simulate(
             &self.nominal,
@@ -214,7 +213,9 @@ pub fn table3(cfg: &TableConfig) -> Result<String, String> {
         coordinates_name(cfg.calib.cuckoo.coordinates)
     );
     // Part 1: the paper's noise.
-    let prep = exp.prepare(&Tracker::PAPER).map_err(|e| e.to_string())?;
+    let prep = exp
+        .prepare(&PoseTracker::PAPER)
+        .map_err(|e| e.to_string())?;
     let mut rows = vec![before_row(exp, &prep)?];
     for solver in [
         SolverKind::Smcs,
@@ -227,8 +228,8 @@ pub fn table3(cfg: &TableConfig) -> Result<String, String> {
     let _ = writeln!(
         out,
         "### Tracker noise {} um / {} arcsec (the paper's Table 3)\n",
-        Tracker::PAPER.noise_um,
-        Tracker::PAPER.noise_arcsec
+        PoseTracker::PAPER.noise_um,
+        PoseTracker::PAPER.noise_arcsec
     );
     out.push_str(&format_rows(&rows));
     if let Some(path) = &cfg.plot {
@@ -242,7 +243,7 @@ pub fn table3(cfg: &TableConfig) -> Result<String, String> {
     }
     // Part 2: realistic noise, bounded vs unbounded.
     let prep = exp
-        .prepare(&Tracker::REALISTIC)
+        .prepare(&PoseTracker::REALISTIC)
         .map_err(|e| e.to_string())?;
     let mut rows = vec![before_row(exp, &prep)?];
     for solver in [
@@ -255,8 +256,8 @@ pub fn table3(cfg: &TableConfig) -> Result<String, String> {
     let _ = writeln!(
         out,
         "\n### Tracker noise {} um / {} arcsec: bounded vs unbounded\n",
-        Tracker::REALISTIC.noise_um,
-        Tracker::REALISTIC.noise_arcsec
+        PoseTracker::REALISTIC.noise_um,
+        PoseTracker::REALISTIC.noise_arcsec
     );
     out.push_str(&format_rows(&rows));
     for r in rows.iter().filter_map(|r| r.calib.as_ref()) {
@@ -276,7 +277,9 @@ pub fn table3(cfg: &TableConfig) -> Result<String, String> {
 /// minimum and mean are reported).
 pub fn bench(cfg: &TableConfig, repeats: usize) -> Result<String, String> {
     let exp = &cfg.exp;
-    let prep = exp.prepare(&Tracker::PAPER).map_err(|e| e.to_string())?;
+    let prep = exp
+        .prepare(&PoseTracker::PAPER)
+        .map_err(|e| e.to_string())?;
     let mut out = String::new();
     let _ = writeln!(
         out,
@@ -320,85 +323,55 @@ pub fn bench(cfg: &TableConfig, repeats: usize) -> Result<String, String> {
     Ok(out)
 }
 
-/// Plot colours (RGB) of the series, in order.
-const PLOT_COLOURS: [(u8, u8, u8); 6] = [
-    (200, 30, 30),
-    (230, 150, 0),
-    (30, 120, 200),
-    (20, 150, 60),
-    (120, 60, 160),
-    (0, 0, 0),
-];
-/// Plot size (px).
-const PLOT_SIZE_PX: (u32, u32) = (1000, 800);
-/// Smallest error drawn on the log axes (um or arcsec): zero errors are drawn here.
-const PLOT_FLOOR: f64 = 1.0e-4;
-
-/// Writes an SVG with two panels (max translation error um, max rotation error arcsec,
-/// per held-out pose, log scale), one line per series.
+/// Writes an SVG with two panels (largest translation error um, largest rotation error
+/// arcsec, per pose, log scale), one marker shape per series (no lines joining unrelated
+/// poses), the legend in a strip of its own.
 pub fn plot_per_pose(path: &Path, series: &[(&str, &Accuracy)]) -> Result<(), String> {
-    use plotters::prelude::*;
-    let e = |e: &dyn std::fmt::Display| format!("{}: plot: {e}", path.display());
-    let root = SVGBackend::new(path, PLOT_SIZE_PX).into_drawing_area();
-    root.fill(&WHITE).map_err(|x| e(&x))?;
-    let panels = root.split_evenly((2, 1));
-    for (panel, (what, unit)) in panels
-        .iter()
-        .zip([("translation", "um"), ("rotation", "arcsec")])
-    {
-        let per: Vec<Vec<f64>> = series
+    plot_per_pose_with_floor(path, series, None)
+}
+
+/// [`plot_per_pose`] with the measurement's noise floor drawn as a band: `floor` = the
+/// 1-sigma noise of one pose measurement per axis (um x3, arcsec x3); the band is where
+/// the largest |error| of a pose of pure noise lands 90 % of the time.
+pub fn plot_per_pose_with_floor(
+    path: &Path,
+    series: &[(&str, &Accuracy)],
+    floor: Option<[f64; 6]>,
+) -> Result<(), String> {
+    use super::tracker::commands::noise_band;
+    use super::tracker::plots::{per_pose, Panel, Series};
+    let panel = |what: &str, unit: &str, rot: bool| Panel {
+        caption: format!("largest |{what} error| of each pose ({unit}, log scale)"),
+        y_label: unit.to_string(),
+        series: series
             .iter()
-            .map(|(_, a)| {
-                a.per_pose_max()
+            .map(|(l, a)| Series {
+                label: l.to_string(),
+                values: a
+                    .per_pose_max()
                     .iter()
-                    .map(|(t, r)| if unit == "um" { *t } else { *r })
-                    .map(|v| v.max(PLOT_FLOOR))
-                    .collect()
+                    .map(|(t, r)| if rot { *r } else { *t })
+                    .collect(),
             })
-            .collect();
-        let n = per.iter().map(Vec::len).max().unwrap_or(1).max(2);
-        let top = per
-            .iter()
-            .flatten()
-            .fold(PLOT_FLOOR * 10.0, |m, v| m.max(*v))
-            * 2.0;
-        let mut chart = ChartBuilder::on(panel)
-            .caption(
-                format!("max |{what} error| per held-out pose ({unit})"),
-                ("sans-serif", 20),
-            )
-            .margin(10)
-            .x_label_area_size(30)
-            .y_label_area_size(60)
-            .build_cartesian_2d(0f64..(n - 1) as f64, (PLOT_FLOOR..top).log_scale())
-            .map_err(|x| e(&x))?;
-        chart
-            .configure_mesh()
-            .x_desc("held-out pose")
-            .y_desc(unit)
-            .draw()
-            .map_err(|x| e(&x))?;
-        for (k, ((label, _), ys)) in series.iter().zip(per.iter()).enumerate() {
-            let (r, g, b) = PLOT_COLOURS[k % PLOT_COLOURS.len()];
-            let colour = RGBColor(r, g, b);
-            chart
-                .draw_series(LineSeries::new(
-                    ys.iter().enumerate().map(|(i, v)| (i as f64, *v)),
-                    colour,
-                ))
-                .map_err(|x| e(&x))?
-                .label(*label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
-        }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|x| e(&x))?;
-    }
-    root.present().map_err(|x| e(&x))?;
-    Ok(())
+            .collect(),
+        band: floor.map(|f| noise_band(if rot { &f[3..] } else { &f[..3] })),
+        log: true,
+    };
+    let n = series
+        .iter()
+        .map(|(_, a)| a.errors.len())
+        .max()
+        .unwrap_or(0);
+    per_pose(
+        path,
+        &format!("Pose error per pose, {n} poses"),
+        "pose",
+        &[
+            panel("translation", "um", false),
+            panel("rotation", "arcsec", true),
+        ],
+        floor.map(|_| "measurement noise floor (90 % of pure-noise poses)"),
+    )
 }
 
 /// SMCS vs the improved algorithm over solver seeds `1..=seeds` on the paper-noise
@@ -407,7 +380,9 @@ pub fn plot_per_pose(path: &Path, series: &[(&str, &Accuracy)]) -> Result<(), St
 /// for comparison, in the other ones (whitened vs the paper's original coordinates).
 pub fn compare_cuckoo(cfg: &TableConfig, seeds: u64) -> Result<String, String> {
     let exp = &cfg.exp;
-    let prep = exp.prepare(&Tracker::PAPER).map_err(|e| e.to_string())?;
+    let prep = exp
+        .prepare(&PoseTracker::PAPER)
+        .map_err(|e| e.to_string())?;
     let mut out = String::from(
         "| coordinates | seed | smcs max um | smcs max arcsec | smcs fit RMS um | improved max um | improved max arcsec | improved fit RMS um | improved time ms |\n|---|---|---|---|---|---|---|---|---|\n",
     );

@@ -132,14 +132,16 @@ pub fn provenance(
     }
 }
 
-/// The table of a geometry file (with `[limits]`), default supervision thresholds.
+/// The table of a geometry file (with `[limits]`), default supervision thresholds,
+/// checked by the flight validation (`table::validate`, flight configuration): a table
+/// the controller would refuse is never encoded.
 pub fn table_from_geometry_file(
     path: &Path,
     table_id: u32,
     calibration_id: Option<u32>,
 ) -> Result<Table, String> {
     let file = crate::ground::files::read_geometry(path)?;
-    Table::from_geometry(
+    let table = Table::from_geometry(
         &file.params,
         table_id,
         provenance(&file.provenance, calibration_id),
@@ -150,7 +152,12 @@ pub fn table_from_geometry_file(
             "{}: a table needs [limits] with stroke and workspace limits",
             path.display()
         )
-    })
+    })?;
+    // The controller would refuse it after the whole upload: refuse it here, before
+    // anything is encoded.
+    crate::ground::files::validate_table_for_flight(&table)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(table)
 }
 
 /// The upload sequence of a table: TC[6,2] chunks of at most 128 bytes in offset order,

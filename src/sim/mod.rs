@@ -4,7 +4,8 @@
 //! * [`plant`]: six sliders with finite speed and encoders with 0.1 um quantisation and
 //!   noise, implementing the same [`crate::hw`] traits the board glue implements on the
 //!   target; everything is deterministic from a seed.
-
+//! * [`tracker`]: the measuring instruments: the idealised pose tracker and a laser
+//!   tracker measuring target balls in its own frame, with its noise model.
 //! * [`soak`]: the model-based soak: random operator/adversary sequences on the bench
 //!   with the operator contract checked every cycle (the soak test and the fuzzer).
 //! * [`bench`]: the one test bench: controller + link service + worker + plant + flash
@@ -14,6 +15,7 @@ pub mod bench;
 pub mod manufacturing;
 pub mod plant;
 pub mod soak;
+pub mod tracker;
 
 pub use bench::{Bench, BenchConfig};
 pub use plant::{InjectedFault, Plant, PlantConfig, SharedPlant};

@@ -12,8 +12,11 @@
 //! Solvers: [`lm`] (Levenberg-Marquardt, analytic Jacobian, regularised toward nominal and
 //! kept inside Omega) and [`cuckoo`] (the paper's SMCS and its improved variant).
 
+pub mod bundle;
 pub mod cuckoo;
+pub mod design;
 pub mod lm;
+pub mod registration;
 
 use std::fmt;
 use std::time::Duration;
@@ -31,6 +34,12 @@ pub const N_PARAMS: usize = LEGS * PARAMS_PER_LEG;
 /// Default half-width of the feasible box Omega around nominal, per parameter (mm).
 /// The paper's digit is unreadable; the seed notes read it as 0.5 mm.
 pub const DEFAULT_OMEGA_HALF_WIDTH_MM: f64 = 0.5;
+/// Largest plausible |measured stroke - IK(measured pose, nominal)| (mm). Joint
+/// coordinates within the flight validation's 1 mm of nominal change a stroke by at most
+/// ~0.07 mm per coordinate anywhere in the +-2 mm, +-600" workspace (the stroke gradients
+/// of [`Problem::jacobian_into`] are bounded by `|u| / q` <= 4.4 mm / 70 mm), ~0.4 mm for
+/// all six of a leg together; a larger mismatch is a wrong column, unit or reading.
+pub const MAX_NOMINAL_STROKE_MISMATCH_MM: f64 = 0.5;
 /// Residual (mm) given to a leg that cannot reach a measured pose with the trial
 /// parameters: large against any real residual (um), finite so every solver can compare.
 pub const UNREACHABLE_RESIDUAL_MM: f64 = 1.0e3;
@@ -175,6 +184,96 @@ pub fn parse_measurements(text: &str) -> Result<Vec<Measurement>, FileError> {
     Ok(out)
 }
 
+/// Refuses implausible measurements, naming the file line: a pose outside the workspace,
+/// a stroke outside the slider range (both from `nominal`'s `[limits]`, else the
+/// compiled-in flight limits: the controller never goes beyond them), a stroke that the
+/// measured pose cannot explain under the nominal geometry by more than
+/// [`MAX_NOMINAL_STROKE_MISMATCH_MM`], or a non-finite value.
+pub fn check_measurements(meas: &[Measurement], nominal: &GeometryParams) -> Result<(), FileError> {
+    let flight = crate::nominal::prototype_with_flight_limits();
+    let stroke = nominal
+        .stroke_limits
+        .or(flight.stroke_limits)
+        .ok_or_else(|| FileError {
+            line: 0,
+            message: "no stroke limits".into(),
+        })?;
+    let ws = nominal
+        .workspace
+        .or(flight.workspace)
+        .ok_or_else(|| FileError {
+            line: 0,
+            message: "no workspace limits".into(),
+        })?;
+    let geom =
+        Geometry::<f64>::new(&GeometryParams::new(nominal.legs, nominal.p0_mm)).map_err(|e| {
+            FileError {
+                line: 0,
+                message: format!(
+                    "nominal geometry: {}",
+                    crate::ground::files::describe_geometry_error(&e)
+                ),
+            }
+        })?;
+    let bad = |m: &Measurement, message: String| FileError {
+        line: m.line,
+        message,
+    };
+    for m in meas {
+        let v = pose_mm_arcsec(&m.pose);
+        let half = [
+            ws.translation_mm[0],
+            ws.translation_mm[1],
+            ws.translation_mm[2],
+            ws.rotation_rad[0] * ARCSEC_PER_RAD,
+            ws.rotation_rad[1] * ARCSEC_PER_RAD,
+            ws.rotation_rad[2] * ARCSEC_PER_RAD,
+        ];
+        for (k, (x, h)) in v.iter().zip(half.iter()).enumerate() {
+            let col = crate::ground::files::CSV_COLUMNS[k];
+            if !x.is_finite() || x.abs() > *h {
+                return Err(bad(
+                    m,
+                    format!("pose {col} = {x} is outside the workspace (+-{h})"),
+                ));
+            }
+        }
+        for (i, s) in m.strokes_mm.iter().enumerate() {
+            let (lo, hi) = (stroke.min_mm[i], stroke.max_mm[i]);
+            if !s.is_finite() || *s < lo || *s > hi {
+                return Err(bad(
+                    m,
+                    format!(
+                        "stroke s{}_mm = {s} mm is outside the slider range [{lo}, {hi}] mm",
+                        i + 1
+                    ),
+                ));
+            }
+        }
+        let expected = crate::kinematics::ik(&geom, &m.pose).map_err(|e| {
+            bad(
+                m,
+                format!(
+                    "pose not reachable with the nominal geometry: {}",
+                    crate::ground::ikfk::describe_ik_error(&e)
+                ),
+            )
+        })?;
+        for (i, (s, e)) in m.strokes_mm.iter().zip(expected.iter()).enumerate() {
+            if (s - e).abs() > MAX_NOMINAL_STROKE_MISMATCH_MM {
+                return Err(bad(
+                    m,
+                    format!(
+                        "stroke s{}_mm = {s} mm is inconsistent with the measured pose: the nominal geometry needs {e:.4} mm there (more than {MAX_NOMINAL_STROKE_MISMATCH_MM} mm apart)",
+                        i + 1
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Formats measurements as the 12-column CSV (with header).
 pub fn format_measurements(meas: &[Measurement], header_comment: &str) -> String {
     let mut s = String::new();
@@ -289,18 +388,9 @@ impl Problem {
     }
 
     /// Analytic Jacobian `d e_ij / d v_k` (dimensionless), row-major, rows
-    /// measurement-major like the residuals, 36 columns. Residual `e = s* - dl` with
-    /// (`h` horizontal rod components and `q` vertical one at the pose, `d0` home rod,
-    /// `R = I + W`):
-    ///
-    /// ```text
-    /// d dl / d a_x = -(h_x - d0_x) / q      d dl / d a_y = -(h_y - d0_y) / q
-    /// d dl / d a_z = d0_z / q - 1
-    /// d dl / d b_k = R_zk - (d0_k - h_x R_xk - h_y R_yk) / q
-    /// ```
-    ///
-    /// Every column of leg i is zero in the rows of the other legs. Unreachable legs
-    /// get zero rows.
+    /// measurement-major like the residuals, 36 columns: residual `e = s* - dl`, so the
+    /// entries are minus [`stroke_gradient`]. Every column of leg i is zero in the rows of
+    /// the other legs. Unreachable legs get zero rows.
     pub fn jacobian_into(&self, v: &ParamVec, out: &mut [f64]) {
         out.iter_mut().for_each(|x| *x = 0.0);
         let Some(legs) = self.legs(v) else {
@@ -313,19 +403,8 @@ impl Problem {
                 };
                 let row = &mut out[(j * LEGS + i) * N_PARAMS..(j * LEGS + i + 1) * N_PARAMS];
                 let c = &mut row[i * PARAMS_PER_LEG..(i + 1) * PARAMS_PER_LEG];
-                let inv_q = 1.0 / st.q_mm;
-                let d0 = &leg.d0_mm;
-                let h = &st.h_mm;
-                c[0] = (h[0] - d0[0]) * inv_q;
-                c[1] = (h[1] - d0[1]) * inv_q;
-                c[2] = 1.0 - d0[2] * inv_q;
-                for k in 0..3 {
-                    let w = &rot.w;
-                    let r_xk = w[(0, k)] + if k == 0 { 1.0 } else { 0.0 };
-                    let r_yk = w[(1, k)] + if k == 1 { 1.0 } else { 0.0 };
-                    let r_zk = w[(2, k)] + if k == 2 { 1.0 } else { 0.0 };
-                    let ddl = r_zk - (d0[k] - h[0] * r_xk - h[1] * r_yk) * inv_q;
-                    c[3 + k] = -ddl;
+                for (ck, g) in c.iter_mut().zip(stroke_gradient(leg, rot, &st)) {
+                    *ck = -g;
                 }
             }
         }
@@ -346,6 +425,38 @@ impl Problem {
         sv.sort_by(|a, b| b.total_cmp(a));
         sv
     }
+}
+
+/// Gradient of leg `i`'s stroke `dl_i` at a pose (its [`leg_state`] `st` under rotation
+/// `rot`) with respect to the leg's own parameters `[a_x, a_y, a_z, b_x, b_y, b_z]`
+/// (dimensionless), p0 fixed and the rod length derived (`h` horizontal rod components and
+/// `q` vertical one at the pose, `d0` home rod, `R = I + W`):
+///
+/// ```text
+/// d dl / d a_x = -(h_x - d0_x) / q      d dl / d a_y = -(h_y - d0_y) / q
+/// d dl / d a_z = d0_z / q - 1
+/// d dl / d b_k = R_zk - (d0_k - h_x R_xk - h_y R_yk) / q
+/// ```
+pub(crate) fn stroke_gradient(
+    leg: &Leg<f64>,
+    rot: &RotationDelta<f64>,
+    st: &crate::kinematics::ik::LegState<f64>,
+) -> [f64; PARAMS_PER_LEG] {
+    let inv_q = 1.0 / st.q_mm;
+    let d0 = &leg.d0_mm;
+    let h = &st.h_mm;
+    let w = &rot.w;
+    let mut g = [0.0; PARAMS_PER_LEG];
+    g[0] = -(h[0] - d0[0]) * inv_q;
+    g[1] = -(h[1] - d0[1]) * inv_q;
+    g[2] = d0[2] * inv_q - 1.0;
+    for k in 0..3 {
+        let r_xk = w[(0, k)] + if k == 0 { 1.0 } else { 0.0 };
+        let r_yk = w[(1, k)] + if k == 1 { 1.0 } else { 0.0 };
+        let r_zk = w[(2, k)] + if k == 2 { 1.0 } else { 0.0 };
+        g[3 + k] = r_zk - (d0[k] - h[0] * r_xk - h[1] * r_yk) * inv_q;
+    }
+    g
 }
 
 /// Which solver to run.
@@ -499,6 +610,8 @@ pub enum CalibError {
     Solver(String),
     /// The calibrated parameters are not a valid geometry.
     InvalidResult(String),
+    /// A measurement is implausible (see [`check_measurements`]); names the file line.
+    Implausible(FileError),
 }
 
 impl fmt::Display for CalibError {
@@ -511,6 +624,7 @@ impl fmt::Display for CalibError {
             CalibError::BadConfig(s) => write!(f, "bad setting: {s}"),
             CalibError::Solver(s) => write!(f, "solver failed: {s}"),
             CalibError::InvalidResult(s) => write!(f, "calibrated geometry invalid: {s}"),
+            CalibError::Implausible(e) => write!(f, "implausible measurement: {e}"),
         }
     }
 }
@@ -532,6 +646,7 @@ pub fn calibrate(
             cfg.omega_half_width_mm
         )));
     }
+    check_measurements(meas, nominal).map_err(CalibError::Implausible)?;
     let problem = Problem::new(meas.to_vec(), nominal.p0_mm);
     let nominal_v = to_vec(nominal);
     let omega = ParamBox::around(&nominal_v, cfg.omega_half_width_mm);
@@ -576,6 +691,11 @@ pub fn calibrate(
     })?;
     let res = problem.residuals(&v);
     let max_residual_mm = res.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+    if !max_residual_mm.is_finite() {
+        return Err(CalibError::InvalidResult(
+            "the residual is not finite".into(),
+        ));
+    }
     Ok(CalibResult {
         params,
         vec_mm: v,
