@@ -7,7 +7,7 @@
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use m2ctl::ground::tc::{
-    hex_lines, parse_hex_lines, run_tc, upload_commands, TcOutput, TcRequest, TcSequencer,
+    hex_lines, parse_hex_lines, run_tc, upload_commands, upload_procedure, TcOutput, TcSequencer,
 };
 use m2ctl::link::command::{TABLE_CHUNK_MAX_LEN, WIRE_POSE_LEN};
 use m2ctl::link::framing::{max_frame_len, DEFRAMER_BUFFER_LEN};
@@ -777,14 +777,9 @@ fn ground_tc_upload_reassembles_the_table() {
         provenance: vec![("calibration_id".into(), "cal-test-1".into())],
     };
     std::fs::write(&geom, m2ctl::ground::files::format_geometry(&file, "test")).unwrap();
-    let req = TcRequest::Upload {
-        geometry: geom.clone(),
-        table_id: 77,
-        calibration_id: None,
-        activate: false,
-    };
+    let req = || upload_procedure(&geom, 77, None, false);
     let mut seq = TcSequencer::new(100);
-    let text = run_tc(&req, &mut seq, TcOutput::HexLines, false).unwrap();
+    let text = run_tc(&req().unwrap(), &mut seq, TcOutput::HexLines, false).unwrap();
     let frames = parse_hex_lines(std::str::from_utf8(&text).unwrap()).unwrap();
     assert_eq!(frames.len(), TABLE_LEN.div_ceil(TABLE_CHUNK_MAX_LEN) + 1);
     let mut image = vec![0u8; TABLE_LEN];
@@ -806,7 +801,7 @@ fn ground_tc_upload_reassembles_the_table() {
     assert_eq!(upload_commands(&table).unwrap().len(), frames.len());
     // Binary output is the frames back to back.
     let mut seq = TcSequencer::new(100);
-    let bin = run_tc(&req, &mut seq, TcOutput::Binary, false).unwrap();
+    let bin = run_tc(&req().unwrap(), &mut seq, TcOutput::Binary, false).unwrap();
     assert_eq!(bin, frames.concat());
     assert_eq!(hex_lines(&frames).into_bytes(), text);
     // A geometry file without limits is refused with a message.
@@ -821,7 +816,7 @@ fn ground_tc_upload_reassembles_the_table() {
         ),
     )
     .unwrap();
-    let e = run_tc(&req, &mut seq, TcOutput::Binary, false).unwrap_err();
+    let e = req().unwrap_err();
     assert!(e.contains("[limits]"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }
@@ -838,59 +833,123 @@ fn m2ground_tc_cli_writes_frames() {
         );
         String::from_utf8(o.stdout).unwrap()
     };
+    let decoded = |out: &str| {
+        let f = parse_hex_lines(out).unwrap();
+        assert_eq!(f.len(), 1, "{out}");
+        decode_telecommand(deframe_all(&f[0])[0].as_ref().unwrap()).unwrap()
+    };
     let ping = run(&["tc", "ping"]);
     assert_eq!(
         ping.trim(),
         hex_lines(&[tc_frame(&Command::Ping, 0)]).trim()
     );
-    let mv = run(&[
+    let tc = decoded(&run(&[
         "tc",
         "--seq",
         "5",
-        "move",
-        "--x-um",
-        "1.5",
-        "--y-um",
-        "-2",
-        "--rx-arcsec",
-        "-0.25",
-        "--relative",
-    ]);
-    let f = parse_hex_lines(&mv).unwrap();
-    let tc = decode_telecommand(deframe_all(&f[0])[0].as_ref().unwrap()).unwrap();
+        "move-relative",
+        "x=1.5",
+        "y=-2",
+        "rx=-0.25",
+    ]));
     assert_eq!(
         tc.command,
         Command::MoveRelative(WirePose::from_array([1500, -2000, 0, -250_000, 0, 0]))
     );
     assert_eq!(tc.request_id.seq_count(), 5);
-    for (sub, cmd) in [
-        ("stop", Command::Stop),
-        ("hk", Command::HousekeepingOneShot),
-        ("switch-bank", Command::SwitchBank),
-        ("revert-nominal", Command::RevertToNominal),
-        ("clear-fault", Command::ClearFault),
+    // Every telecommand of the mission database is reachable by its name.
+    let pose = WirePose::from_array([0, 0, -1000, 0, 0, 2_000_000]);
+    for (args, cmd) in [
+        (vec!["stop"], Command::Stop),
+        (vec!["housekeeping-one-shot"], Command::HousekeepingOneShot),
+        (vec!["switch-bank"], Command::SwitchBank),
+        (vec!["revert-to-nominal"], Command::RevertToNominal),
+        (vec!["clear-fault"], Command::ClearFault),
+        (
+            vec!["MOVE_ABSOLUTE", "z=-1", "rz=2"],
+            Command::MoveAbsolute(pose),
+        ),
+        (vec!["check-move", "rz=2", "z=-1"], Command::CheckMove(pose)),
+        (
+            vec!["direct-stroke", "leg=3", "delta=-0.5"],
+            Command::DirectStroke {
+                leg: 3,
+                delta_nm: -500,
+            },
+        ),
+        (
+            vec!["activate-table", "table_id=42", "crc32=0x01234567"],
+            Command::ActivateTable {
+                table_id: 42,
+                crc32: 0x0123_4567,
+            },
+        ),
+        (
+            vec!["commit-table", "crc32=4294967295"],
+            Command::CommitTable { crc32: u32::MAX },
+        ),
+        (
+            vec!["dump-table", "memory_id=upload_buffer"],
+            Command::DumpTable(m2ctl::link::MemoryId::UploadBuffer),
+        ),
+        (
+            vec!["load-table-chunk", "offset=512", "data=0a0b0c0d"],
+            Command::LoadTableChunk(TableChunk::new(512, &[10, 11, 12, 13]).unwrap()),
+        ),
+        (
+            vec!["set-parameter", "parameter_id=PIVOT_Z", "value=-250000000"],
+            Command::SetParameters(
+                m2ctl::link::command::ParameterValues::new(&[(3, -250_000_000)]).unwrap(),
+            ),
+        ),
+        (
+            vec!["report-parameter", "parameter_id=0x0010"],
+            Command::ReportParameters(m2ctl::link::command::ParameterIds::new(&[0x10]).unwrap()),
+        ),
     ] {
-        let f = parse_hex_lines(&run(&["tc", sub])).unwrap();
-        let tc = decode_telecommand(deframe_all(&f[0])[0].as_ref().unwrap()).unwrap();
-        assert_eq!(tc.command, cmd, "{sub}");
+        let mut a = vec!["tc"];
+        a.extend(&args);
+        assert_eq!(decoded(&run(&a)).command, cmd, "{args:?}");
     }
-    let f = parse_hex_lines(&run(&[
-        "tc",
-        "activate",
-        "--table-id",
-        "42",
-        "--crc32",
-        "0x01234567",
-    ]))
-    .unwrap();
-    let tc = decode_telecommand(deframe_all(&f[0])[0].as_ref().unwrap()).unwrap();
-    assert_eq!(
-        tc.command,
-        Command::ActivateTable {
-            table_id: 42,
-            crc32: 0x0123_4567
-        }
-    );
+    let names: std::collections::BTreeSet<String> = run(&["tc", "list"])
+        .lines()
+        .filter(|l| !l.starts_with(' '))
+        .filter_map(|l| l.split_whitespace().next().map(str::to_string))
+        .collect();
+    let described: std::collections::BTreeSet<String> = m2ctl::ground::mdb::mdb()
+        .telecommands
+        .iter()
+        .map(|t| t.name.to_ascii_lowercase().replace('_', "-"))
+        .collect();
+    assert_eq!(names, described);
+    // Nonsense is refused with its reason, and nothing is written.
+    for (args, why) in [
+        (vec!["move-absolute", "x=3000000"], "outside"),
+        (vec!["move-absolute", "q=1"], "no argument q"),
+        (vec!["move-absolute", "x=1", "x=2"], "twice"),
+        (vec!["move-absolute", "x"], "name=value"),
+        (vec!["move-absolute", "x=abc"], "not a number"),
+        (vec!["direct-stroke", "leg=7", "delta=1"], "outside"),
+        (vec!["direct-stroke", "leg=3"], "missing argument delta"),
+        (
+            vec!["set-parameter", "parameter_id=NOPE", "value=1"],
+            "not one of",
+        ),
+        (
+            vec!["set-parameter", "parameter_id=0x7777", "value=1"],
+            "not one of",
+        ),
+        (vec!["dump-table", "memory_id=9"], "not one of"),
+        (vec!["fly-to-the-moon"], "no such telecommand"),
+    ] {
+        let mut a = vec!["tc"];
+        a.extend(&args);
+        let o = std::process::Command::new(exe).args(&a).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} accepted");
+        assert!(o.stdout.is_empty(), "{args:?} wrote {:?}", o.stdout);
+        assert!(err.contains(why), "{args:?}: {err}");
+    }
     let unframed = run(&["tc", "--unframed", "ping"]);
     assert_eq!(unframed.trim(), "18b2c00000062f11010000ee7d");
 }

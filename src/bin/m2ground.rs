@@ -14,7 +14,9 @@ use m2ctl::ground::plan::{
     PlanConfig, DEFAULT_AXIS_MM, DEFAULT_CUBE_HALF_MM, DEFAULT_ROTATION_ARCSEC,
 };
 use m2ctl::ground::report::{bench, compare_cuckoo, table3, TableConfig};
-use m2ctl::ground::tc::{run_tc, TcOutput, TcRequest, TcSequencer};
+use m2ctl::ground::tc::{
+    command_from_args, run_tc, telecommand_list, upload_procedure, TcOutput, TcSequencer,
+};
 use m2ctl::link::AckFlags;
 use m2ctl::sim::tracker::PoseTracker;
 
@@ -207,55 +209,10 @@ struct TcCli {
 
 #[derive(Subcommand)]
 enum TcWhat {
-    /// TC[17,1] are-you-alive.
-    Ping,
-    /// TC[3,27] one-shot housekeeping report.
-    Hk,
-    /// TC[8,1] move to a pose (absolute unless --relative).
-    Move {
-        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-        x_um: f64,
-        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-        y_um: f64,
-        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-        z_um: f64,
-        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-        rx_arcsec: f64,
-        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-        ry_arcsec: f64,
-        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-        rz_arcsec: f64,
-        /// Increment from the commanded pose.
-        #[arg(long)]
-        relative: bool,
-    },
-    /// TC[8,1] move one slider by an increment (recovery).
-    DirectStroke {
-        /// Leg 1..6.
-        #[arg(long)]
-        leg: u8,
-        /// Stroke increment (um).
-        #[arg(long, allow_negative_numbers = true)]
-        delta_um: f64,
-    },
-    /// TC[8,1] stop.
-    Stop,
-    /// TC[8,1] clear latched faults.
-    ClearFault,
-    /// TC[8,1] activate the pending table, named by its table ID and CRC-32.
-    Activate {
-        /// Table ID of the pending table.
-        #[arg(long)]
-        table_id: u32,
-        /// CRC-32 of the pending table (decimal or 0x hex).
-        #[arg(long, value_parser = parse_u32)]
-        crc32: u32,
-    },
-    /// TC[8,1] switch to the other bank's table.
-    SwitchBank,
-    /// TC[8,1] revert to the nominal table.
-    RevertNominal,
-    /// TC[6,2] chunks of the table built from a geometry file, then TC[8,1] commit.
+    /// The telecommands of the mission database with their arguments, units and ranges.
+    List,
+    /// The upload procedure: TC[6,2] chunks of the table built from a geometry file
+    /// (validated first), then TC[8,1] commit (and activate).
     Upload {
         /// Calibrated geometry file (with [limits]).
         geometry: PathBuf,
@@ -269,66 +226,27 @@ enum TcWhat {
         #[arg(long)]
         activate: bool,
     },
-    /// TC[6,5] dump of the active table (or --upload-buffer).
-    Dump {
-        #[arg(long)]
-        upload_buffer: bool,
-    },
+    /// Any telecommand of the mission database by name, arguments as name=value in
+    /// engineering units (`move-absolute x=1.5 rx=-2`; `m2ground tc list`).
+    #[command(external_subcommand)]
+    Named(Vec<String>),
 }
 
 impl TcWhat {
-    fn request(&self) -> TcRequest {
+    fn commands(&self) -> Result<Vec<m2ctl::link::Command>, String> {
         match self {
-            TcWhat::Ping => TcRequest::Ping,
-            TcWhat::Hk => TcRequest::Housekeeping,
-            TcWhat::Move {
-                x_um,
-                y_um,
-                z_um,
-                rx_arcsec,
-                ry_arcsec,
-                rz_arcsec,
-                relative,
-            } => TcRequest::Move {
-                translation_um: [*x_um, *y_um, *z_um],
-                rotation_arcsec: [*rx_arcsec, *ry_arcsec, *rz_arcsec],
-                relative: *relative,
-            },
-            TcWhat::DirectStroke { leg, delta_um } => TcRequest::DirectStroke {
-                leg: *leg,
-                delta_um: *delta_um,
-            },
-            TcWhat::Stop => TcRequest::Stop,
-            TcWhat::ClearFault => TcRequest::ClearFault,
-            TcWhat::Activate { table_id, crc32 } => TcRequest::Activate {
-                table_id: *table_id,
-                crc32: *crc32,
-            },
-            TcWhat::SwitchBank => TcRequest::SwitchBank,
-            TcWhat::RevertNominal => TcRequest::RevertToNominal,
+            TcWhat::List => Ok(Vec::new()),
             TcWhat::Upload {
                 geometry,
                 table_id,
                 calibration_id,
                 activate,
-            } => TcRequest::Upload {
-                geometry: geometry.clone(),
-                table_id: *table_id,
-                calibration_id: *calibration_id,
-                activate: *activate,
-            },
-            TcWhat::Dump { upload_buffer } => TcRequest::Dump {
-                upload_buffer: *upload_buffer,
-            },
+            } => upload_procedure(geometry, *table_id, *calibration_id, *activate),
+            TcWhat::Named(words) => {
+                let (name, args) = words.split_first().ok_or("no telecommand named")?;
+                Ok(vec![command_from_args(name, args)?])
+            }
         }
-    }
-}
-
-/// A u32 in decimal or `0x` hexadecimal.
-fn parse_u32(s: &str) -> Result<u32, String> {
-    match s.strip_prefix("0x").or_else(|| s.strip_prefix("0X")) {
-        Some(h) => u32::from_str_radix(h, 16).map_err(|e| format!("{s}: {e}")),
-        None => s.parse().map_err(|e| format!("{s}: {e}")),
     }
 }
 
@@ -341,7 +259,11 @@ fn tc_cmd(a: &TcCli) -> Result<(), String> {
     } else {
         TcOutput::HexLines
     };
-    let bytes = run_tc(&a.what.request(), &mut seq, output, a.unframed)?;
+    if matches!(a.what, TcWhat::List) {
+        print!("{}", telecommand_list());
+        return Ok(());
+    }
+    let bytes = run_tc(&a.what.commands()?, &mut seq, output, a.unframed)?;
     match &a.out {
         Some(p) => std::fs::write(p, bytes).map_err(|e| format!("{}: {e}", p.display())),
         None => {

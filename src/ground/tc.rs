@@ -217,119 +217,179 @@ pub fn parse_hex_lines(text: &str) -> Result<Vec<Vec<u8>>, String> {
     Ok(out)
 }
 
-/// What `m2ground tc` is asked to encode.
-#[derive(Clone, Debug)]
-pub enum TcRequest {
-    /// TC[17,1].
-    Ping,
-    /// TC[3,27].
-    Housekeeping,
-    /// TC[8,1] move (absolute or relative).
-    Move {
-        /// Translation (um).
-        translation_um: [f64; 3],
-        /// Rotation (arcsec).
-        rotation_arcsec: [f64; 3],
-        /// Relative to the commanded pose.
-        relative: bool,
-    },
-    /// TC[8,1] direct stroke (recovery).
-    DirectStroke {
-        /// Leg 1..6.
-        leg: u8,
-        /// Stroke increment (um).
-        delta_um: f64,
-    },
-    /// TC[8,1] stop.
-    Stop,
-    /// TC[8,1] clear fault.
-    ClearFault,
-    /// TC[8,1] activate the pending table named by its ID and CRC-32.
-    Activate {
-        /// Table ID.
-        table_id: u32,
-        /// CRC-32.
-        crc32: u32,
-    },
-    /// TC[8,1] switch bank.
-    SwitchBank,
-    /// TC[8,1] revert to nominal.
-    RevertToNominal,
-    /// TC[6,2] chunks + TC[8,1] commit of the table built from a geometry file.
-    Upload {
-        /// Geometry file with `[limits]`.
-        geometry: std::path::PathBuf,
-        /// Table ID.
-        table_id: u32,
-        /// Calibration ID override.
-        calibration_id: Option<u32>,
-        /// Append the activation of the committed table.
-        activate: bool,
-    },
-    /// TC[6,5] dump of the active table (or of the upload buffer).
-    Dump {
-        /// Dump the upload buffer instead of the active table.
-        upload_buffer: bool,
-    },
+/// Pose axes an operator may omit from a move or a move check (they are 0 then).
+const OPTIONAL_POSE_AXES: [&str; 6] = crate::ground::mdb::POSE_AXES;
+
+/// The telecommand of the mission database named `name` (case-insensitive, `-` for
+/// `_`: `move-absolute`), with its arguments as `name=value` in engineering units
+/// (`x=1.5` um, `rx=-2` arcsec, `leg=3`, `parameter_id=PIVOT_Z` or `0x0003`,
+/// `crc32=0x1234abcd`, `data=` hex bytes). Every argument is required except the pose
+/// axes of a move (0 when omitted). A value outside the description's range, an unknown
+/// or a repeated argument is refused with its name. The mission database is the one
+/// vocabulary: its `build` makes the flight [`Command`], which the link then encodes.
+pub fn command_from_args(name: &str, args: &[String]) -> Result<Command, String> {
+    use crate::ground::mdb::{mdb, ArgValue, Meaning, Wire};
+    let db = mdb();
+    let wanted = name.to_ascii_uppercase().replace('-', "_");
+    let tc = db
+        .telecommand(&wanted)
+        .ok_or_else(|| format!("{name}: no such telecommand (`m2ground tc list` shows them)"))?;
+    let mut given: Vec<(String, String)> = Vec::new();
+    for a in args {
+        let (k, v) = a
+            .split_once('=')
+            .ok_or_else(|| format!("{a}: arguments are name=value"))?;
+        if given.iter().any(|(g, _)| g == k) {
+            return Err(format!("{k}: given twice"));
+        }
+        if !tc.arguments().any(|f| f.name == k) {
+            let names: Vec<&str> = tc.arguments().map(|f| f.name.as_str()).collect();
+            return Err(format!(
+                "{}: no argument {k} (arguments: {names:?})",
+                tc.name
+            ));
+        }
+        given.push((k.to_string(), v.to_string()));
+    }
+    let mut values = Vec::new();
+    for f in tc.arguments() {
+        let v = given
+            .iter()
+            .find(|(k, _)| *k == f.name)
+            .map(|(_, v)| v.as_str());
+        let is_pose_axis = tc.fields.len() == OPTIONAL_POSE_AXES.len()
+            && OPTIONAL_POSE_AXES.contains(&f.name.as_str());
+        let v = match (v, is_pose_axis) {
+            (Some(v), _) => v,
+            (None, true) => "0",
+            (None, false) => return Err(format!("{}: missing argument {}", tc.name, f.name)),
+        };
+        let value = match (&f.meaning, f.wire) {
+            (Meaning::Binary, _) => {
+                ArgValue::Bytes(parse_hex_bytes(v).map_err(|e| format!("{}: {e}", f.name))?)
+            }
+            (Meaning::Enum { enumeration }, _) => {
+                let e = db
+                    .enums
+                    .iter()
+                    .find(|e| e.name == *enumeration)
+                    .ok_or_else(|| format!("{enumeration}: no enumeration"))?;
+                let by_label = e
+                    .values
+                    .iter()
+                    .find(|(_, label, _)| label.eq_ignore_ascii_case(v))
+                    .map(|(n, _, _)| *n);
+                let known = by_label
+                    .or_else(|| parse_integer(v).ok())
+                    .filter(|n| e.values.iter().any(|(m, _, _)| m == n));
+                let Some(n) = known else {
+                    let labels: Vec<&str> = e.values.iter().map(|(_, l, _)| l.as_str()).collect();
+                    return Err(format!("{} = {v}: not one of {labels:?}", f.name));
+                };
+                ArgValue::Int(n)
+            }
+            (Meaning::Number { .. }, Wire::U32) | (Meaning::Number { .. }, Wire::U16)
+                if v.starts_with("0x") || v.starts_with("0X") =>
+            {
+                ArgValue::Int(parse_integer(v).map_err(|e| format!("{}: {e}", f.name))?)
+            }
+            _ => {
+                let eng: f64 = v
+                    .parse()
+                    .map_err(|e| format!("{} = {v}: not a number ({e})", f.name))?;
+                ArgValue::Int(f.to_raw(eng)?)
+            }
+        };
+        values.push(value);
+    }
+    (tc.build)(&values).map_err(|e| format!("{}: {e}", tc.name))
 }
 
-impl TcRequest {
-    /// The command sequence.
-    pub fn commands(&self) -> Result<Vec<Command>, String> {
-        use crate::link::MemoryId;
-        Ok(match self {
-            TcRequest::Ping => vec![Command::Ping],
-            TcRequest::Housekeeping => vec![Command::HousekeepingOneShot],
-            TcRequest::Move {
-                translation_um,
-                rotation_arcsec,
-                relative,
-            } => {
-                let p = wire_pose(*translation_um, *rotation_arcsec)?;
-                vec![if *relative {
-                    Command::MoveRelative(p)
-                } else {
-                    Command::MoveAbsolute(p)
-                }]
-            }
-            TcRequest::DirectStroke { leg, delta_um } => {
-                if !(1..=6).contains(leg) {
-                    return Err(format!("leg {leg}: must be 1..6"));
-                }
-                let d = wire_pose([*delta_um, 0.0, 0.0], [0.0; 3])?;
-                vec![Command::DirectStroke {
-                    leg: *leg,
-                    delta_nm: d.translation_nm[0],
-                }]
-            }
-            TcRequest::Stop => vec![Command::Stop],
-            TcRequest::ClearFault => vec![Command::ClearFault],
-            TcRequest::Activate { table_id, crc32 } => vec![Command::ActivateTable {
-                table_id: *table_id,
-                crc32: *crc32,
-            }],
-            TcRequest::SwitchBank => vec![Command::SwitchBank],
-            TcRequest::RevertToNominal => vec![Command::RevertToNominal],
-            TcRequest::Upload {
-                geometry,
-                table_id,
-                calibration_id,
-                activate,
-            } => {
-                let table = table_from_geometry_file(geometry, *table_id, *calibration_id)?;
-                let mut cmds = upload_commands(&table)?;
-                if *activate {
-                    cmds.push(activate_command(&table));
-                }
-                cmds
-            }
-            TcRequest::Dump { upload_buffer } => vec![Command::DumpTable(if *upload_buffer {
-                MemoryId::UploadBuffer
-            } else {
-                MemoryId::ActiveTable
-            })],
-        })
+/// A decimal or `0x` hexadecimal integer.
+fn parse_integer(s: &str) -> Result<i64, String> {
+    match s.strip_prefix("0x").or_else(|| s.strip_prefix("0X")) {
+        Some(h) => i64::from_str_radix(h, 16).map_err(|e| format!("{s}: {e}")),
+        None => s.parse().map_err(|e| format!("{s}: {e}")),
     }
+}
+
+/// Hex digits, two per byte, no separators.
+fn parse_hex_bytes(s: &str) -> Result<Vec<u8>, String> {
+    if s.len() % 2 != 0 {
+        return Err(format!("{s}: an odd number of hex digits"));
+    }
+    (0..s.len())
+        .step_by(2)
+        .map(|i| {
+            s.get(i..i + 2)
+                .and_then(|h| u8::from_str_radix(h, 16).ok())
+                .ok_or_else(|| format!("{s}: not hex"))
+        })
+        .collect()
+}
+
+/// The telecommands of the mission database, one per line with their arguments, unit
+/// and range (`m2ground tc list`).
+pub fn telecommand_list() -> String {
+    use crate::ground::mdb::{mdb, Meaning};
+    let db = mdb();
+    let labels = |name: &str| -> String {
+        db.enums
+            .iter()
+            .find(|e| e.name == name)
+            .map(|e| {
+                e.values
+                    .iter()
+                    .map(|(_, l, _)| l.as_str())
+                    .collect::<Vec<_>>()
+                    .join("|")
+            })
+            .unwrap_or_default()
+    };
+    let mut out = String::new();
+    for tc in &db.telecommands {
+        let args: Vec<String> = tc
+            .arguments()
+            .map(|f| match &f.meaning {
+                Meaning::Number {
+                    unit,
+                    range: Some((lo, hi)),
+                    ..
+                } => format!(
+                    "{}=<{}..{}{}>",
+                    f.name,
+                    lo,
+                    hi,
+                    unit.map_or(String::new(), |u| format!(" {u}"))
+                ),
+                Meaning::Enum { enumeration } => format!("{}=<{}>", f.name, labels(enumeration)),
+                _ => format!("{}=<{}>", f.name, f.name),
+            })
+            .collect();
+        out.push_str(&format!(
+            "{:<24} {}\n    {}\n",
+            tc.name.to_ascii_lowercase().replace('_', "-"),
+            args.join(" "),
+            tc.description
+        ));
+    }
+    out
+}
+
+/// The table upload procedure: TC[6,2] chunks of the table built from a geometry file
+/// (validated first), TC[8,1] commit, and the activation if asked.
+pub fn upload_procedure(
+    geometry: &std::path::Path,
+    table_id: u32,
+    calibration_id: Option<u32>,
+    activate: bool,
+) -> Result<Vec<Command>, String> {
+    let table = table_from_geometry_file(geometry, table_id, calibration_id)?;
+    let mut cmds = upload_commands(&table)?;
+    if activate {
+        cmds.push(activate_command(&table));
+    }
+    Ok(cmds)
 }
 
 /// Output of `m2ground tc`.
@@ -341,14 +401,13 @@ pub enum TcOutput {
     Binary,
 }
 
-/// Runs `m2ground tc`: the bytes to write (hex text or binary).
+/// Runs `m2ground tc`: the bytes to write (hex text or binary) for `cmds`.
 pub fn run_tc(
-    request: &TcRequest,
+    cmds: &[Command],
     sequencer: &mut TcSequencer,
     output: TcOutput,
     unframed: bool,
 ) -> Result<Vec<u8>, String> {
-    let cmds = request.commands()?;
     let frames = cmds
         .iter()
         .map(|c| {

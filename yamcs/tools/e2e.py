@@ -8,7 +8,7 @@ Checks (each failure exits non-zero with the reason):
     history; the packet Yamcs encoded is byte-identical to `m2ground tc ping`'s;
  2. housekeeping parameters update (new values every period) with their units;
  3. a move given in um/arcsec completes with every verifier stage, byte-identical to
-    `m2ground tc move`, and the housekeeping pose (FK of the encoders) reaches the target;
+    `m2ground tc move-absolute`, and the housekeeping pose (FK of the encoders) reaches the target;
  4. a refused move fails at the start stage with its failure code, and the refusal
     bits show decoded in housekeeping;
  5. a table uploaded as LOAD_TABLE_CHUNK commands (byte-identical to `m2ground tc
@@ -153,8 +153,8 @@ def main() -> int:
     st = op.stages(cmd)
     check(cmd.is_success(), f"MOVE_ABSOLUTE completed in {move_s:.1f} s ({cmd.error or 'OK'})")
     check(all(v == "OK" for v in st.values()), f"MOVE_ABSOLUTE verifier stages {st}")
-    same_bytes(op, cmd, ["move", "--x-um", "12.5", "--y-um", "-7.25", "--z-um", "3",
-                         "--rx-arcsec", "-3.25", "--ry-arcsec", "1.5", "--rz-arcsec", "2"])
+    same_bytes(op, cmd, ["move-absolute", "x=12.5", "y=-7.25", "z=3",
+                         "rx=-3.25", "ry=1.5", "rz=2"])
     hk = op.wait_hk(after=op.wait_hk())
     errs = {}
     for axis, want in target.items():
