@@ -450,7 +450,7 @@ fn parameters_report_defaults_then_what_was_set_and_housekeeping_shows_them() {
     assert_eq!(
         r.st.events(event::PARAMETERS_CHANGED).last(),
         Some(&[
-            (1 << index::PIVOT + 2) | (1 << index::MOVE_SPEED) | (1 << index::FOLLOWING_WARNING),
+            (1 << (index::PIVOT + 2)) | (1 << index::MOVE_SPEED) | (1 << index::FOLLOWING_WARNING),
             0
         ])
     );
