@@ -8,18 +8,28 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// The flight image built by `cargo build --release --target thumbv7em-none-eabihf
+/// The flight image built by `cargo build --profile flight --target thumbv7em-none-eabihf
 /// --features firmware --bin m2fw` (scripts/qemu-link-test.sh builds it).
 pub fn firmware_elf() -> PathBuf {
-    let p =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/thumbv7em-none-eabihf/release/m2fw");
+    elf_at("target/thumbv7em-none-eabihf/flight/m2fw")
+}
+
+/// An image under the crate directory; panics with a hint if it was not built.
+pub fn elf_at(relative: &str) -> PathBuf {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(relative);
     assert!(
         p.exists(),
-        "{} missing: build the firmware first (scripts/qemu-link-test.sh)",
+        "{} missing: build the firmware first (scripts/qemu-link-test.sh, scripts/qemu-fault-test.sh)",
         p.display()
     );
     p
 }
+
+/// Virtual time of QEMU's CPU: every guest instruction takes 2^ICOUNT_SHIFT ns (8 ns:
+/// 125 M instructions per second of guest time). Timers, the watchdog and the control
+/// rate run on this clock, so a loaded host slows the guest down instead of making
+/// its cycles overrun; `sleep=on` keeps guest time from running ahead of real time.
+pub const ICOUNT_SHIFT: u32 = 3;
 
 /// A running QEMU with the firmware; killed on drop.
 pub struct Qemu {
@@ -30,9 +40,13 @@ pub struct Qemu {
 }
 
 impl Qemu {
-    /// Starts QEMU and connects to UART0.
+    /// Starts QEMU with the flight image and connects to UART0.
     pub fn start() -> Qemu {
-        let elf = firmware_elf();
+        Self::start_elf(&firmware_elf())
+    }
+
+    /// Starts QEMU with `elf` and connects to UART0.
+    pub fn start_elf(elf: &std::path::Path) -> Qemu {
         let sock = std::env::temp_dir().join(format!(
             "m2fw-uart-{}-{}.sock",
             std::process::id(),
@@ -49,14 +63,15 @@ impl Qemu {
                 "-monitor",
                 "none",
             ])
-            .args(["-semihosting-config", "enable=on,target=native"])
+            .arg("-icount")
+            .arg(format!("shift={ICOUNT_SHIFT},sleep=on"))
             .arg("-chardev")
             .arg(format!(
                 "socket,id=tc,path={},server=on,wait=on",
                 sock.display()
             ))
             .args(["-serial", "chardev:tc", "-kernel"])
-            .arg(&elf)
+            .arg(elf)
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(Stdio::inherit())

@@ -53,8 +53,10 @@ use crate::hw::{counts_to_mm, DriveError, SliderDrives, StrokeEncoders};
 use crate::kinematics::{fk, FkConfig, FkError, FkSolution, Geometry, GeometryError, Pose, LEGS};
 use crate::link::tm::EventSeverity;
 use crate::link::Housekeeping;
-use crate::motion::{MotionLimits, DEFAULT_DIRECT_ACCEL_MM_PER_S2, DEFAULT_DIRECT_MAX_DELTA_MM,
-    DEFAULT_DIRECT_SPEED_MM_PER_S};
+use crate::motion::{
+    MotionLimits, DEFAULT_DIRECT_ACCEL_MM_PER_S2, DEFAULT_DIRECT_MAX_DELTA_MM,
+    DEFAULT_DIRECT_SPEED_MM_PER_S,
+};
 use crate::supervision::{CycleInputs, FaultFlags, SupervisionConfig, Supervisor};
 use crate::table::upload::UploadBuffer;
 use crate::table::{BootReport, BootSource, CommitReport, Table, ValidationConfig};
@@ -282,6 +284,16 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
     /// Starts on the table boot selected (`table`, `boot`: [`crate::table::TableStore::boot`]),
     /// holds the sliders where their drives are, and takes the first reading.
     pub fn new(mech: M, table: Table, boot: BootReport, cfg: ControllerConfig) -> Self {
+        let mut c = Self::unstarted(mech, table, boot, cfg);
+        c.start();
+        c
+    }
+
+    /// [`Controller::new`] in two steps, for a board that builds the controller in
+    /// place (a static slot: `slot.write(Controller::unstarted(..)).start()`), so the
+    /// ~6 KB struct is never copied on the stack. Until [`Controller::start`] the
+    /// drives are not held and no reading was taken: call it before the first cycle.
+    pub fn unstarted(mech: M, table: Table, boot: BootReport, cfg: ControllerConfig) -> Self {
         let (active, geometry_ok) = match ActiveTable::new(table, boot.source) {
             Ok(a) => (a, true),
             // A booted table was validated, so this is a defect guard: fall back to the
@@ -292,7 +304,7 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             },
         };
         let supervisor = Supervisor::new(SupervisionConfig::from_table(&active.table));
-        let mut c = Self {
+        Self {
             mech,
             cfg,
             active,
@@ -330,17 +342,26 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             bank_health: 0,
             boot_event_sent: false,
             plan_aborted: false,
-        };
-        c.hold_here();
-        if let Ok(counts) = c.mech.read_counts() {
-            c.encoders_mm = counts_to_mm(&counts);
-            c.encoders_valid = true;
-            if let Ok(sol) = fk(&c.active.geom, &c.encoders_mm, &c.pose_fk, &c.fk_cfg) {
-                c.pose_fk = sol.pose;
-                c.fk_valid = true;
+        }
+    }
+
+    /// Second step of [`Controller::unstarted`]: holds the sliders where their drives
+    /// are and takes the first reading.
+    pub fn start(&mut self) {
+        self.hold_here();
+        if let Ok(counts) = self.mech.read_counts() {
+            self.encoders_mm = counts_to_mm(&counts);
+            self.encoders_valid = true;
+            if let Ok(sol) = fk(
+                &self.active.geom,
+                &self.encoders_mm,
+                &self.pose_fk,
+                &self.fk_cfg,
+            ) {
+                self.pose_fk = sol.pose;
+                self.fk_valid = true;
             }
         }
-        c
     }
 
     /// Records the board's reset cause and boot counter (call once, before the first
@@ -463,7 +484,10 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             self.event(
                 EventSeverity::High,
                 event::DEADLINE_MISSED,
-                [u32::from(self.consecutive_overruns), u32::from(self.overruns)],
+                [
+                    u32::from(self.consecutive_overruns),
+                    u32::from(self.overruns),
+                ],
             );
             self.begin_stop();
         }
@@ -488,7 +512,10 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         self.event(
             sev,
             event::BOOT,
-            [u32::from(self.boot.source.code()), self.active.table.table_id],
+            [
+                u32::from(self.boot.source.code()),
+                self.active.table.table_id,
+            ],
         );
         self.event(
             EventSeverity::Info,
@@ -561,7 +588,9 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             active_table_crc32: self.active.crc32,
             pose_fk: crate::link::wire::pose_to_wire_f32(&self.pose_fk),
             pose_commanded: crate::link::wire::pose_to_wire_f32(&self.pose_commanded),
-            strokes_commanded_nm: self.strokes_commanded_mm.map(crate::link::wire::mm_to_nm_f32),
+            strokes_commanded_nm: self
+                .strokes_commanded_mm
+                .map(crate::link::wire::mm_to_nm_f32),
             encoders_nm: self.encoders_mm.map(crate::link::wire::mm_to_nm_f32),
             tc_accepted: self.tc_accepted,
             tc_rejected: self.tc_rejected,

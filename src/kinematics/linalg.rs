@@ -33,8 +33,12 @@ pub fn solve6<T: Real>(mut a: [[T; N]; N], mut b: [T; N], pivot_ratio: T) -> Opt
         if !(best > threshold) {
             return None;
         }
-        a.swap(k, p);
-        b.swap(k, p);
+        // k, p < N always; the explicit test lets the compiler drop the bounds checks
+        // of `swap` (no panic path in the flight image).
+        if k < N && p < N {
+            a.swap(k, p);
+            b.swap(k, p);
+        }
         let pivot_row = a[k];
         let pivot_b = b[k];
         let inv = T::ONE / pivot_row[k];

@@ -209,7 +209,10 @@ impl Writer<'_> {
     fn put(&mut self, bytes: &[u8]) {
         let end = self.pos.saturating_add(bytes.len());
         if let Some(dst) = self.buf.get_mut(self.pos..end) {
-            dst.copy_from_slice(bytes);
+            // Element-wise: `copy_from_slice` has a length check (a panic path).
+            for (d, b) in dst.iter_mut().zip(bytes) {
+                *d = *b;
+            }
         }
         self.pos = end;
     }
