@@ -211,6 +211,60 @@ fn build_controller(
     ctl
 }
 
+/// The worker's request side: hands the next request (or the one it refused last
+/// time) to the worker. Not inlined, like [`step_worker`]: the ~1 KB requests moved
+/// here and the step's own frame are never on the stack together.
+#[inline(never)]
+fn take_request(
+    worker: &mut Worker<board::TableFlash>,
+    requests: &mut heapless::spsc::Consumer<'static, JobRequest, JOB_QUEUE_LEN>,
+    refused: &mut heapless::Vec<JobRequest, 1>,
+) {
+    if refused.is_empty() {
+        if let Some(r) = requests.dequeue() {
+            let _ = refused.push(r);
+        }
+    }
+    if let Some(r) = refused.pop() {
+        if let Err(r) = worker.submit(r) {
+            let _ = refused.push(r);
+        }
+    }
+}
+
+/// One worker step; its result goes to the result queue (or waits in `unsent` while
+/// the queue is full, and then no step is taken).
+#[inline(never)]
+fn step_worker(
+    worker: &mut Worker<board::TableFlash>,
+    results: &mut heapless::spsc::Producer<'static, JobResult, JOB_QUEUE_LEN>,
+    unsent: &mut heapless::Vec<JobResult, 1>,
+) {
+    if !unsent.is_empty() {
+        send_unsent(results, unsent);
+        return;
+    }
+    if let Some(r) = worker.step(board::ticks()) {
+        if let Err(r) = results.enqueue(r) {
+            let _ = unsent.push(r);
+        }
+    }
+}
+
+/// Retries the result the queue had no room for (not inlined: its copy of the result
+/// is not on the stack during a step).
+#[inline(never)]
+fn send_unsent(
+    results: &mut heapless::spsc::Producer<'static, JobResult, JOB_QUEUE_LEN>,
+    unsent: &mut heapless::Vec<JobResult, 1>,
+) {
+    if let Some(r) = unsent.pop() {
+        if let Err(r) = results.enqueue(r) {
+            let _ = unsent.push(r);
+        }
+    }
+}
+
 #[rtic::app(device = m2ctl::board::active::device, peripherals = false)]
 mod app {
     use super::*;
@@ -376,29 +430,12 @@ mod app {
         unsent: heapless::Vec<JobResult, 1> = heapless::Vec::new(),
     ])]
     fn worker(cx: worker::Context) {
+        let l = cx.local;
         // `refused`/`unsent` hold one request the worker refused for now and one result
         // the queue had no room for (statics, not stack; empty vectors are zeroed
         // memory, so they cost no flash).
-        let l = cx.local;
-        if l.refused.is_empty() {
-            if let Some(r) = l.requests_rx.dequeue() {
-                let _ = l.refused.push(r);
-            }
-        }
-        if let Some(r) = l.refused.pop() {
-            if let Err(r) = l.worker.submit(r) {
-                let _ = l.refused.push(r);
-            }
-        }
-        let result = match l.unsent.pop() {
-            Some(r) => Some(r),
-            None => l.worker.step(board::ticks()),
-        };
-        if let Some(r) = result {
-            if let Err(r) = l.results_tx.enqueue(r) {
-                let _ = l.unsent.push(r);
-            }
-        }
+        take_request(l.worker, l.requests_rx, l.refused);
+        step_worker(l.worker, l.results_tx, l.unsent);
     }
 
     /// Nothing else to do: sleep until the next interrupt.

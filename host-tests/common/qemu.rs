@@ -37,6 +37,7 @@ pub struct Qemu {
     /// UART0 as a byte stream.
     pub uart: UnixStream,
     sock: PathBuf,
+    monitor: PathBuf,
 }
 
 impl Qemu {
@@ -53,16 +54,12 @@ impl Qemu {
             rand_suffix()
         ));
         let _ = std::fs::remove_file(&sock);
+        let monitor = sock.with_extension("monitor");
+        let _ = std::fs::remove_file(&monitor);
         let child = Command::new("qemu-system-arm")
-            .args([
-                "-cpu",
-                "cortex-m4",
-                "-machine",
-                "mps2-an386",
-                "-nographic",
-                "-monitor",
-                "none",
-            ])
+            .args(["-cpu", "cortex-m4", "-machine", "mps2-an386", "-nographic"])
+            .arg("-monitor")
+            .arg(format!("unix:{},server=on,wait=off", monitor.display()))
             .arg("-icount")
             .arg(format!("shift={ICOUNT_SHIFT},sleep=on"))
             .arg("-chardev")
@@ -89,7 +86,12 @@ impl Qemu {
         };
         uart.set_read_timeout(Some(Duration::from_millis(100)))
             .unwrap();
-        Qemu { child, uart, sock }
+        Qemu {
+            child,
+            uart,
+            sock,
+            monitor,
+        }
     }
 
     /// Sends bytes to the firmware's UART.
@@ -116,6 +118,62 @@ impl Qemu {
     }
 }
 
+impl Qemu {
+    /// Reads `words` 32-bit words of guest memory at `addr` through QEMU's monitor.
+    pub fn read_words(&self, addr: u32, words: usize) -> Vec<u32> {
+        let mut mon = UnixStream::connect(&self.monitor).expect("QEMU monitor socket");
+        mon.set_read_timeout(Some(Duration::from_millis(500)))
+            .unwrap();
+        mon.write_all(format!("xp /{words}wx {addr:#x}\n").as_bytes())
+            .unwrap();
+        let mut text = String::new();
+        let mut buf = [0u8; 65536];
+        let t0 = Instant::now();
+        let mut out = Vec::new();
+        while out.len() < words && t0.elapsed() < Duration::from_secs(20) {
+            if let Ok(n) = mon.read(&mut buf) {
+                if n == 0 {
+                    break;
+                }
+                text.push_str(&String::from_utf8_lossy(&buf[..n]));
+            }
+            out = parse_xp(&text);
+        }
+        assert_eq!(
+            out.len(),
+            words,
+            "monitor answered {} of {words} words",
+            out.len()
+        );
+        out
+    }
+
+    /// Stack bytes the firmware used so far: the painted stack region `[lo, hi)`
+    /// (cortex-m-rt paints it with 0xCCCCCCCC) scanned from its low end for the first
+    /// word no longer the paint value.
+    pub fn stack_peak_bytes(&self, lo: u32, hi: u32) -> u32 {
+        let words = self.read_words(lo, ((hi - lo) / 4) as usize);
+        let unused = words.iter().take_while(|w| **w == STACK_PAINT).count() as u32;
+        hi - lo - 4 * unused
+    }
+}
+
+/// The paint value of cortex-m-rt's `paint-stack`.
+pub const STACK_PAINT: u32 = 0xCCCC_CCCC;
+
+/// Words of the monitor's `xp /Nwx` answer (`addr: w w w w` lines).
+fn parse_xp(text: &str) -> Vec<u32> {
+    text.lines()
+        .filter_map(|l| l.split_once(": "))
+        .filter(|(a, _)| a.trim().chars().all(|c| c.is_ascii_hexdigit()))
+        .flat_map(|(_, ws)| {
+            ws.split_whitespace()
+                .filter_map(|w| u32::from_str_radix(w.trim_start_matches("0x"), 16).ok())
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
 fn rand_suffix() -> u64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
@@ -128,5 +186,6 @@ impl Drop for Qemu {
         let _ = self.child.kill();
         let _ = self.child.wait();
         let _ = std::fs::remove_file(&self.sock);
+        let _ = std::fs::remove_file(&self.monitor);
     }
 }
