@@ -46,6 +46,9 @@ while read -r name first periods; do
     $1 == "BENCH" { n = $3; v = $5 - e; if (n >= f && n < f + 3 * p) { k = (n - f) % 3; if (v > m[k]) m[k] = v } }
     END { printf "%-13s %5d periods: control cycle max %6d (goal <= 20000), link pass max %8d, worker step max %8d instructions\n", name, p, m[0], m[1], m[2] }'
 done
+# Static worst-case stack of each m2fw task (frames along the deepest direct-call chain);
+# the measured peak of the flight image is printed by scripts/qemu-link-test.sh.
+python3 scripts/stack-depth.py "$F/m2fw" main TIMER0 IRQ30 IRQ31 UARTRX0 UARTTX0 | grep STATIC
 read -r ftext fdata fbss _ < <(sizes "$F/m2fw")
 echo "flight image m2fw flash (text + data):           $((ftext + fdata)) bytes (goal <= 65536); RAM data + bss $((fdata + fbss)) bytes"
 rm -rf "$work"

@@ -206,7 +206,11 @@ fn build_controller(
 ) -> &'static mut Controller<QemuSliders> {
     sliders.hold();
     let ctl = slot.write(Controller::unstarted(sliders, table, boot, cfg));
-    ctl.start();
+    // Called out of line (through a pointer the optimiser cannot see through), so that
+    // its frame (FK of the held strokes) and the construction's are not on the stack
+    // together.
+    let start: fn(&mut Controller<QemuSliders>) = Controller::start;
+    core::hint::black_box(start)(ctl);
     ctl.set_reset_info(reset);
     ctl
 }
