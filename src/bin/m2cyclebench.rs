@@ -17,6 +17,8 @@
 #![no_main]
 #![deny(unsafe_code)]
 
+use core::mem::MaybeUninit;
+
 use cortex_m as _; // critical-section implementation (single core) for defmt
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
@@ -24,7 +26,9 @@ use heapless::Deque;
 use m2ctl::board::active::{self as hw, Board, TableFlash};
 use m2ctl::board::qemu_sliders::QemuSliders;
 use m2ctl::controller::comms::{JobPort, LinkService, RxBytes, TxBytes};
-use m2ctl::controller::{Controller, ControllerConfig, JobRequest, JobResult, State, Worker};
+use m2ctl::controller::{
+    Controller, ControllerConfig, JobRequest, JobResult, ResetCause, State, Worker,
+};
 use m2ctl::hw::SliderDrives;
 use m2ctl::link::command::WirePose;
 use m2ctl::link::tc::{encode_telecommand, TcHeader};
@@ -106,8 +110,8 @@ impl JobPort for Port<'_> {
 }
 
 struct Rig {
-    ctl: Controller<QemuSliders>,
-    worker: Worker<TableFlash>,
+    ctl: &'static mut Controller<QemuSliders>,
+    worker: &'static mut Worker<TableFlash>,
     link: LinkService,
     timer: hw::ControlTimer,
     up: Uplink,
@@ -120,43 +124,28 @@ struct Rig {
 }
 
 impl Rig {
-    /// One control period: control cycle, link pass, worker step, each measured.
+    /// One control period: control cycle, link pass, worker step, each measured (each
+    /// in its own function, as in the flight image's tasks, so the bench's stack does
+    /// not carry all three frames at once).
     #[inline(never)]
     fn period(&mut self) {
         self.timer.acknowledge();
         // Depth of the bench itself at the calls: subtracted from each part's peak.
         let base = hw::stack_depth_bytes();
         hw::repaint_stack();
-        hw::bench_start();
-        self.ctl.control_cycle();
-        hw::bench_end();
+        self.control_part();
         self.peaks.control = self
             .peaks
             .control
             .max(hw::stack_peak_bytes().saturating_sub(base));
-
         hw::repaint_stack();
-        hw::bench_start();
-        {
-            let mut ctl = &mut self.ctl;
-            self.link.receive(&mut ctl, &mut self.up);
-            let mut port = Port {
-                worker: &mut self.worker,
-                results: &mut self.results,
-            };
-            self.link.exchange_jobs(&mut ctl, &mut port);
-            self.link.transmit(&mut ctl, &mut self.down);
-        }
-        hw::bench_end();
+        self.link_part();
         self.peaks.link = self
             .peaks
             .link
             .max(hw::stack_peak_bytes().saturating_sub(base));
-
         hw::repaint_stack();
-        hw::bench_start();
-        let r = self.worker.step(hw::ticks());
-        hw::bench_end();
+        let r = self.worker_part();
         self.peaks.worker = self
             .peaks
             .worker
@@ -167,7 +156,37 @@ impl Rig {
         self.sections += 3;
     }
 
+    #[inline(never)]
+    fn control_part(&mut self) {
+        hw::bench_start();
+        self.ctl.control_cycle();
+        hw::bench_end();
+    }
+
+    #[inline(never)]
+    fn link_part(&mut self) {
+        hw::bench_start();
+        let mut ctl: &mut Controller<QemuSliders> = self.ctl;
+        self.link.receive(&mut ctl, &mut self.up);
+        let mut port = Port {
+            worker: self.worker,
+            results: &mut self.results,
+        };
+        self.link.exchange_jobs(&mut ctl, &mut port);
+        self.link.transmit(&mut ctl, &mut self.down);
+        hw::bench_end();
+    }
+
+    #[inline(never)]
+    fn worker_part(&mut self) -> Option<JobResult> {
+        hw::bench_start();
+        let r = self.worker.step(hw::ticks());
+        hw::bench_end();
+        r
+    }
+
     /// Frames `cmd` onto the uplink.
+    #[inline(never)]
     fn queue(&mut self, cmd: &Command) -> bool {
         let mut pkt = [0u8; MAX_TC_PACKET_LEN];
         let mut frame = [0u8; TC_FRAME_LEN];
@@ -234,29 +253,25 @@ fn run() -> bool {
     let Some(b) = Board::take() else {
         return false;
     };
-    // Boot path, as m2fw's init: table store, boot selection, controller, worker.
-    let base = hw::stack_depth_bytes();
-    hw::repaint_stack();
-    let cfg = ControllerConfig::default();
-    let Ok(mut store) = TableStore::new(b.flash, hw::TABLE_LAYOUT) else {
-        defmt::error!("bench: store");
+    // A fault resets the board (the flight image's handlers): in a benchmark image
+    // that is a failure to report, not a run to repeat.
+    if b.reset.cause != ResetCause::PowerOn {
+        defmt::error!(
+            "bench: restarted after a reset (cause {=u8})",
+            b.reset.cause.code()
+        );
+        return false;
+    }
+    let Some((ctl, worker)) = boot(b.flash, b.sliders) else {
         return false;
     };
-    let (table, boot) = store.boot(&cfg.validation);
-    let mut sliders = b.sliders;
-    sliders.hold();
-    let ctl = Controller::new(sliders, table, boot, cfg);
-    let worker = Worker::new(store, cfg.validation);
-    defmt::info!(
-        "BOOT stack_peak_bytes={=u32}",
-        hw::stack_peak_bytes().saturating_sub(base)
-    );
     defmt::info!(
         "SIZES controller_bytes={=u32} worker_bytes={=u32}",
         core::mem::size_of::<Controller<QemuSliders>>() as u32,
         core::mem::size_of::<Worker<TableFlash>>() as u32
     );
-    let mut rig = Rig {
+    // The bench's own state in a static, not on the measured stack.
+    let Some(rig) = cortex_m::singleton!(: Rig = Rig {
         ctl,
         worker,
         link: LinkService::new(),
@@ -270,8 +285,10 @@ fn run() -> bool {
         peaks: Peaks::default(),
         sections: 1,
         seq: 1,
+    }) else {
+        return false;
     };
-    let ok = scenarios(&mut rig);
+    let ok = scenarios(rig);
     defmt::info!("STACK part=control peak_bytes={=u32}", rig.peaks.control);
     defmt::info!("STACK part=link peak_bytes={=u32}", rig.peaks.link);
     defmt::info!("STACK part=worker peak_bytes={=u32}", rig.peaks.worker);
@@ -285,6 +302,38 @@ fn run() -> bool {
     ok
 }
 
+/// Boot path, as m2fw's init: worker (owning the table store) and controller built in
+/// static slots, boot selection in between; prints the path's stack depth.
+#[inline(never)]
+fn boot(
+    flash: TableFlash,
+    sliders: QemuSliders,
+) -> Option<(
+    &'static mut Controller<QemuSliders>,
+    &'static mut Worker<TableFlash>,
+)> {
+    let ctl_slot =
+        cortex_m::singleton!(: MaybeUninit<Controller<QemuSliders>> = MaybeUninit::uninit())?;
+    let worker_slot =
+        cortex_m::singleton!(: MaybeUninit<Worker<TableFlash>> = MaybeUninit::uninit())?;
+    let base = hw::stack_depth_bytes();
+    hw::repaint_stack();
+    let cfg = ControllerConfig::default();
+    let store = TableStore::new(flash, hw::TABLE_LAYOUT).ok()?;
+    let worker = worker_slot.write(Worker::new(store, cfg.validation));
+    let (table, boot) = worker.store_mut().boot(&cfg.validation);
+    let mut sliders = sliders;
+    sliders.hold();
+    let ctl = ctl_slot.write(Controller::unstarted(sliders, table, boot, cfg));
+    ctl.start();
+    defmt::info!(
+        "BOOT stack_peak_bytes={=u32}",
+        hw::stack_peak_bytes().saturating_sub(base)
+    );
+    Some((ctl, worker))
+}
+
+#[inline(never)]
 fn scenarios(r: &mut Rig) -> bool {
     // Past the boot events and the first housekeeping.
     r.group("boot", 2);

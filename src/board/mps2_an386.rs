@@ -562,16 +562,42 @@ fn stack_bounds() -> (usize, usize) {
     )
 }
 
-/// Bytes of stack used so far: scans the painted region from its low end upwards for
-/// the first word that is no longer the paint value.
+/// Lowest stack address found used so far (`u32::MAX`: not measured yet).
+static STACK_DEEPEST: AtomicU32 = AtomicU32::new(u32::MAX);
+/// Window below the deepest known use where the scan starts (bytes): a part that went
+/// deeper than that scrubbed the word at the window's start, and the scan falls back
+/// to the whole region.
+const STACK_SCAN_WINDOW_BYTES: usize = 1024;
+
+/// Where the paint may have been scrubbed since the last measurement: a window below
+/// the deepest known use, or the whole region.
+fn scan_from() -> usize {
+    let (lo, _) = stack_bounds();
+    match STACK_DEEPEST.load(Ordering::Relaxed) {
+        u32::MAX => lo,
+        d => {
+            let start = (d as usize).saturating_sub(STACK_SCAN_WINDOW_BYTES).max(lo);
+            // SAFETY: inside the stack region (RAM), word aligned.
+            if unsafe { read_volatile(start as *const u32) } == STACK_PAINT {
+                start
+            } else {
+                lo
+            }
+        }
+    }
+}
+
+/// Bytes of stack used so far (since the last [`repaint_stack`]): scans the painted
+/// region upwards for the first word that is no longer the paint value.
 pub fn stack_peak_bytes() -> u32 {
-    let (lo, hi) = stack_bounds();
-    let mut p = lo;
+    let (_, hi) = stack_bounds();
+    let mut p = scan_from();
     // SAFETY: [lo, hi) is the stack region of the linker script, plain RAM; aligned
     // volatile word reads inside it are sound.
     while p < hi && unsafe { read_volatile(p as *const u32) } == STACK_PAINT {
         p += 4;
     }
+    STACK_DEEPEST.fetch_min(p as u32, Ordering::Relaxed);
     (hi - p) as u32
 }
 
@@ -591,13 +617,13 @@ pub fn stack_depth_bytes() -> u32 {
 /// function's own frame.
 const REPAINT_MARGIN_BYTES: usize = 64;
 
-/// Paints the unused stack again (below the caller's frame), so that a later
-/// [`stack_peak_bytes`] measures the deepest use since now (benchmark images).
+/// Paints the unused stack again (below the caller's frame, down to the deepest point
+/// used so far), so that a later [`stack_peak_bytes`] measures the deepest use since
+/// now (benchmark images).
 #[inline(never)]
 pub fn repaint_stack() {
-    let (lo, _) = stack_bounds();
     let sp = cortex_m::register::msp::read() as usize;
-    let mut p = lo;
+    let mut p = scan_from();
     while p + REPAINT_MARGIN_BYTES < sp {
         // SAFETY: below the stack pointer (minus this frame's margin) the stack region
         // is unused; interrupts that use it overwrite paint, never live data.
