@@ -57,6 +57,12 @@ impl Link {
     }
 }
 
+/// A UART at 115,200 baud, 8N1, carries 11.52 bytes per millisecond.
+const UART_BYTES_PER_MS: usize = 11;
+/// The stack region of memory.x (the board's STACK).
+const STACK_BOTTOM: u32 = 0x2000_0000;
+const STACK_TOP: u32 = 0x2000_4000;
+
 const OK3: [Verification; 3] = [
     Verification::AcceptanceSuccess,
     Verification::StartSuccess,
@@ -103,17 +109,66 @@ fn firmware_in_qemu_answers_telecommands() {
         "{reps:?}"
     );
 
-    // Upload a calibrated table, commit, activate.
+    // A TC burst: eight telecommands in one write, every one answered in order.
+    let burst = [
+        Command::Ping,
+        Command::HousekeepingOneShot,
+        Command::Ping,
+        Command::Ping,
+        Command::HousekeepingOneShot,
+        Command::Ping,
+        Command::Ping,
+        Command::HousekeepingOneShot,
+    ];
+    let mut bytes = Vec::new();
+    let mut rids = Vec::new();
+    for c in &burst {
+        let (frame, rid) = l.st.frame(c).unwrap();
+        bytes.extend_from_slice(&frame);
+        rids.push(rid);
+    }
+    l.q.send(&bytes);
+    for rid in &rids {
+        assert_eq!(l.complete(*rid, t), OK3, "burst TC {rid:?}");
+    }
+    println!(
+        "TC burst: {} TCs in one {}-byte write, all answered",
+        burst.len(),
+        bytes.len()
+    );
+
+    // Upload a calibrated table at the UART's real rate (115,200 baud: 11 bytes per
+    // millisecond, paced from the ground side; QEMU's UART has no baud timing of its
+    // own), commit, activate.
     let mut table = Table::nominal();
     table.table_id = 77;
     table.legs[0].a_mm[0] += 0.02;
     let bytes = table.to_bytes();
+    let mut upload = Vec::new();
+    let mut rids = Vec::new();
     for (off, chunk) in dump_chunks(&bytes) {
-        let rid = l.send(&Command::LoadTableChunk(
-            TableChunk::new(off, chunk).unwrap(),
-        ));
-        assert_eq!(l.complete(rid, t), OK3, "chunk at {off}");
+        let (frame, rid) =
+            l.st.frame(&Command::LoadTableChunk(
+                TableChunk::new(off, chunk).unwrap(),
+            ))
+            .unwrap();
+        upload.extend_from_slice(&frame);
+        rids.push(rid);
     }
+    let t_up = Instant::now();
+    for piece in upload.chunks(UART_BYTES_PER_MS) {
+        l.q.send(piece);
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    for (i, rid) in rids.iter().enumerate() {
+        assert_eq!(l.complete(*rid, t), OK3, "chunk {i}");
+    }
+    println!(
+        "upload: {} bytes paced at {UART_BYTES_PER_MS} bytes/ms, all {} chunks accepted in {:.2} s",
+        upload.len(),
+        rids.len(),
+        t_up.elapsed().as_secs_f64()
+    );
     let rid = l.send(&Command::CommitTable {
         crc32: table.crc32(),
     });
@@ -149,4 +204,12 @@ fn firmware_in_qemu_answers_telecommands() {
         "QEMU link: {} TM packets received, all parsed",
         l.st.log.len()
     );
+    // The stack the flight image used on this whole path (boot, TC burst, upload,
+    // background commit with flash writes, activation, scrubs, housekeeping, a move).
+    let peak = l.q.stack_peak_bytes(STACK_BOTTOM, STACK_TOP);
+    println!(
+        "STACK flight image peak_bytes={peak} of {} (memory.x STACK)",
+        STACK_TOP - STACK_BOTTOM
+    );
+    assert!(peak < STACK_TOP - STACK_BOTTOM);
 }

@@ -4,5 +4,5 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export DEFMT_LOG=${DEFMT_LOG:-info}
-cargo build --release --target thumbv7em-none-eabihf --features firmware --bin m2fw
+cargo build --profile flight --target thumbv7em-none-eabihf --features firmware --bin m2fw
 cargo test --features host --test qemu_link -- --ignored --nocapture

@@ -1,111 +1,544 @@
-//! Flight image (target only, `--features firmware`): the M2 mechanism controller.
+//! Flight image (target only, `--features firmware`): the M2 mechanism controller as an
+//! RTIC 2 application on QEMU's mps2-an386.
 //!
-//! Boot: kinematics self-test on the golden vectors (a failure ends the QEMU run with
-//! exit code 1: on a real board this is where safe mode would be entered), table boot
-//! selection from the two flash banks, then the 1 kHz cyclic executive
-//! ([`Controller::tick`]) forever. Telecommands arrive as COBS frames on UART0 and
-//! telemetry leaves the same way (docs/icd.md). QEMU has no sliders: the board drives
-//! a `no_std` slider/encoder model ([`SliderModel`]) behind the same traits.
+//! # Tasks, by priority (the order `sim::Bench` calls the same code on the host)
+//! | priority | task | bound to | does | at most |
+//! |---|---|---|---|---|
+//! | 4 | `uart_rx` | UART0 RX (IRQ 0) | one received byte into the RX queue, overrun bit | ~40 instructions per byte |
+//! | 3 | `control` | TIMER0 (IRQ 8), 1 kHz | `Controller::control_cycle`, deadline check, watchdog feed, pends the two below | one control cycle |
+//! | 2 | `uart_tx` | UART0 TX (IRQ 1, also pended by the link service) | one byte from the TX queue to the UART | ~30 instructions per byte |
+//! | 1 | `link_service` | IRQ 30 (pended by `control`) | `LinkService`: telecommands in (at most `MAX_TC_PER_PASS`), job messages, telemetry frames out | one pass |
+//! | 1 | `worker` | IRQ 31 (pended by `control`, runs after the link pass) | one `Worker::step`: a validation, a flash operation, a scrub check | one step |
+//! | 0 | `idle` | - | sleeps (WFI) | - |
+//!
+//! The link service and the worker share priority 1: neither preempts the other, so
+//! the worst-case stack is the larger of the two plus the tasks above (RTIC's single
+//! stack, stack-resource policy), and the link service waits at most one worker step
+//! (the longest is a table validation, measured by `m2cyclebench`).
+//! The controller is the one shared resource (`control` and `link_service`): the link
+//! service holds its lock (priority ceiling 3) for one telecommand, one telemetry
+//! record or one job message at a time, so the control task waits at most for the
+//! longest of those (measured by `m2cyclebench`); encoding happens outside the lock.
+//! Everything else moves through bounded single-producer/single-consumer queues
+//! (`heapless::spsc`) owned by exactly one task at each end, without locks: UART bytes
+//! (RX, TX), job requests and results (link service <-> idle). The control task never
+//! waits for the UART, the flash or the worker.
+//!
+//! # Failure behaviour
+//! * An overrun (the next timer tick came before the cycle ended) is reported with
+//!   `Controller::note_overrun`; consecutive overruns hold the mechanism.
+//! * The watchdog is fed only by a completed control cycle; its NMI records the cause,
+//!   its second expiry resets. HardFault, a stack overflow into the MPU guard, an
+//!   unexpected interrupt and a panic record their cause and reset; the next boot
+//!   reports cause and boot count (`Controller::set_reset_info`, events 0x0020/0x0021,
+//!   housekeeping).
+//! * A failed boot self-test halts the board before anything is commanded and before
+//!   the watchdog runs (the mechanism stays where it is; safe mode is outside this image).
+//!
+//! No semihosting and no log: telemetry is the only output. QEMU has no sliders: the
+//! board's slider model (`m2ctl::board::qemu_sliders`) stands behind the hardware
+//! traits.
 #![no_std]
 #![no_main]
 #![deny(unsafe_code)]
 
-use cortex_m as _; // critical-section implementation (single core) for defmt
-use cortex_m_rt::entry;
-use defmt_semihosting as _;
-use embedded_hal_nb::serial::{Read, Write};
-use m2ctl::board::active::{self as hw, CycleTimer, TableFlash, Uart};
-use m2ctl::controller::{Controller, ControllerConfig};
+use core::mem::MaybeUninit;
+use m2ctl::board::active as board;
+use m2ctl::board::qemu_sliders::QemuSliders;
+use m2ctl::controller::comms::{Exclusive, JobPort, RxBytes, TxBytes};
+use m2ctl::controller::{Controller, JobRequest, JobResult, ResetCause, ResetInfo, Worker};
+use m2ctl::hw::SliderDrives;
 use m2ctl::kinematics::Geometry;
-use m2ctl::link::framing::Deframer;
-use m2ctl::link::MAX_TC_PACKET_LEN;
-use m2ctl::motion::CYCLE_S;
-use m2ctl::nominal;
-use m2ctl::plant_model::SliderModel;
-use m2ctl::selftest;
-use m2ctl::table::{TableStore, FLIGHT_LAYOUT};
+use m2ctl::table::{BootReport, Table, TableStore, ValidationConfig};
+use m2ctl::{nominal, selftest};
 
-/// Exit code: the boot self-test failed.
-const EXIT_SELFTEST_FAIL: i32 = 1;
-/// Speed of the QEMU slider model (mm/s): faster than the motion limits, so the model
-/// follows the setpoints like a good drive.
-const MODEL_SLIDER_SPEED_MM_PER_S: f32 = 1.0;
-/// Most UART bytes taken per cycle (bounds the cycle time; the rest waits in the UART).
-const MAX_RX_BYTES_PER_CYCLE: usize = 64;
+#[cfg(feature = "panic-never")]
+use panic_never as _;
 
-/// UART transmitter as a telemetry sink (blocking per byte; the UART is faster than
-/// the telemetry rate).
-struct UartSink<'a>(&'a mut Uart);
+/// A panic is a defect (the `panic-never` build proves the image has no panic path):
+/// record it and reset.
+#[cfg(not(feature = "panic-never"))]
+#[panic_handler]
+fn panic(_info: &core::panic::PanicInfo) -> ! {
+    board::record_and_reset(ResetCause::Panic)
+}
 
-impl m2ctl::controller::TmSink for UartSink<'_> {
-    fn send(&mut self, frame: &[u8]) {
+/// UART receive queue (bytes): two largest telecommand frames.
+const RX_QUEUE_LEN: usize = 1024;
+/// UART transmit queue (bytes): the link service queues whole frames only, while they
+/// fit; what does not fit waits in the controller's telemetry queue.
+const TX_QUEUE_LEN: usize = 2048;
+/// Job request and result queues (one slot each: the controller has at most one
+/// operator job and one scrub outstanding, and the link service holds back a request
+/// the queue has no room for).
+const JOB_QUEUE_LEN: usize = 2;
+
+type RxIn = heapless::spsc::Producer<'static, u8, RX_QUEUE_LEN>;
+type RxOut = heapless::spsc::Consumer<'static, u8, RX_QUEUE_LEN>;
+type TxIn = heapless::spsc::Producer<'static, u8, TX_QUEUE_LEN>;
+type TxOut = heapless::spsc::Consumer<'static, u8, TX_QUEUE_LEN>;
+
+/// The RX queue as the link service reads it.
+struct RxQueue<'a>(&'a mut RxOut);
+
+impl RxBytes for RxQueue<'_> {
+    fn pop(&mut self) -> Option<u8> {
+        self.0.dequeue()
+    }
+}
+
+/// The TX queue as the link service fills it.
+struct TxQueue<'a> {
+    queue: &'a mut TxIn,
+    pushed: bool,
+}
+
+impl TxBytes for TxQueue<'_> {
+    fn free(&self) -> usize {
+        self.queue.capacity() - self.queue.len()
+    }
+    fn push(&mut self, frame: &[u8]) {
         for b in frame {
-            let _ = nb::block!(self.0.write(*b));
+            // Only called when the whole frame fits (LinkService::transmit).
+            let _ = self.queue.enqueue(*b);
+        }
+        self.pushed = true;
+    }
+}
+
+/// The worker's two queues as the link service's job port.
+struct WorkerQueues<'a> {
+    requests: &'a mut heapless::spsc::Producer<'static, JobRequest, JOB_QUEUE_LEN>,
+    results: &'a mut heapless::spsc::Consumer<'static, JobResult, JOB_QUEUE_LEN>,
+}
+
+impl JobPort for WorkerQueues<'_> {
+    fn send(&mut self, request: JobRequest) -> Result<(), JobRequest> {
+        self.requests.enqueue(request)
+    }
+    fn recv(&mut self) -> Option<JobResult> {
+        self.results.dequeue()
+    }
+}
+
+/// An RTIC resource (holding a `&'static mut`) as the link service's [`Exclusive`]
+/// access to the controller.
+struct Locked<'a, M>(&'a mut M);
+
+impl<X: 'static, M: rtic::Mutex<T = &'static mut X>> Exclusive<X> for Locked<'_, M> {
+    fn lock<R>(&mut self, f: impl FnOnce(&mut X) -> R) -> R {
+        self.0.lock(|x| f(x))
+    }
+}
+
+/// Stops here for good (boot self-test failed, hardware missing): nothing commanded,
+/// no watchdog running.
+fn halt() -> ! {
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+/// Boot self-test of the flight kinematics on a subset of the golden vectors (every
+/// fifth row; the self-test image m2selftest checks all of them). Not inlined: its
+/// frame is gone before the controller is built.
+#[inline(never)]
+fn boot_selftest_passes() -> bool {
+    let Ok(geom) = Geometry::<f32>::new(&nominal::prototype_with_flight_limits()) else {
+        return false;
+    };
+    selftest::BOOT_GOLDEN_ROWS
+        .iter()
+        .all(|row| selftest::run_row(&geom, row).pass)
+}
+
+/// The worker (owning the table store) and the controller, each built by its own
+/// non-inlined function straight into its static slot, and the boot selection in
+/// between, so that init's stack holds at most one of these large objects at a time.
+#[inline(never)]
+fn build_core(
+    flash: board::TableFlash,
+    sliders: QemuSliders,
+    reset: ResetInfo,
+    ctl_slot: &'static mut MaybeUninit<Controller<QemuSliders>>,
+    worker_slot: &'static mut MaybeUninit<Worker<board::TableFlash>>,
+) -> Option<(
+    &'static mut Controller<QemuSliders>,
+    &'static mut Worker<board::TableFlash>,
+)> {
+    let validation = ValidationConfig::flight();
+    let worker = build_worker(worker_slot, flash, validation)?;
+    let (table, boot) = boot_selection(worker.store_mut(), &validation);
+    let ctl = build_controller(ctl_slot, sliders, table, boot, reset);
+    // The on-board parameters persisted with the selection record (pivot, limits...).
+    ctl.restore_parameters(&worker.store_mut().parameters());
+    Some((ctl, worker))
+}
+
+#[inline(never)]
+fn build_worker(
+    slot: &'static mut MaybeUninit<Worker<board::TableFlash>>,
+    flash: board::TableFlash,
+    validation: ValidationConfig,
+) -> Option<&'static mut Worker<board::TableFlash>> {
+    let store = TableStore::new(flash, board::TABLE_LAYOUT).ok()?;
+    Some(slot.write(Worker::new(store, validation)))
+}
+
+/// The table boot selection (`TableStore::boot`): what the operator last selected, if
+/// it is intact and valid, else the fallback.
+#[inline(never)]
+fn boot_selection(
+    store: &mut TableStore<board::TableFlash>,
+    validation: &ValidationConfig,
+) -> (Table, BootReport) {
+    store.boot(validation)
+}
+
+#[inline(never)]
+fn build_controller(
+    slot: &'static mut MaybeUninit<Controller<QemuSliders>>,
+    mut sliders: QemuSliders,
+    table: Table,
+    boot: BootReport,
+    reset: ResetInfo,
+) -> &'static mut Controller<QemuSliders> {
+    sliders.hold();
+    let ctl = slot.write(Controller::unstarted(sliders, table, boot));
+    // Called out of line (through a pointer the optimiser cannot see through), so that
+    // its frame (FK of the held strokes) and the construction's are not on the stack
+    // together.
+    let start: fn(&mut Controller<QemuSliders>) = Controller::start;
+    core::hint::black_box(start)(ctl);
+    ctl.set_reset_info(reset);
+    ctl
+}
+
+/// The worker's request side: hands the next request (or the one it refused last
+/// time) to the worker. Not inlined, like [`step_worker`]: the ~1 KB requests moved
+/// here and the step's own frame are never on the stack together.
+#[inline(never)]
+fn take_request(
+    worker: &mut Worker<board::TableFlash>,
+    requests: &mut heapless::spsc::Consumer<'static, JobRequest, JOB_QUEUE_LEN>,
+    refused: &mut heapless::Vec<JobRequest, 1>,
+) {
+    if refused.is_empty() {
+        if let Some(r) = requests.dequeue() {
+            let _ = refused.push(r);
+        }
+    }
+    if let Some(r) = refused.pop() {
+        if let Err(r) = worker.submit(r) {
+            let _ = refused.push(r);
         }
     }
 }
 
-#[entry]
-fn main() -> ! {
-    defmt::info!("m2fw: M2 mechanism controller");
-    let Ok(geom) = Geometry::<f32>::new(&nominal::prototype_with_flight_limits()) else {
-        defmt::error!("nominal geometry invalid");
-        hw::exit(EXIT_SELFTEST_FAIL)
-    };
-    let summary = selftest::run_all(&geom, |_, _| {});
-    if summary.failures != 0 {
-        defmt::error!(
-            "SELFTEST FAIL: {=u32} of {=u32} rows",
-            summary.failures,
-            summary.rows
-        );
-        hw::exit(EXIT_SELFTEST_FAIL)
+/// One worker step; its result goes to the result queue (or waits in `unsent` while
+/// the queue is full, and then no step is taken).
+#[inline(never)]
+fn step_worker(
+    worker: &mut Worker<board::TableFlash>,
+    results: &mut heapless::spsc::Producer<'static, JobResult, JOB_QUEUE_LEN>,
+    unsent: &mut heapless::Vec<JobResult, 1>,
+) {
+    if !unsent.is_empty() {
+        send_unsent(results, unsent);
+        return;
     }
-    defmt::info!(
-        "SELFTEST PASS rows={=u32} digest={=u32:#010x}",
-        summary.rows,
-        summary.digest
-    );
-
-    let store = match TableStore::new(TableFlash::take(), FLIGHT_LAYOUT) {
-        Ok(s) => s,
-        Err(_) => {
-            defmt::error!("table store layout invalid");
-            hw::exit(EXIT_SELFTEST_FAIL)
+    if let Some(r) = worker.step(board::ticks()) {
+        if let Err(r) = results.enqueue(r) {
+            let _ = unsent.push(r);
         }
-    };
-    let mech = SliderModel::new(MODEL_SLIDER_SPEED_MM_PER_S, CYCLE_S);
-    let mut ctl = Controller::new(mech, store, ControllerConfig::default());
-    defmt::info!(
-        "table: source={=u8} id={=u32}",
-        ctl.boot_report().source.code(),
-        ctl.active_table().table_id
-    );
+    }
+}
 
-    let Some(peripherals) = cortex_m::Peripherals::take() else {
-        defmt::error!("peripherals taken twice");
-        hw::exit(EXIT_SELFTEST_FAIL)
-    };
-    let mut timer = CycleTimer::start(peripherals.SYST);
-    let mut uart = Uart::uart0();
-    let mut deframer: Deframer = Deframer::new();
-    let mut packet = [0u8; MAX_TC_PACKET_LEN];
-    loop {
-        // Take received bytes; at most one complete telecommand per cycle.
-        let mut tc_len: Option<usize> = None;
-        for _ in 0..MAX_RX_BYTES_PER_CYCLE {
-            let Ok(byte) = uart.read() else { break };
-            if let Some(Ok(frame)) = deframer.push_byte(byte) {
-                if let Some(dst) = packet.get_mut(..frame.len()) {
-                    dst.copy_from_slice(frame);
-                    tc_len = Some(frame.len());
-                }
-                break;
+/// Retries the result the queue had no room for (not inlined: its copy of the result
+/// is not on the stack during a step).
+#[inline(never)]
+fn send_unsent(
+    results: &mut heapless::spsc::Producer<'static, JobResult, JOB_QUEUE_LEN>,
+    unsent: &mut heapless::Vec<JobResult, 1>,
+) {
+    if let Some(r) = unsent.pop() {
+        if let Err(r) = results.enqueue(r) {
+            let _ = unsent.push(r);
+        }
+    }
+}
+
+#[rtic::app(device = m2ctl::board::active::device, peripherals = false)]
+mod app {
+    use super::*;
+    use board::device::Interrupt;
+    use board::{Board, ControlTimer, UartErrors, UartRx, UartTx, Watchdog};
+    use heapless::spsc::{Consumer, Producer, Queue};
+    use m2ctl::controller::comms::LinkService;
+
+    // The controller and the worker live in init's static slots (built in place: the
+    // controller alone is ~6 KB, more than init could afford to move on its stack);
+    // the resources are references to them.
+    #[shared]
+    struct Shared {
+        ctl: &'static mut Controller<QemuSliders>,
+    }
+
+    #[local]
+    struct Local {
+        timer: ControlTimer,
+        watchdog: Watchdog,
+        uart_rx: UartRx,
+        rx_in: RxIn,
+        uart_tx: UartTx,
+        tx_out: TxOut,
+        link: LinkService,
+        rx_out: RxOut,
+        tx_in: TxIn,
+        uart_errors: UartErrors,
+        requests_tx: Producer<'static, JobRequest, JOB_QUEUE_LEN>,
+        results_rx: Consumer<'static, JobResult, JOB_QUEUE_LEN>,
+        worker: &'static mut Worker<board::TableFlash>,
+        requests_rx: Consumer<'static, JobRequest, JOB_QUEUE_LEN>,
+        results_tx: Producer<'static, JobResult, JOB_QUEUE_LEN>,
+        fault_stage: fault_test::Stage,
+    }
+
+    #[init(local = [
+        rx_q: Queue<u8, RX_QUEUE_LEN> = Queue::new(),
+        tx_q: Queue<u8, TX_QUEUE_LEN> = Queue::new(),
+        req_q: Queue<JobRequest, JOB_QUEUE_LEN> = Queue::new(),
+        res_q: Queue<JobResult, JOB_QUEUE_LEN> = Queue::new(),
+        ctl_slot: MaybeUninit<Controller<QemuSliders>> = MaybeUninit::uninit(),
+        worker_slot: MaybeUninit<Worker<board::TableFlash>> = MaybeUninit::uninit(),
+    ])]
+    fn init(cx: init::Context) -> (Shared, Local) {
+        let mut core = cx.core;
+        board::enable_stack_guard(&mut core.MPU, &mut core.SCB);
+        let Some(b) = Board::take() else { halt() };
+
+        if !boot_selftest_passes() {
+            halt()
+        }
+        let Some((ctl, worker)) = build_core(
+            b.flash,
+            b.sliders,
+            b.reset,
+            cx.local.ctl_slot,
+            cx.local.worker_slot,
+        ) else {
+            halt()
+        };
+
+        // Queues and I/O.
+        let (uart_rx, uart_tx, uart_errors) = b.uart0.split();
+        let (rx_in, rx_out) = cx.local.rx_q.split();
+        let (tx_in, tx_out) = cx.local.tx_q.split();
+        let (requests_tx, requests_rx) = cx.local.req_q.split();
+        let (results_tx, results_rx) = cx.local.res_q.split();
+        let mut timer = b.timer;
+        let mut watchdog = b.watchdog;
+        let fault_stage = fault_test::Stage::after(b.reset.cause);
+        timer.start();
+        watchdog.start();
+        (
+            Shared { ctl },
+            Local {
+                timer,
+                watchdog,
+                uart_rx,
+                rx_in,
+                uart_tx,
+                tx_out,
+                link: LinkService::new(),
+                rx_out,
+                tx_in,
+                uart_errors,
+                requests_tx,
+                results_rx,
+                worker,
+                requests_rx,
+                results_tx,
+                fault_stage,
+            },
+        )
+    }
+
+    /// UART0 receive: one byte into the RX queue.
+    #[task(binds = UARTRX0, priority = 4, local = [uart_rx, rx_in])]
+    fn uart_rx(cx: uart_rx::Context) {
+        cx.local.uart_rx.on_interrupt(cx.local.rx_in);
+    }
+
+    /// The 1 kHz control task.
+    #[task(binds = TIMER0, priority = 3, shared = [ctl], local = [timer, watchdog, fault_stage])]
+    fn control(mut cx: control::Context) {
+        cx.local.timer.acknowledge();
+        let timer = &*cx.local.timer;
+        let stage = &mut *cx.local.fault_stage;
+        cx.shared.ctl.lock(|c| {
+            c.control_cycle();
+            stage.in_cycle(c.cycle(), timer);
+            if timer.tick_pending() {
+                c.note_overrun();
+            } else {
+                c.note_deadline_met();
+            }
+        });
+        cx.local.watchdog.feed();
+        rtic::pend(Interrupt::IRQ30);
+        rtic::pend(Interrupt::IRQ31);
+    }
+
+    /// The link service: one pass after every control cycle.
+    #[task(binds = IRQ30, priority = 1, shared = [ctl],
+           local = [link, rx_out, tx_in, uart_errors, requests_tx, results_rx])]
+    fn link_service(cx: link_service::Context) {
+        let link = cx.local.link;
+        let new_errors = cx.local.uart_errors.take_new();
+        if new_errors > 0 {
+            link.add_uart_overruns(new_errors);
+        }
+        let mut shared = cx.shared.ctl;
+        let mut ctl = Locked(&mut shared);
+        link.receive(&mut ctl, &mut RxQueue(cx.local.rx_out));
+        link.exchange_jobs(
+            &mut ctl,
+            &mut WorkerQueues {
+                requests: cx.local.requests_tx,
+                results: cx.local.results_rx,
+            },
+        );
+        let mut tx = TxQueue {
+            queue: cx.local.tx_in,
+            pushed: false,
+        };
+        link.transmit(&mut ctl, &mut tx);
+        if tx.pushed {
+            rtic::pend(Interrupt::UARTTX0);
+        }
+    }
+
+    /// UART0 transmit: the next byte of the TX queue.
+    #[task(binds = UARTTX0, priority = 2, local = [uart_tx, tx_out])]
+    fn uart_tx(cx: uart_tx::Context) {
+        cx.local.uart_tx.on_interrupt(cx.local.tx_out);
+    }
+
+    /// The background worker: one step per control period, after the link pass (the
+    /// same priority: neither preempts the other, so their stacks never add up).
+    #[task(binds = IRQ31, priority = 1, local = [
+        worker, requests_rx, results_tx,
+        refused: heapless::Vec<JobRequest, 1> = heapless::Vec::new(),
+        unsent: heapless::Vec<JobResult, 1> = heapless::Vec::new(),
+    ])]
+    fn worker(cx: worker::Context) {
+        let l = cx.local;
+        // `refused`/`unsent` hold one request the worker refused for now and one result
+        // the queue had no room for (statics, not stack; empty vectors are zeroed
+        // memory, so they cost no flash).
+        take_request(l.worker, l.requests_rx, l.refused);
+        step_worker(l.worker, l.results_tx, l.unsent);
+    }
+
+    /// Nothing else to do: sleep until the next interrupt.
+    #[idle]
+    fn idle(_cx: idle::Context) -> ! {
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+}
+
+/// Test build only (`--features fault-test`, scripts/qemu-fault-test.sh): faults
+/// injected on purpose, one stage per boot, chosen by the cause of the last reset:
+/// * after power-on: [`OVERRUN_CYCLES`] consecutive overrunning cycles from cycle
+///   [`OVERRUN_AT_CYCLE`] (the deadline fault must latch), then the control task hangs
+///   at cycle [`HANG_AT_CYCLE`] (the watchdog must reset);
+/// * after the watchdog reset: a stack overflow at cycle [`OVERFLOW_AT_CYCLE`] (the
+///   MPU guard must fault and reset);
+/// * after that: normal operation.
+///
+/// In the flight image [`fault_test::Stage`] is an empty type that does nothing.
+#[cfg(feature = "fault-test")]
+mod fault_test {
+    use super::*;
+    use core::hint::black_box;
+
+    /// First overrunning cycle after power-on.
+    pub const OVERRUN_AT_CYCLE: u32 = 1500;
+    /// Overrunning cycles in a row.
+    pub const OVERRUN_CYCLES: u32 = 5;
+    /// The control task hangs at this cycle after power-on.
+    pub const HANG_AT_CYCLE: u32 = 4000;
+    /// The stack overflows at this cycle after the watchdog reset.
+    pub const OVERFLOW_AT_CYCLE: u32 = 1500;
+    /// Stack frame of one recursion of the overflow (bytes).
+    const OVERFLOW_FRAME_BYTES: usize = 512;
+
+    pub enum Stage {
+        OverrunThenHang,
+        Overflow,
+        Normal,
+    }
+
+    impl Stage {
+        pub fn after(cause: ResetCause) -> Stage {
+            match cause {
+                ResetCause::PowerOn => Stage::OverrunThenHang,
+                ResetCause::Watchdog => Stage::Overflow,
+                _ => Stage::Normal,
             }
         }
-        let tc = tc_len.and_then(|n| packet.get(..n));
-        ctl.mechanism_mut().step();
-        ctl.tick(tc, &mut UartSink(&mut uart));
-        timer.wait();
+
+        pub fn in_cycle(&mut self, cycle: u32, timer: &board::ControlTimer) {
+            match self {
+                Stage::OverrunThenHang => {
+                    if (OVERRUN_AT_CYCLE..OVERRUN_AT_CYCLE + OVERRUN_CYCLES).contains(&cycle) {
+                        while !timer.tick_pending() {}
+                    }
+                    if cycle == HANG_AT_CYCLE {
+                        #[allow(clippy::empty_loop)]
+                        loop {}
+                    }
+                }
+                Stage::Overflow => {
+                    if cycle == OVERFLOW_AT_CYCLE {
+                        black_box(recurse(0));
+                    }
+                }
+                Stage::Normal => {}
+            }
+        }
+    }
+
+    /// Recurses until the stack runs into the guard.
+    #[inline(never)]
+    fn recurse(depth: u32) -> u32 {
+        let mut frame = [0u8; OVERFLOW_FRAME_BYTES];
+        black_box(&mut frame);
+        if black_box(depth) < u32::MAX {
+            recurse(depth + 1).wrapping_add(u32::from(frame.first().copied().unwrap_or(0)))
+        } else {
+            depth
+        }
+    }
+}
+
+/// The flight image injects nothing.
+#[cfg(not(feature = "fault-test"))]
+mod fault_test {
+    use super::*;
+
+    /// No fault injection.
+    pub struct Stage;
+
+    impl Stage {
+        pub fn after(_cause: ResetCause) -> Stage {
+            Stage
+        }
+
+        #[inline(always)]
+        pub fn in_cycle(&mut self, _cycle: u32, _timer: &board::ControlTimer) {}
     }
 }

@@ -8,18 +8,28 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// The flight image built by `cargo build --release --target thumbv7em-none-eabihf
+/// The flight image built by `cargo build --profile flight --target thumbv7em-none-eabihf
 /// --features firmware --bin m2fw` (scripts/qemu-link-test.sh builds it).
 pub fn firmware_elf() -> PathBuf {
-    let p =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/thumbv7em-none-eabihf/release/m2fw");
+    elf_at("target/thumbv7em-none-eabihf/flight/m2fw")
+}
+
+/// An image under the crate directory; panics with a hint if it was not built.
+pub fn elf_at(relative: &str) -> PathBuf {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(relative);
     assert!(
         p.exists(),
-        "{} missing: build the firmware first (scripts/qemu-link-test.sh)",
+        "{} missing: build the firmware first (scripts/qemu-link-test.sh, scripts/qemu-fault-test.sh)",
         p.display()
     );
     p
 }
+
+/// Virtual time of QEMU's CPU: every guest instruction takes 2^ICOUNT_SHIFT ns (8 ns:
+/// 125 M instructions per second of guest time). Timers, the watchdog and the control
+/// rate run on this clock, so a loaded host slows the guest down instead of making
+/// its cycles overrun; `sleep=on` keeps guest time from running ahead of real time.
+pub const ICOUNT_SHIFT: u32 = 3;
 
 /// A running QEMU with the firmware; killed on drop.
 pub struct Qemu {
@@ -27,36 +37,38 @@ pub struct Qemu {
     /// UART0 as a byte stream.
     pub uart: UnixStream,
     sock: PathBuf,
+    monitor: PathBuf,
 }
 
 impl Qemu {
-    /// Starts QEMU and connects to UART0.
+    /// Starts QEMU with the flight image and connects to UART0.
     pub fn start() -> Qemu {
-        let elf = firmware_elf();
+        Self::start_elf(&firmware_elf())
+    }
+
+    /// Starts QEMU with `elf` and connects to UART0.
+    pub fn start_elf(elf: &std::path::Path) -> Qemu {
         let sock = std::env::temp_dir().join(format!(
             "m2fw-uart-{}-{}.sock",
             std::process::id(),
             rand_suffix()
         ));
         let _ = std::fs::remove_file(&sock);
+        let monitor = sock.with_extension("monitor");
+        let _ = std::fs::remove_file(&monitor);
         let child = Command::new("qemu-system-arm")
-            .args([
-                "-cpu",
-                "cortex-m4",
-                "-machine",
-                "mps2-an386",
-                "-nographic",
-                "-monitor",
-                "none",
-            ])
-            .args(["-semihosting-config", "enable=on,target=native"])
+            .args(["-cpu", "cortex-m4", "-machine", "mps2-an386", "-nographic"])
+            .arg("-monitor")
+            .arg(format!("unix:{},server=on,wait=off", monitor.display()))
+            .arg("-icount")
+            .arg(format!("shift={ICOUNT_SHIFT},sleep=on"))
             .arg("-chardev")
             .arg(format!(
                 "socket,id=tc,path={},server=on,wait=on",
                 sock.display()
             ))
             .args(["-serial", "chardev:tc", "-kernel"])
-            .arg(&elf)
+            .arg(elf)
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(Stdio::inherit())
@@ -74,7 +86,12 @@ impl Qemu {
         };
         uart.set_read_timeout(Some(Duration::from_millis(100)))
             .unwrap();
-        Qemu { child, uart, sock }
+        Qemu {
+            child,
+            uart,
+            sock,
+            monitor,
+        }
     }
 
     /// Sends bytes to the firmware's UART.
@@ -101,6 +118,62 @@ impl Qemu {
     }
 }
 
+impl Qemu {
+    /// Reads `words` 32-bit words of guest memory at `addr` through QEMU's monitor.
+    pub fn read_words(&self, addr: u32, words: usize) -> Vec<u32> {
+        let mut mon = UnixStream::connect(&self.monitor).expect("QEMU monitor socket");
+        mon.set_read_timeout(Some(Duration::from_millis(500)))
+            .unwrap();
+        mon.write_all(format!("xp /{words}wx {addr:#x}\n").as_bytes())
+            .unwrap();
+        let mut text = String::new();
+        let mut buf = [0u8; 65536];
+        let t0 = Instant::now();
+        let mut out = Vec::new();
+        while out.len() < words && t0.elapsed() < Duration::from_secs(20) {
+            if let Ok(n) = mon.read(&mut buf) {
+                if n == 0 {
+                    break;
+                }
+                text.push_str(&String::from_utf8_lossy(&buf[..n]));
+            }
+            out = parse_xp(&text);
+        }
+        assert_eq!(
+            out.len(),
+            words,
+            "monitor answered {} of {words} words",
+            out.len()
+        );
+        out
+    }
+
+    /// Stack bytes the firmware used so far: the painted stack region `[lo, hi)`
+    /// (cortex-m-rt paints it with 0xCCCCCCCC) scanned from its low end for the first
+    /// word no longer the paint value.
+    pub fn stack_peak_bytes(&self, lo: u32, hi: u32) -> u32 {
+        let words = self.read_words(lo, ((hi - lo) / 4) as usize);
+        let unused = words.iter().take_while(|w| **w == STACK_PAINT).count() as u32;
+        hi - lo - 4 * unused
+    }
+}
+
+/// The paint value of cortex-m-rt's `paint-stack`.
+pub const STACK_PAINT: u32 = 0xCCCC_CCCC;
+
+/// Words of the monitor's `xp /Nwx` answer (`addr: w w w w` lines).
+fn parse_xp(text: &str) -> Vec<u32> {
+    text.lines()
+        .filter_map(|l| l.split_once(": "))
+        .filter(|(a, _)| a.trim().chars().all(|c| c.is_ascii_hexdigit()))
+        .flat_map(|(_, ws)| {
+            ws.split_whitespace()
+                .filter_map(|w| u32::from_str_radix(w.trim_start_matches("0x"), 16).ok())
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
 fn rand_suffix() -> u64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
@@ -113,5 +186,6 @@ impl Drop for Qemu {
         let _ = self.child.kill();
         let _ = self.child.wait();
         let _ = std::fs::remove_file(&self.sock);
+        let _ = std::fs::remove_file(&self.monitor);
     }
 }

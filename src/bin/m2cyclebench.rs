@@ -1,182 +1,427 @@
-//! Control-cycle benchmark image (target only, `--features firmware`): the controller
-//! with the QEMU slider model, measured with `qemu-insncount` markers around whole
-//! control cycles. BENCH n=1: empty pair; n=2: the cycle that receives a move
-//! telecommand (decode, acceptance report, both ends checked); n=3..7: the next five
-//! cycles (the path sampled `controller::PLAN_SAMPLES_PER_CYCLE` IK per cycle, start report, the
-//! move begins); n=8..10: steady cycles during the move; n=11: a cycle that also emits
-//! housekeeping.
-//! Exits through semihosting (0 if the move was running without a fault).
+//! Cycle benchmark image (target only, `--features firmware`, built with the flight
+//! profile so it measures the flight image's code): the controller, link service and
+//! background worker of `m2fw` on the board's slider model and table flash, run one
+//! control period at a time in the order the flight image runs them by priority (as
+//! `sim::Bench` does on the host): control cycle, link pass, worker step. Each of the
+//! three is a separately measured section for the instruction counter
+//! (`bench_start`/`bench_end`); its stack depth is measured from the painted stack.
+//!
+//! Sections: `BENCH n=1` is the empty pair; then every period contributes three
+//! sections, control (n), link (n+1), worker (n+2). A `GROUP name=.. first=n
+//! periods=k` line (defmt log) names the periods of each scenario: idle, a move, a TC
+//! burst, housekeeping, a table upload, the background commit, the activation.
+//! `STACK part=.. peak_bytes=..` lines give the deepest stack of each part; `BOOT` the
+//! boot path's. `scripts/bench.sh` joins the two. Exits through semihosting (0 if
+//! every scenario did what it should, so the figures are what they claim).
 #![no_std]
 #![no_main]
 #![deny(unsafe_code)]
 
+use core::mem::MaybeUninit;
+
 use cortex_m as _; // critical-section implementation (single core) for defmt
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
-use m2ctl::board::active::{self as hw, TableFlash};
-use m2ctl::controller::{Controller, ControllerConfig, State, TmSink, HK_PERIOD_CYCLES};
+use heapless::Deque;
+use m2ctl::board::active::{self as hw, Board, TableFlash};
+use m2ctl::board::qemu_sliders::QemuSliders;
+use m2ctl::controller::comms::{JobPort, LinkService, RxBytes, TxBytes};
+use m2ctl::controller::{Controller, JobRequest, JobResult, ResetCause, State, Worker};
+use m2ctl::hw::SliderDrives;
 use m2ctl::link::command::WirePose;
 use m2ctl::link::tc::{encode_telecommand, TcHeader};
-use m2ctl::link::{Command, MAX_TC_PACKET_LEN};
-use m2ctl::motion::CYCLE_S;
-use m2ctl::plant_model::SliderModel;
-use m2ctl::table::{TableStore, FLIGHT_LAYOUT};
+use m2ctl::link::{encode_frame, Command, MAX_TC_PACKET_LEN};
+use m2ctl::table::{Table, TableStore, ValidationConfig};
+use m2ctl::timing::HK_PERIOD_CYCLES;
 
-/// Exit code: the benchmark ran as intended.
+/// Exit code: every scenario ran as intended.
 const EXIT_PASS: i32 = 0;
-/// Exit code: the move did not run (the figures would not be what they claim).
+/// Exit code: a scenario did not do what it should (the figures would not be what
+/// they claim).
 const EXIT_FAIL: i32 = 1;
+
+/// A panic is a defect: end the run with the board's panic exit code.
+#[panic_handler]
+fn panic(_info: &core::panic::PanicInfo) -> ! {
+    defmt::error!("PANIC");
+    hw::exit(hw::EXIT_PANIC)
+}
+
+/// Uplink bytes the bench can hold (one TC burst).
+const UPLINK_LEN: usize = 2048;
+/// Largest frame of one telecommand (bytes).
+const TC_FRAME_LEN: usize = 2 * MAX_TC_PACKET_LEN + 4;
+/// Idle periods measured.
+const IDLE_PERIODS: u32 = 20;
+/// Most periods a scenario may take before it counts as failed.
+const MAX_PERIODS: u32 = 20_000;
+/// Table ID of the table the benchmark uploads and commits.
+const BENCH_TABLE_ID: u32 = 9;
+
+/// Stack peak of each part (bytes).
+#[derive(Default)]
+struct Peaks {
+    control: u32,
+    link: u32,
+    worker: u32,
+}
+
+/// Bytes waiting on the uplink.
+struct Uplink(Deque<u8, UPLINK_LEN>);
+
+impl RxBytes for Uplink {
+    fn pop(&mut self) -> Option<u8> {
+        self.0.pop_front()
+    }
+}
+
+/// Downlink that only counts bytes (unlimited room, like an empty TX queue).
+struct Downlink {
+    bytes: u32,
+    frames: u32,
+}
+
+impl TxBytes for Downlink {
+    fn free(&self) -> usize {
+        usize::MAX
+    }
+    fn push(&mut self, frame: &[u8]) {
+        self.bytes = self.bytes.wrapping_add(frame.len() as u32);
+        self.frames = self.frames.wrapping_add(1);
+    }
+}
+
+/// The worker behind the job port, results in a small queue (the flight image: two
+/// spsc queues).
+struct Port<'a> {
+    worker: &'a mut Worker<TableFlash>,
+    results: &'a mut Deque<JobResult, 2>,
+}
+
+impl JobPort for Port<'_> {
+    fn send(&mut self, request: JobRequest) -> Result<(), JobRequest> {
+        self.worker.submit(request)
+    }
+    fn recv(&mut self) -> Option<JobResult> {
+        self.results.pop_front()
+    }
+}
+
+struct Rig {
+    ctl: &'static mut Controller<QemuSliders>,
+    worker: &'static mut Worker<TableFlash>,
+    link: LinkService,
+    timer: hw::ControlTimer,
+    up: Uplink,
+    down: Downlink,
+    results: Deque<JobResult, 2>,
+    peaks: Peaks,
+    /// Sections measured so far (the counter's `n` of the last one).
+    sections: u32,
+    seq: u16,
+}
+
+impl Rig {
+    /// One control period: control cycle, link pass, worker step, each measured (each
+    /// in its own function, as in the flight image's tasks, so the bench's stack does
+    /// not carry all three frames at once).
+    #[inline(never)]
+    fn period(&mut self) {
+        self.timer.acknowledge();
+        // Depth of the bench itself at the calls: subtracted from each part's peak.
+        let base = hw::stack_depth_bytes();
+        hw::repaint_stack();
+        self.control_part();
+        self.peaks.control = self
+            .peaks
+            .control
+            .max(hw::stack_peak_bytes().saturating_sub(base));
+        hw::repaint_stack();
+        self.link_part();
+        self.peaks.link = self
+            .peaks
+            .link
+            .max(hw::stack_peak_bytes().saturating_sub(base));
+        hw::repaint_stack();
+        let r = self.worker_part();
+        self.peaks.worker = self
+            .peaks
+            .worker
+            .max(hw::stack_peak_bytes().saturating_sub(base));
+        if let Some(r) = r {
+            let _ = self.results.push_back(r);
+        }
+        self.sections += 3;
+    }
+
+    #[inline(never)]
+    fn control_part(&mut self) {
+        hw::bench_start();
+        self.ctl.control_cycle();
+        hw::bench_end();
+    }
+
+    #[inline(never)]
+    fn link_part(&mut self) {
+        hw::bench_start();
+        let mut ctl: &mut Controller<QemuSliders> = self.ctl;
+        self.link.receive(&mut ctl, &mut self.up);
+        let mut port = Port {
+            worker: self.worker,
+            results: &mut self.results,
+        };
+        self.link.exchange_jobs(&mut ctl, &mut port);
+        self.link.transmit(&mut ctl, &mut self.down);
+        hw::bench_end();
+    }
+
+    #[inline(never)]
+    fn worker_part(&mut self) -> Option<JobResult> {
+        hw::bench_start();
+        let r = self.worker.step(hw::ticks());
+        hw::bench_end();
+        r
+    }
+
+    /// Frames `cmd` onto the uplink.
+    #[inline(never)]
+    fn queue(&mut self, cmd: &Command) -> bool {
+        let mut pkt = [0u8; MAX_TC_PACKET_LEN];
+        let mut frame = [0u8; TC_FRAME_LEN];
+        let Ok(n) = encode_telecommand(cmd, TcHeader::new(self.seq), &mut pkt) else {
+            return false;
+        };
+        self.seq = self.seq.wrapping_add(1);
+        let Some(p) = pkt.get(..n) else { return false };
+        let Ok(fl) = encode_frame(p, &mut frame) else {
+            return false;
+        };
+        frame
+            .get(..fl)
+            .is_some_and(|f| f.iter().all(|b| self.up.0.push_back(*b).is_ok()))
+    }
+
+    /// Runs `periods` periods as the group `name`.
+    fn group(&mut self, name: &str, periods: u32) {
+        let first = self.sections + 1;
+        for _ in 0..periods {
+            self.period();
+        }
+        defmt::info!(
+            "GROUP name={=str} first={=u32} periods={=u32}",
+            name,
+            first,
+            periods
+        );
+    }
+
+    /// Runs periods as the group `name` until `done` holds (at most [`MAX_PERIODS`]);
+    /// returns whether it did.
+    fn group_until(&mut self, name: &str, mut done: impl FnMut(&mut Rig) -> bool) -> bool {
+        let first = self.sections + 1;
+        let mut n = 0;
+        let mut ok = false;
+        while n < MAX_PERIODS {
+            self.period();
+            n += 1;
+            if done(self) {
+                ok = true;
+                break;
+            }
+        }
+        defmt::info!(
+            "GROUP name={=str} first={=u32} periods={=u32}",
+            name,
+            first,
+            n
+        );
+        ok
+    }
+}
 
 #[entry]
 fn main() -> ! {
     hw::bench_start();
     hw::bench_end();
-    let ok = bench_cycle();
-    defmt::info!("STACK peak_bytes={=u32}", hw::stack_peak_bytes());
+    let ok = run();
     hw::exit(if ok { EXIT_PASS } else { EXIT_FAIL })
 }
 
-/// Telemetry sink that only counts bytes (the benchmark measures the controller).
-struct CountingSink(u32);
-
-impl TmSink for CountingSink {
-    fn send(&mut self, frame: &[u8]) {
-        self.0 = self.0.wrapping_add(frame.len() as u32);
-    }
-}
-
-/// Speed of the slider model in the cycle benchmark (mm/s).
-const BENCH_MODEL_SPEED_MM_PER_S: f32 = 1.0;
-/// Cycles into the move before the steady-cycle measurements (cruising by then).
-const BENCH_CRUISE_CYCLES: u32 = 1500;
-/// Cycles measured after the telecommand cycle (planning, then the first move cycles).
-const BENCH_PLANNING_CYCLES: u32 = 5;
-
-/// Instruction counts of whole control cycles. Returns whether the move was running
-/// without a fault throughout.
-#[inline(never)]
-fn bench_cycle() -> bool {
-    let Ok(store) = TableStore::new(TableFlash::take(), FLIGHT_LAYOUT) else {
-        defmt::error!("bench: store");
+fn run() -> bool {
+    let Some(b) = Board::take() else {
         return false;
     };
-    let mech = SliderModel::new(BENCH_MODEL_SPEED_MM_PER_S, CYCLE_S);
-    let mut ctl = Controller::new(mech, store, ControllerConfig::default());
-    let mut sink = CountingSink(0);
-    // Run to just after a housekeeping cycle so the measured cycles emit none.
-    for _ in 0..2 {
-        ctl.mechanism_mut().step();
-        ctl.tick(None, &mut sink);
+    // A fault resets the board (the flight image's handlers): in a benchmark image
+    // that is a failure to report, not a run to repeat.
+    if b.reset.cause != ResetCause::PowerOn {
+        defmt::error!(
+            "bench: restarted after a reset (cause {=u8})",
+            b.reset.cause.code()
+        );
+        return false;
     }
+    let Some((ctl, worker)) = boot(b.flash, b.sliders) else {
+        return false;
+    };
+    defmt::info!(
+        "SIZES controller_bytes={=u32} worker_bytes={=u32}",
+        core::mem::size_of::<Controller<QemuSliders>>() as u32,
+        core::mem::size_of::<Worker<TableFlash>>() as u32
+    );
+    // The bench's own state in a static, not on the measured stack.
+    let Some(rig) = cortex_m::singleton!(: Rig = Rig {
+        ctl,
+        worker,
+        link: LinkService::new(),
+        timer: b.timer,
+        up: Uplink(Deque::new()),
+        down: Downlink {
+            bytes: 0,
+            frames: 0,
+        },
+        results: Deque::new(),
+        peaks: Peaks::default(),
+        sections: 1,
+        seq: 1,
+    }) else {
+        return false;
+    };
+    let ok = scenarios(rig);
+    defmt::info!("STACK part=control peak_bytes={=u32}", rig.peaks.control);
+    defmt::info!("STACK part=link peak_bytes={=u32}", rig.peaks.link);
+    defmt::info!("STACK part=worker peak_bytes={=u32}", rig.peaks.worker);
+    defmt::info!(
+        "bench: {=u32} TM frames, {=u32} bytes; state {=u8}, faults {=u32:#x}",
+        rig.down.frames,
+        rig.down.bytes,
+        rig.ctl.state().code(),
+        rig.ctl.faults().bits()
+    );
+    ok
+}
+
+/// Boot path, as m2fw's init: worker (owning the table store) and controller built in
+/// static slots, boot selection in between; prints the path's stack depth.
+#[inline(never)]
+fn boot(
+    flash: TableFlash,
+    sliders: QemuSliders,
+) -> Option<(
+    &'static mut Controller<QemuSliders>,
+    &'static mut Worker<TableFlash>,
+)> {
+    let ctl_slot =
+        cortex_m::singleton!(: MaybeUninit<Controller<QemuSliders>> = MaybeUninit::uninit())?;
+    let worker_slot =
+        cortex_m::singleton!(: MaybeUninit<Worker<TableFlash>> = MaybeUninit::uninit())?;
+    let base = hw::stack_depth_bytes();
+    hw::repaint_stack();
+    let validation = ValidationConfig::flight();
+    let store = TableStore::new(flash, hw::TABLE_LAYOUT).ok()?;
+    let worker = worker_slot.write(Worker::new(store, validation));
+    let (table, boot) = worker.store_mut().boot(&validation);
+    let mut sliders = sliders;
+    sliders.hold();
+    let ctl = ctl_slot.write(Controller::unstarted(sliders, table, boot));
+    ctl.start();
+    ctl.restore_parameters(&worker.store_mut().parameters());
+    defmt::info!(
+        "BOOT stack_peak_bytes={=u32}",
+        hw::stack_peak_bytes().saturating_sub(base)
+    );
+    Some((ctl, worker))
+}
+
+#[inline(never)]
+fn scenarios(r: &mut Rig) -> bool {
+    // Past the boot events and the first housekeeping.
+    r.group("boot", 2);
+    r.group("idle", IDLE_PERIODS);
+
+    // A move of 0.8/-0.6/0.4 mm, 45/-30/20 arcsec: its telecommand, planning, cruise,
+    // arrival, with a housekeeping report every second.
     let target = WirePose {
         translation_nm: [800_000, -600_000, 400_000],
         rotation_uas: [45_000_000, -30_000_000, 20_000_000],
     };
-    let mut pkt = [0u8; MAX_TC_PACKET_LEN];
-    let Ok(n) = encode_telecommand(&Command::MoveAbsolute(target), TcHeader::new(1), &mut pkt)
-    else {
-        defmt::error!("bench: encode");
+    if !r.queue(&Command::MoveAbsolute(target)) {
         return false;
-    };
-    let tc = pkt.get(..n);
-    ctl.mechanism_mut().step();
-    hw::bench_start();
-    ctl.tick(tc, &mut sink);
-    hw::bench_end();
-    for _ in 0..BENCH_PLANNING_CYCLES {
-        ctl.mechanism_mut().step();
-        hw::bench_start();
-        ctl.tick(None, &mut sink);
-        hw::bench_end();
     }
-    for _ in 0..BENCH_CRUISE_CYCLES {
-        ctl.mechanism_mut().step();
-        ctl.tick(None, &mut sink);
-    }
-    for _ in 0..3 {
-        ctl.mechanism_mut().step();
-        hw::bench_start();
-        ctl.tick(None, &mut sink);
-        hw::bench_end();
-    }
-    while ctl.cycle() % HK_PERIOD_CYCLES != 0 {
-        ctl.mechanism_mut().step();
-        ctl.tick(None, &mut sink);
-    }
-    ctl.mechanism_mut().step();
-    hw::bench_start();
-    ctl.tick(None, &mut sink);
-    hw::bench_end();
-    let hk = ctl.housekeeping();
-    defmt::info!(
-        "CONTROLLER size_bytes={=u32}",
-        core::mem::size_of_val(&ctl) as u32
-    );
-    defmt::info!(
-        "bench: control cycles measured in state {=u8}, faults {=u32:#x}, {=u32} TM bytes",
-        hk.state,
-        hk.fault_flags,
-        sink.0
-    );
-    let moving_ok = hk.state == State::Moving.code() && hk.fault_flags == 0;
-    moving_ok && bench_table_cycles(&mut ctl, &mut sink)
-}
+    let moved = r.group_until("move", |r| {
+        r.ctl.state() == State::Idle && r.ctl.housekeeping().pose_commanded.translation_nm[0] != 0
+    });
 
-/// Most cycles to wait for the move to end before the table benchmark.
-const MAX_WAIT_CYCLES: u32 = 100_000;
-/// Table ID of the table the benchmark commits.
-const BENCH_TABLE_ID: u32 = 9;
-
-/// BENCH n=12: the cycle that commits an uploaded table (CRC, decode, validation,
-/// flash write of the inactive bank); n=13: the cycle that activates it. Both are
-/// accepted only while the mechanism is at rest.
-fn bench_table_cycles<M, F>(ctl: &mut Controller<M, F>, sink: &mut CountingSink) -> bool
-where
-    M: m2ctl::hw::SliderDrives + m2ctl::hw::StrokeEncoders,
-    F: embedded_storage::nor_flash::NorFlash,
-{
-    for _ in 0..MAX_WAIT_CYCLES {
-        if ctl.state() == State::Idle {
-            break;
-        }
-        ctl.tick(None, sink);
+    // Housekeeping: the period that queues the periodic report and the next (encoding).
+    while r.ctl.cycle() % HK_PERIOD_CYCLES != HK_PERIOD_CYCLES - 1 {
+        r.period();
     }
-    let mut table = m2ctl::table::Table::nominal();
+    r.group("housekeeping", 2);
+
+    // A TC burst: eight telecommands in one write (ping, one-shot HK, ...), handled at
+    // most MAX_TC_PER_PASS per pass.
+    let burst = [
+        Command::Ping,
+        Command::HousekeepingOneShot,
+        Command::Ping,
+        Command::HousekeepingOneShot,
+        Command::Ping,
+        Command::Stop,
+        Command::Ping,
+        Command::HousekeepingOneShot,
+    ];
+    if !burst.iter().all(|c| r.queue(c)) {
+        return false;
+    }
+    let burst_done = r.group_until("tc_burst", |r| {
+        r.up.0.is_empty() && r.ctl.tm_queue().is_empty()
+    });
+
+    // Table upload (chunks in one write), commit (background job: validation, erase,
+    // program), activation.
+    let mut table = Table::nominal();
     table.table_id = BENCH_TABLE_ID;
+    table.legs[0].a_mm[0] += 0.02;
     let bytes = table.to_bytes();
-    let mut seq = 10u16;
-    let mut send =
-        |ctl: &mut Controller<M, F>, sink: &mut CountingSink, cmd: &Command, measure: bool| {
-            let mut pkt = [0u8; MAX_TC_PACKET_LEN];
-            let Ok(n) = encode_telecommand(cmd, TcHeader::new(seq), &mut pkt) else {
-                return;
-            };
-            seq += 1;
-            if measure {
-                hw::bench_start();
-            }
-            ctl.tick(pkt.get(..n), sink);
-            if measure {
-                hw::bench_end();
-            }
-        };
     for (off, chunk) in m2ctl::link::tm::dump_chunks(&bytes) {
-        if let Ok(c) = m2ctl::link::TableChunk::new(off, chunk) {
-            send(ctl, sink, &Command::LoadTableChunk(c), false);
+        match m2ctl::link::TableChunk::new(off, chunk) {
+            Ok(c) => {
+                if !r.queue(&Command::LoadTableChunk(c)) {
+                    return false;
+                }
+            }
+            Err(_) => return false,
         }
     }
-    send(
-        ctl,
-        sink,
-        &Command::CommitTable {
-            crc32: table.crc32(),
-        },
-        true,
-    );
-    send(ctl, sink, &Command::ActivateTable, true);
-    let ok = ctl.active_table().table_id == BENCH_TABLE_ID;
-    if !ok {
-        defmt::error!("bench: the committed table did not become active");
+    let uploaded = r.group_until("upload", |r| r.up.0.is_empty());
+    if !r.queue(&Command::CommitTable {
+        crc32: table.crc32(),
+    }) {
+        return false;
     }
-    ok
+    let committed = r.group_until("commit", |r| r.ctl.pending_table().is_some());
+    if !r.queue(&Command::ActivateTable {
+        table_id: table.table_id,
+        crc32: table.crc32(),
+    }) {
+        return false;
+    }
+    let activated = r.group_until("activate", |r| {
+        r.ctl.active_table().table_id == BENCH_TABLE_ID
+    });
+    // A scrub of the RAM table and both banks once more after the change.
+    r.group("scrub", 1_100);
+    let clean = r.ctl.faults().is_empty() && r.ctl.housekeeping().bank_health == 0;
+    if !(moved && burst_done && uploaded && committed && activated && clean) {
+        defmt::error!(
+            "bench: scenario failed: moved {=bool} burst {=bool} upload {=bool} commit {=bool} activate {=bool} clean {=bool}",
+            moved,
+            burst_done,
+            uploaded,
+            committed,
+            activated,
+            clean
+        );
+        return false;
+    }
+    true
 }

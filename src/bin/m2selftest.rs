@@ -24,6 +24,13 @@ const EXIT_PASS: i32 = 0;
 /// Exit code: a self-test check failed.
 const EXIT_FAIL: i32 = 1;
 
+/// A panic is a defect: end the run with the board's panic exit code.
+#[panic_handler]
+fn panic(_info: &core::panic::PanicInfo) -> ! {
+    defmt::error!("PANIC");
+    hw::exit(hw::EXIT_PANIC)
+}
+
 /// Warm-start offset for the FK benchmark, per translation axis (mm): 5.7 um on each
 /// axis is 9.9 um in all, "within 10 um" of the true pose.
 const FK_BENCH_OFFSET_MM: f32 = 0.0057;

@@ -6,9 +6,15 @@
 //! * `board-netduinoplus2`: the STM32F405 Netduino Plus 2 (also QEMU `netduinoplus2`),
 //!   `netduinoplus2`, which also wires the drivers of `crate::drivers` to the HAL.
 //!
-//! Every board implements the same items (exit, UART, table flash, cycle pacing, stack
-//! peak, markers), so every image builds for either. Exactly one board is compiled (each
-//! defines the panic handler).
+//! Every board implements the same items (device description, take-once `Board`, UART,
+//! control timer, watchdog, reset record, table flash, stack guard, markers), so every
+//! image builds for either. Exactly one board is compiled (each defines the panic
+//! handler).
+//!
+//! [`qemu_sliders`] is a board part, not a board: the slider/encoder model that an
+//! emulated board has instead of slider drivers.
+
+pub mod qemu_sliders;
 
 #[cfg(not(feature = "board-netduinoplus2"))]
 pub mod mps2_an386;

@@ -1,180 +1,696 @@
-//! QEMU mps2-an386 (Cortex-M4F, FPU on).
+//! QEMU mps2-an386 (Cortex-M4F, FPU on, 25 MHz system clock).
 //!
-//! * process exit through semihosting (QEMU's exit code),
-//! * UART0 (CMSDK APB UART at 0x4000_4000, QEMU's first `-serial`) behind
-//!   `embedded-hal-nb`'s serial traits,
-//! * the parameter-table flash region behind `embedded-storage`'s `NorFlash` (on QEMU
-//!   the "flash" is SSRAM, so NOR semantics are enforced in software here),
-//! * 1 kHz cycle pacing with SysTick,
-//! * stack-peak measurement from cortex-m-rt's painted stack, instruction-count markers.
+//! Everything here is a fact of this board, checked against QEMU's model of it
+//! (`hw/arm/mps2.c`, `hw/char/cmsdk-apb-uart.c`, `hw/timer/cmsdk-apb-timer.c`,
+//! `hw/watchdog/cmsdk-apb-watchdog.c`):
+//!
+//! * [`device`]: the device description RTIC needs (the board has no PAC): the
+//!   interrupt lines with their numbers, `NVIC_PRIO_BITS`, the vector table for
+//!   cortex-m-rt's `device` feature (`device.x` names the handlers);
+//! * [`Board::take`]: the take-once hardware singletons: UART0, the control timer
+//!   (TIMER0), the watchdog, the table flash and the emulated sliders;
+//! * UART0 (CMSDK APB UART at 0x4000_4000, QEMU's first `-serial`): interrupt-driven,
+//!   RX into a bounded queue (overrun bits and queue overflows counted), TX drained
+//!   from a bounded queue by the TX interrupt;
+//! * TIMER0 (CMSDK APB timer at 0x4000_0000, IRQ 8): the control rate, reload derived
+//!   from [`CONTROL_RATE_HZ`] and [`SYSCLK_HZ`]; overrun detection;
+//! * the CMSDK APB watchdog at 0x4000_8000 (its interrupt is the NMI; a second expiry
+//!   resets the system): fed only by a completed control cycle;
+//! * the reset record in no-init RAM (reset cause, boot counter), the fault handlers
+//!   (HardFault, MemManage, unexpected interrupts, watchdog NMI) that record their
+//!   cause and reset, and the MPU stack guard;
+//! * the parameter-table flash region behind `embedded-storage`'s `NorFlash` and
+//!   [`FlashStatus`] (on QEMU the "flash" is SSRAM: NOR semantics and erase/program
+//!   times are modelled here);
+//! * stack painting/peak, instruction-count markers, semihosting exit (test images).
 #![allow(unsafe_code)] // Board glue: MMIO registers, linker symbols, painted RAM.
 
-use core::ptr::{read_volatile, write_volatile};
+use core::mem::MaybeUninit;
+use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
+use core::sync::atomic::{AtomicBool, AtomicU16, AtomicU32, Ordering};
 
-use embedded_hal_nb::serial::{self, ErrorKind};
 use embedded_storage::nor_flash::{
     ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
+use heapless::spsc::{Consumer, Producer};
 
-/// Value cortex-m-rt's `paint-stack` writes over the stack before `main`.
-const STACK_PAINT: u32 = 0xCCCC_CCCC;
+use super::qemu_sliders::QemuSliders;
+use crate::controller::{ResetCause, ResetInfo};
+use crate::table::{BankLayout, FlashStatus};
+use crate::timing::CONTROL_RATE_HZ;
+
+/// System clock of QEMU's mps2 boards (Hz): the core, SysTick, the APB timers, the
+/// watchdog and the UART baud generator all run from it.
+pub const SYSCLK_HZ: u32 = 25_000_000;
+
+/// The memory map of `memory.x`, as build.rs reads it.
+mod memory_x {
+    include!(concat!(env!("OUT_DIR"), "/memory_x.rs"));
+}
+
+// ---------------------------------------------------------------------------------
+// Device description for RTIC.
+
+/// What RTIC's `#[app(device = ...)]` needs: the interrupt lines, their priority bits
+/// and the vector table.
+pub mod device {
+    /// Priority bits of the Cortex-M4 NVIC in the AN386 image (8 levels).
+    pub const NVIC_PRIO_BITS: u8 = 3;
+
+    /// The 32 external interrupt lines of mps2-an386 (QEMU: `num-irq` 32), numbered as
+    /// `hw/arm/mps2.c` wires them for the AN385/AN386 images. Lines named `IRQn` are
+    /// connected to no device QEMU models (GPIO and others); the firmware uses two of
+    /// them as software-pended task interrupts.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    #[repr(u16)]
+    #[allow(missing_docs, clippy::upper_case_acronyms)]
+    pub enum Interrupt {
+        /// UART0 receive.
+        UARTRX0 = 0,
+        /// UART0 transmit.
+        UARTTX0 = 1,
+        UARTRX1 = 2,
+        UARTTX1 = 3,
+        UARTRX2 = 4,
+        UARTTX2 = 5,
+        IRQ6 = 6,
+        IRQ7 = 7,
+        /// CMSDK APB timer 0 (0x4000_0000): the control rate.
+        TIMER0 = 8,
+        TIMER1 = 9,
+        DUALTIMER = 10,
+        SPI = 11,
+        /// Overrun of UART0, 1 or 2 (ORed).
+        UARTOVF = 12,
+        ETHERNET = 13,
+        IRQ14 = 14,
+        IRQ15 = 15,
+        IRQ16 = 16,
+        IRQ17 = 17,
+        UARTRX3 = 18,
+        UARTTX3 = 19,
+        UARTRX4 = 20,
+        UARTTX4 = 21,
+        ADCSPI = 22,
+        IRQ23 = 23,
+        SHIELDSPI = 24,
+        IRQ25 = 25,
+        IRQ26 = 26,
+        IRQ27 = 27,
+        IRQ28 = 28,
+        IRQ29 = 29,
+        IRQ30 = 30,
+        /// Not wired in QEMU: the link service's software-pended interrupt.
+        IRQ31 = 31,
+    }
+
+    // SAFETY: every variant is a valid IRQ number of this board (0..32).
+    unsafe impl cortex_m::interrupt::InterruptNumber for Interrupt {
+        fn number(self) -> u16 {
+            self as u16
+        }
+    }
+
+    /// RTIC looks the lines up under this name (svd2rust convention).
+    pub use Interrupt as interrupt;
+
+    macro_rules! vectors {
+        ($($name:ident),* $(,)?) => {
+            extern "C" {
+                $(fn $name();)*
+            }
+            /// The device part of the vector table (IRQ 0..31); `device.x` provides
+            /// every handler as `DefaultHandler` unless the firmware binds it.
+            #[link_section = ".vector_table.interrupts"]
+            #[no_mangle]
+            #[used]
+            pub static __INTERRUPTS: [unsafe extern "C" fn(); 32] = [$($name),*];
+        };
+    }
+    vectors!(
+        UARTRX0, UARTTX0, UARTRX1, UARTTX1, UARTRX2, UARTTX2, IRQ6, IRQ7, TIMER0, TIMER1,
+        DUALTIMER, SPI, UARTOVF, ETHERNET, IRQ14, IRQ15, IRQ16, IRQ17, UARTRX3, UARTTX3, UARTRX4,
+        UARTTX4, ADCSPI, IRQ23, SHIELDSPI, IRQ25, IRQ26, IRQ27, IRQ28, IRQ29, IRQ30, IRQ31,
+    );
+}
+
+// ---------------------------------------------------------------------------------
+// Take-once hardware.
+
+/// The board's hardware, handed out once ([`Board::take`]).
+pub struct Board {
+    /// Why the board reset, and the boot count (from the no-init reset record).
+    pub reset: ResetInfo,
+    /// UART0 (split it into RX, TX and its error counter).
+    pub uart0: Uart0,
+    /// The control-rate timer.
+    pub timer: ControlTimer,
+    /// The watchdog (not running until started).
+    pub watchdog: Watchdog,
+    /// The parameter-table flash.
+    pub flash: TableFlash,
+    /// The emulated sliders, drives and encoders.
+    pub sliders: QemuSliders,
+}
+
+static BOARD_TAKEN: AtomicBool = AtomicBool::new(false);
+
+impl Board {
+    /// The hardware, the first time; `None` afterwards. Reads the reset record (cause,
+    /// boot count) and re-arms it.
+    pub fn take() -> Option<Board> {
+        if BOARD_TAKEN.swap(true, Ordering::SeqCst) {
+            return None;
+        }
+        let mut flash = TableFlash { busy_until: None };
+        flash.erase_if_never_written();
+        Some(Board {
+            reset: reset_record::on_boot(),
+            uart0: Uart0(()),
+            timer: ControlTimer(()),
+            watchdog: Watchdog(()),
+            flash,
+            sliders: QemuSliders::new(),
+        })
+    }
+}
+
+fn reg_read(addr: usize) -> u32 {
+    // SAFETY: only called with the addresses of this board's 32-bit MMIO registers.
+    unsafe { read_volatile(addr as *const u32) }
+}
+
+fn reg_write(addr: usize, v: u32) {
+    // SAFETY: as in `reg_read`.
+    unsafe { write_volatile(addr as *mut u32, v) }
+}
+
+// ---------------------------------------------------------------------------------
+// UART0: CMSDK APB UART.
+
+/// Base address of UART0.
+const UART0_BASE: usize = 0x4000_4000;
+/// Data register (read: received byte, write: byte to send).
+const UART_DATA: usize = UART0_BASE;
+/// State register: TX full, RX full, TX overrun, RX overrun (the overruns W1C).
+const UART_STATE: usize = UART0_BASE + 0x004;
+/// Control register.
+const UART_CTRL: usize = UART0_BASE + 0x008;
+/// Interrupt status (W1C).
+const UART_INTSTATUS: usize = UART0_BASE + 0x00C;
+/// Baud divider.
+const UART_BAUDDIV: usize = UART0_BASE + 0x010;
+/// STATE: transmit buffer full.
+const STATE_TX_FULL: u32 = 1 << 0;
+/// STATE: receive buffer full.
+const STATE_RX_FULL: u32 = 1 << 1;
+/// STATE: a byte arrived while the receive buffer was full (the old one was lost).
+const STATE_RX_OVERRUN: u32 = 1 << 3;
+/// CTRL: transmitter, receiver, TX interrupt, RX interrupt enable.
+const CTRL_TX_EN: u32 = 1 << 0;
+const CTRL_RX_EN: u32 = 1 << 1;
+const CTRL_TX_INTEN: u32 = 1 << 2;
+const CTRL_RX_INTEN: u32 = 1 << 3;
+/// INTSTATUS: TX (a byte left the buffer), RX (a byte arrived).
+const INT_TX: u32 = 1 << 0;
+const INT_RX: u32 = 1 << 1;
+/// The link's baud rate.
+pub const UART_BAUD: u32 = 115_200;
+/// Baud divider for [`UART_BAUD`] (QEMU forwards bytes as fast as the host takes them;
+/// the divider matters on hardware).
+const UART_BAUDDIV_VALUE: u32 = SYSCLK_HZ / UART_BAUD;
+// The CMSDK UART needs a divider of at least 16.
+const _: () = assert!(UART_BAUDDIV_VALUE >= 16);
+
+/// UART0, before it is split.
+pub struct Uart0(());
+
+/// Receive side of UART0 (owned by the RX interrupt task).
+pub struct UartRx(());
+/// Transmit side of UART0 (owned by the TX interrupt task).
+pub struct UartTx(());
+/// Receive errors of UART0 (owned by the link service).
+pub struct UartErrors(());
+
+/// Receive overruns (STATE bit) plus bytes dropped because the RX queue was full.
+static UART0_RX_ERRORS: AtomicU16 = AtomicU16::new(0);
+
+impl Uart0 {
+    /// Sets the baud rate, enables the transmitter, the receiver and both interrupts
+    /// (the NVIC lines are unmasked by RTIC), and splits the UART.
+    pub fn split(self) -> (UartRx, UartTx, UartErrors) {
+        reg_write(UART_BAUDDIV, UART_BAUDDIV_VALUE);
+        reg_write(
+            UART_CTRL,
+            CTRL_TX_EN | CTRL_RX_EN | CTRL_TX_INTEN | CTRL_RX_INTEN,
+        );
+        (UartRx(()), UartTx(()), UartErrors(()))
+    }
+}
+
+impl UartRx {
+    /// The RX interrupt: counts a receive overrun, then moves the received byte into
+    /// `queue` (counted and dropped if the queue is full). The interrupt flag is
+    /// cleared before the data register is read, so a byte arriving meanwhile raises
+    /// the interrupt again.
+    pub fn on_interrupt<const N: usize>(&mut self, queue: &mut Producer<'_, u8, N>) {
+        let mut errors: u16 = 0;
+        if reg_read(UART_STATE) & STATE_RX_OVERRUN != 0 {
+            reg_write(UART_STATE, STATE_RX_OVERRUN);
+            errors += 1;
+        }
+        reg_write(UART_INTSTATUS, INT_RX);
+        if reg_read(UART_STATE) & STATE_RX_FULL != 0 {
+            let byte = (reg_read(UART_DATA) & 0xFF) as u8;
+            if queue.enqueue(byte).is_err() {
+                errors += 1;
+            }
+        }
+        if errors > 0 {
+            UART0_RX_ERRORS.fetch_add(errors, Ordering::Relaxed);
+        }
+    }
+}
+
+impl UartTx {
+    /// The TX interrupt (also pended by the link service after it queued a frame):
+    /// sends the next queued byte if the transmit buffer is free.
+    pub fn on_interrupt<const N: usize>(&mut self, queue: &mut Consumer<'_, u8, N>) {
+        reg_write(UART_INTSTATUS, INT_TX);
+        if reg_read(UART_STATE) & STATE_TX_FULL == 0 {
+            if let Some(byte) = queue.dequeue() {
+                reg_write(UART_DATA, u32::from(byte));
+            }
+        }
+    }
+}
+
+impl UartErrors {
+    /// Receive errors since the last call (overruns and RX queue overflows).
+    pub fn take_new(&mut self) -> u16 {
+        UART0_RX_ERRORS.swap(0, Ordering::Relaxed)
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// Control timer: CMSDK APB timer 0.
+
+const TIMER0_BASE: usize = 0x4000_0000;
+const TIMER_CTRL: usize = TIMER0_BASE;
+const TIMER_VALUE: usize = TIMER0_BASE + 0x004;
+const TIMER_RELOAD: usize = TIMER0_BASE + 0x008;
+const TIMER_INTSTATUS: usize = TIMER0_BASE + 0x00C;
+/// CTRL: enable, interrupt enable.
+const TIMER_CTRL_EN: u32 = 1 << 0;
+const TIMER_CTRL_IRQEN: u32 = 1 << 3;
+/// Timer reload: the counter runs from RELOAD down to 0 and holds 0 for one clock, so
+/// the period is RELOAD + 1 clocks of [`SYSCLK_HZ`].
+pub const TIMER_RELOAD_VALUE: u32 = SYSCLK_HZ / CONTROL_RATE_HZ - 1;
+// The control period must be a whole number of clocks.
+const _: () = assert!(SYSCLK_HZ % CONTROL_RATE_HZ == 0);
+
+/// Control-rate ticks since the timer started (the time base of the flash model and
+/// the worker's bank-check period).
+static TICKS: AtomicU32 = AtomicU32::new(0);
+
+/// Control-rate ticks counted so far.
+pub fn ticks() -> u32 {
+    TICKS.load(Ordering::Relaxed)
+}
+
+/// TIMER0 at the control rate (owned by the control task).
+pub struct ControlTimer(());
+
+impl ControlTimer {
+    /// Starts the timer: an interrupt every control period.
+    pub fn start(&mut self) {
+        reg_write(TIMER_RELOAD, TIMER_RELOAD_VALUE);
+        reg_write(TIMER_VALUE, TIMER_RELOAD_VALUE);
+        reg_write(TIMER_CTRL, TIMER_CTRL_EN | TIMER_CTRL_IRQEN);
+    }
+
+    /// Acknowledges the tick (call first in the control task) and counts it.
+    pub fn acknowledge(&mut self) {
+        reg_write(TIMER_INTSTATUS, 1);
+        TICKS.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// The next tick has already come: the running cycle overran its period.
+    pub fn tick_pending(&self) -> bool {
+        reg_read(TIMER_INTSTATUS) & 1 != 0
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// Watchdog: CMSDK APB watchdog. First expiry: interrupt (wired to the NMI); second
+// expiry with RESEN: system reset. Writes are ignored while it is locked.
+
+const WDOG_BASE: usize = 0x4000_8000;
+const WDOG_LOAD: usize = WDOG_BASE;
+const WDOG_CONTROL: usize = WDOG_BASE + 0x008;
+const WDOG_INTCLR: usize = WDOG_BASE + 0x00C;
+const WDOG_LOCK: usize = WDOG_BASE + 0xC00;
+/// CONTROL: interrupt (and counter) enable, reset enable.
+const WDOG_INTEN: u32 = 1 << 0;
+const WDOG_RESEN: u32 = 1 << 1;
+/// LOCK: the value that unlocks writes (any other value locks).
+const WDOG_UNLOCK: u32 = 0x1ACC_E551;
+const WDOG_RELOCK: u32 = 0;
+/// Control periods without a completed cycle before the watchdog's NMI (the reset
+/// follows one more such interval).
+pub const WATCHDOG_TIMEOUT_CYCLES: u32 = 10;
+/// Watchdog load value (clocks of [`SYSCLK_HZ`]).
+const WDOG_LOAD_VALUE: u32 = SYSCLK_HZ / CONTROL_RATE_HZ * WATCHDOG_TIMEOUT_CYCLES;
+
+/// The watchdog (owned by the control task: only a completed cycle feeds it).
+pub struct Watchdog(());
+
+impl Watchdog {
+    /// Starts it (interrupt and reset enabled) and locks it.
+    pub fn start(&mut self) {
+        reg_write(WDOG_LOCK, WDOG_UNLOCK);
+        reg_write(WDOG_LOAD, WDOG_LOAD_VALUE);
+        reg_write(WDOG_CONTROL, WDOG_INTEN | WDOG_RESEN);
+        reg_write(WDOG_LOCK, WDOG_RELOCK);
+    }
+
+    /// Reloads the counter.
+    pub fn feed(&mut self) {
+        reg_write(WDOG_LOCK, WDOG_UNLOCK);
+        reg_write(WDOG_INTCLR, 1);
+        reg_write(WDOG_LOCK, WDOG_RELOCK);
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// Reset record: four words in `.uninit` (cortex-m-rt's section that is not zeroed at
+// boot; QEMU's system reset does not clear it either: it is in no loaded segment).
+
+mod reset_record {
+    use super::*;
+
+    /// Marks a record written by this firmware.
+    const MAGIC: u32 = 0x4D32_5253; // "M2RS"
+    /// Cause word while the firmware runs: no reset announced.
+    const CAUSE_NONE: u32 = 0xFF;
+
+    #[link_section = ".uninit.m2_reset_record"]
+    static mut RECORD: MaybeUninit<[u32; 4]> = MaybeUninit::uninit();
+
+    fn word(i: usize) -> *mut u32 {
+        // SAFETY: RECORD is four words; `i < 4` at every call site.
+        unsafe { addr_of_mut!(RECORD).cast::<u32>().add(i) }
+    }
+
+    fn check(cause: u32, count: u32) -> u32 {
+        !(MAGIC ^ cause ^ count.rotate_left(8))
+    }
+
+    fn read() -> Option<(u32, u32)> {
+        // SAFETY: plain RAM words of RECORD; any bit pattern is a valid u32.
+        let w = unsafe { [0, 1, 2, 3].map(|i| read_volatile(word(i))) };
+        (w[0] == MAGIC && w[3] == check(w[1], w[2])).then_some((w[1], w[2]))
+    }
+
+    fn write(cause: u32, count: u32) {
+        // SAFETY: as in `read`.
+        unsafe {
+            write_volatile(word(0), MAGIC);
+            write_volatile(word(1), cause);
+            write_volatile(word(2), count);
+            write_volatile(word(3), check(cause, count));
+        }
+    }
+
+    /// At boot: the cause the last reset recorded (no valid record: power-on; a valid
+    /// record without an announced cause: the watchdog, whose reset is the only one
+    /// on this board that software does not announce when its NMI could not run),
+    /// and the boot count; re-arms the record.
+    pub fn on_boot() -> ResetInfo {
+        let (cause, count) = match read() {
+            None => (ResetCause::PowerOn, 1),
+            Some((c, n)) => {
+                let cause = match u8::try_from(c).ok().and_then(ResetCause::from_code) {
+                    Some(cause) => cause,
+                    None => ResetCause::Watchdog,
+                };
+                (cause, n.wrapping_add(1))
+            }
+        };
+        write(CAUSE_NONE, count);
+        ResetInfo {
+            cause,
+            boot_count: (count & 0xFFFF) as u16,
+        }
+    }
+
+    /// Records the cause of the coming reset (keeps the boot count).
+    pub fn announce(cause: ResetCause) {
+        let count = read().map_or(0, |(_, n)| n);
+        write(u32::from(cause.code()), count);
+    }
+}
+
+/// Records `cause` in the reset record and resets the system.
+pub fn record_and_reset(cause: ResetCause) -> ! {
+    reset_record::announce(cause);
+    cortex_m::peripheral::SCB::sys_reset()
+}
+
+/// Entered from the fault trampoline with a fresh stack.
+extern "C" fn fault_reset() -> ! {
+    record_and_reset(ResetCause::HardFault)
+}
+
+// HardFault and MemManage: the stack pointer may be in the guard region (a stack
+// overflow), so the handler pushes nothing: it resets MSP to the top of the stack,
+// then records the cause and resets the system.
+core::arch::global_asm!(
+    ".section .text.m2_fault_entry,\"ax\",%progbits",
+    ".global HardFault",
+    ".type HardFault,%function",
+    ".thumb_func",
+    "HardFault:",
+    ".global MemoryManagement",
+    ".type MemoryManagement,%function",
+    ".thumb_func",
+    "MemoryManagement:",
+    "ldr r0, =_stack_start",
+    "msr msp, r0",
+    "b {reset}",
+    ".ltorg",
+    reset = sym fault_reset,
+);
+
+/// An interrupt or exception without a handler: a defect; record and reset.
+#[cortex_m_rt::exception]
+unsafe fn DefaultHandler(_irqn: i16) {
+    record_and_reset(ResetCause::HardFault)
+}
+
+/// The watchdog's first expiry (no control cycle completed for
+/// [`WATCHDOG_TIMEOUT_CYCLES`] periods): record the cause, then wait for the
+/// watchdog's own reset one interval later.
+#[cortex_m_rt::exception]
+unsafe fn NonMaskableInt() {
+    reset_record::announce(ResetCause::Watchdog);
+    loop {
+        cortex_m::asm::nop();
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// Stack: the single stack (RTIC's one shared stack) of `memory.x`'s STACK region, at
+// the bottom of RAM; below it an MPU region with no access, so an overflow faults
+// (MemManage) instead of reaching anything (QEMU maps nothing that faults there).
 
 extern "C" {
     static _stack_start: u32;
     static _stack_end: u32;
 }
 
-/// Bytes of stack used so far: scans the painted region from its low end upwards for the
-/// first word that is no longer the paint value.
+/// Size of the stack (bytes), from `memory.x`.
+pub const STACK_BYTES: u32 = memory_x::STACK_LENGTH;
+/// Size of the guard region below the stack (bytes; a power of two, the stack bottom
+/// aligned to it, as the MPU requires).
+pub const STACK_GUARD_BYTES: u32 = 1 << 20;
+// The guard must be a valid MPU region at the stack bottom.
+const _: () = assert!(STACK_GUARD_BYTES.is_power_of_two() && STACK_GUARD_BYTES >= 32);
+const _: () = assert!(memory_x::STACK_ORIGIN % STACK_GUARD_BYTES == 0);
+const _: () = assert!(memory_x::STACK_ORIGIN >= STACK_GUARD_BYTES);
+
+/// MPU RASR: execute never, region enable; SIZE field is log2(size) - 1; AP 0 = no
+/// access.
+const RASR_XN: u32 = 1 << 28;
+const RASR_ENABLE: u32 = 1;
+/// MPU CTRL: enable, default memory map for privileged code elsewhere.
+const MPU_CTRL_ENABLE: u32 = 1 << 0;
+const MPU_CTRL_PRIVDEFENA: u32 = 1 << 2;
+
+/// Makes the region below the stack fault on any access, and MemManage faults taken
+/// at the highest configurable priority (above every task). Call once from init.
+pub fn enable_stack_guard(
+    mpu: &mut cortex_m::peripheral::MPU,
+    scb: &mut cortex_m::peripheral::SCB,
+) {
+    let base = memory_x::STACK_ORIGIN - STACK_GUARD_BYTES;
+    let size_field = STACK_GUARD_BYTES.trailing_zeros() - 1;
+    // SAFETY: region 0 covers only the unused space below RAM; the default map stays
+    // in force everywhere else (PRIVDEFENA), so no code or data becomes inaccessible.
+    unsafe {
+        mpu.rnr.write(0);
+        mpu.rbar.write(base);
+        mpu.rasr.write(RASR_XN | (size_field << 1) | RASR_ENABLE);
+        mpu.ctrl.write(MPU_CTRL_ENABLE | MPU_CTRL_PRIVDEFENA);
+        scb.set_priority(
+            cortex_m::peripheral::scb::SystemHandler::MemoryManagement,
+            0,
+        );
+    }
+    scb.enable(cortex_m::peripheral::scb::Exception::MemoryManagement);
+    cortex_m::asm::dsb();
+    cortex_m::asm::isb();
+}
+
+/// Value cortex-m-rt's `paint-stack` writes over the stack before `main`.
+const STACK_PAINT: u32 = 0xCCCC_CCCC;
+
+fn stack_bounds() -> (usize, usize) {
+    (
+        addr_of!(_stack_end) as usize,
+        addr_of!(_stack_start) as usize,
+    )
+}
+
+/// Lowest stack address found used so far (`u32::MAX`: not measured yet).
+static STACK_DEEPEST: AtomicU32 = AtomicU32::new(u32::MAX);
+/// Window below the deepest known use where the scan starts (bytes): a part that went
+/// deeper than that scrubbed the word at the window's start, and the scan falls back
+/// to the whole region.
+const STACK_SCAN_WINDOW_BYTES: usize = 1024;
+
+/// Where the paint may have been scrubbed since the last measurement: a window below
+/// the deepest known use, or the whole region.
+fn scan_from() -> usize {
+    let (lo, _) = stack_bounds();
+    match STACK_DEEPEST.load(Ordering::Relaxed) {
+        u32::MAX => lo,
+        d => {
+            let start = (d as usize).saturating_sub(STACK_SCAN_WINDOW_BYTES).max(lo);
+            // SAFETY: inside the stack region (RAM), word aligned.
+            if unsafe { read_volatile(start as *const u32) } == STACK_PAINT {
+                start
+            } else {
+                lo
+            }
+        }
+    }
+}
+
+/// Bytes of stack used so far (since the last [`repaint_stack`]): scans the painted
+/// region upwards for the first word that is no longer the paint value.
 pub fn stack_peak_bytes() -> u32 {
-    let lo = core::ptr::addr_of!(_stack_end) as usize;
-    let hi = core::ptr::addr_of!(_stack_start) as usize;
-    let mut p = lo;
-    // SAFETY: [lo, hi) is the stack region of cortex-m-rt's linker script, plain RAM;
-    // aligned volatile word reads inside it are sound.
+    let (_, hi) = stack_bounds();
+    let mut p = scan_from();
+    // SAFETY: [lo, hi) is the stack region of the linker script, plain RAM; aligned
+    // volatile word reads inside it are sound.
     while p < hi && unsafe { read_volatile(p as *const u32) } == STACK_PAINT {
         p += 4;
     }
+    STACK_DEEPEST.fetch_min(p as u32, Ordering::Relaxed);
     (hi - p) as u32
 }
 
 /// Size of the stack region (bytes) between `_stack_end` and `_stack_start`.
 pub fn stack_region_bytes() -> u32 {
-    let lo = core::ptr::addr_of!(_stack_end) as usize;
-    let hi = core::ptr::addr_of!(_stack_start) as usize;
+    let (lo, hi) = stack_bounds();
     (hi - lo) as u32
 }
 
-/// Ends the QEMU run with an exit code (0 = pass).
+/// Bytes of stack in use at the caller (top of the stack minus the stack pointer).
+pub fn stack_depth_bytes() -> u32 {
+    let (_, hi) = stack_bounds();
+    (hi as u32).wrapping_sub(cortex_m::register::msp::read())
+}
+
+/// Margin left unpainted below the stack pointer by [`repaint_stack`] (bytes): this
+/// function's own frame.
+const REPAINT_MARGIN_BYTES: usize = 64;
+
+/// Paints the unused stack again (below the caller's frame, down to the deepest point
+/// used so far), so that a later [`stack_peak_bytes`] measures the deepest use since
+/// now (benchmark images).
+#[inline(never)]
+pub fn repaint_stack() {
+    let sp = cortex_m::register::msp::read() as usize;
+    let mut p = scan_from();
+    while p + REPAINT_MARGIN_BYTES < sp {
+        // SAFETY: below the stack pointer (minus this frame's margin) the stack region
+        // is unused; interrupts that use it overwrite paint, never live data.
+        unsafe { write_volatile(p as *mut u32, STACK_PAINT) };
+        p += 4;
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// Test images only: semihosting exit and instruction-count markers.
+
+/// Ends the QEMU run with an exit code (0 = pass). Test images only: without a
+/// debugger, semihosting is a fault; the flight image never calls it.
 pub fn exit(code: i32) -> ! {
     semihosting::process::exit(code)
 }
 
-/// Exit code of a panic: a defect, flight code must not panic.
+/// Exit code of a panic in a test image.
 pub const EXIT_PANIC: i32 = 101;
 
-/// The panic handler of every firmware image of this board: log and end the run with
-/// [`EXIT_PANIC`] (on a flight board: the watchdog/safe-mode path).
-#[panic_handler]
-fn panic(_info: &core::panic::PanicInfo) -> ! {
-    defmt::error!("PANIC");
-    exit(EXIT_PANIC)
-}
-
-/// Marker for `qemu-insncount`: start of a measured section.
+/// Marker for the instruction counter: start of a measured section.
 #[no_mangle]
 #[inline(never)]
 pub extern "C" fn bench_start() {
-    core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::SeqCst);
+    core::sync::atomic::compiler_fence(Ordering::SeqCst);
 }
 
-/// Marker for `qemu-insncount`: end of a measured section (a different body from
-/// `bench_start`, so the linker cannot merge the two).
+/// Marker for the instruction counter: end of a measured section (a different body
+/// from `bench_start`, so the linker cannot merge the two).
 #[no_mangle]
 #[inline(never)]
 pub extern "C" fn bench_end() {
-    core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::Release);
+    core::sync::atomic::compiler_fence(Ordering::Release);
     core::hint::black_box(0u32);
 }
 
 // ---------------------------------------------------------------------------------
-// UART0: CMSDK APB UART.
-
-/// Base address of UART0 on mps2-an386.
-const UART0_BASE: usize = 0x4000_4000;
-/// Data register offset (read: received byte, write: byte to send).
-const UART_DATA: usize = 0x000;
-/// State register offset.
-const UART_STATE: usize = 0x004;
-/// Control register offset.
-const UART_CTRL: usize = 0x008;
-/// Baud divider register offset.
-const UART_BAUDDIV: usize = 0x010;
-/// STATE bit: transmit buffer full.
-const STATE_TX_FULL: u32 = 1 << 0;
-/// STATE bit: receive buffer full.
-const STATE_RX_FULL: u32 = 1 << 1;
-/// CTRL bits: transmitter and receiver enable.
-const CTRL_TX_RX_EN: u32 = 0b11;
-/// Smallest baud divider the CMSDK UART accepts (QEMU ignores the rate itself).
-const UART_BAUDDIV_MIN: u32 = 16;
-
-/// The telecommand/telemetry UART (UART0).
-pub struct Uart {
-    base: usize,
-}
-
-impl Uart {
-    /// Enables UART0's transmitter and receiver. Call once.
-    pub fn uart0() -> Self {
-        let u = Self { base: UART0_BASE };
-        u.write_reg(UART_BAUDDIV, UART_BAUDDIV_MIN);
-        u.write_reg(UART_CTRL, CTRL_TX_RX_EN);
-        u
-    }
-
-    fn read_reg(&self, off: usize) -> u32 {
-        // SAFETY: `base + off` is a CMSDK UART register of this board (MMIO, 32-bit).
-        unsafe { read_volatile((self.base + off) as *const u32) }
-    }
-
-    fn write_reg(&self, off: usize, v: u32) {
-        // SAFETY: as in `read_reg`.
-        unsafe { write_volatile((self.base + off) as *mut u32, v) }
-    }
-}
-
-impl serial::ErrorType for Uart {
-    type Error = ErrorKind;
-}
-
-impl serial::Read<u8> for Uart {
-    fn read(&mut self) -> nb::Result<u8, Self::Error> {
-        if self.read_reg(UART_STATE) & STATE_RX_FULL != 0 {
-            Ok((self.read_reg(UART_DATA) & 0xFF) as u8)
-        } else {
-            Err(nb::Error::WouldBlock)
-        }
-    }
-}
-
-impl serial::Write<u8> for Uart {
-    fn write(&mut self, byte: u8) -> nb::Result<(), Self::Error> {
-        if self.read_reg(UART_STATE) & STATE_TX_FULL != 0 {
-            Err(nb::Error::WouldBlock)
-        } else {
-            self.write_reg(UART_DATA, u32::from(byte));
-            Ok(())
-        }
-    }
-
-    fn flush(&mut self) -> nb::Result<(), Self::Error> {
-        if self.read_reg(UART_STATE) & STATE_TX_FULL != 0 {
-            Err(nb::Error::WouldBlock)
-        } else {
-            Ok(())
-        }
-    }
-}
-
-// ---------------------------------------------------------------------------------
-// Table flash: the region memory.x reserves (TABLE, top 128 KiB of the 4 MiB flash).
+// Table flash: the TABLE region of `memory.x` (top 128 KiB of the 4 MiB flash).
 
 /// Offsets are from the start of the 4 MiB flash, as `table::store` expects.
 const FLASH_BASE: usize = 0x0000_0000;
 /// Flash size (bytes).
 const FLASH_SIZE: u32 = 0x40_0000;
+/// Bank size (bytes): two banks fill the TABLE region.
+const TABLE_BANK_SIZE: u32 = 0x1_0000;
 /// First byte the table store may write or erase (start of the TABLE region).
 const TABLE_REGION_START: u32 = 0x3E_0000;
+/// The table banks of this board: A then B in the TABLE region.
+pub const TABLE_LAYOUT: BankLayout = BankLayout::two_banks(TABLE_REGION_START, TABLE_BANK_SIZE);
+// The layout is exactly memory.x's TABLE region, at the top of the flash.
+const _: () = assert!(memory_x::TABLE_ORIGIN == TABLE_REGION_START);
+const _: () = assert!(memory_x::TABLE_LENGTH == 2 * TABLE_BANK_SIZE);
+const _: () = assert!(TABLE_REGION_START + 2 * TABLE_BANK_SIZE == FLASH_SIZE);
+const _: () = assert!(TABLE_LAYOUT.bank_b_offset + TABLE_LAYOUT.bank_size == FLASH_SIZE);
 /// Erase granularity emulated here (bytes).
 const FLASH_ERASE_SIZE: usize = 4096;
 /// Erased byte value.
 const FLASH_ERASED: u8 = 0xFF;
+/// Modelled sector-erase time (control ticks): 0.3 s, a NOR sector.
+pub const FLASH_ERASE_TICKS: u32 = 300;
+/// Modelled program time of one write (control ticks).
+pub const FLASH_PROGRAM_TICKS: u32 = 1;
 
 /// Why a flash operation was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FlashError {
-    /// Outside the table region or not aligned.
+    /// Outside the table region.
     OutOfBounds,
     /// Not aligned to the erase or write size.
     NotAligned,
@@ -192,15 +708,13 @@ impl NorFlashError for FlashError {
     }
 }
 
-/// The table region as NOR flash.
-pub struct TableFlash(());
+/// The table region as NOR flash, busy for the modelled time after each erase or
+/// program ([`FlashStatus`]).
+pub struct TableFlash {
+    busy_until: Option<u32>,
+}
 
 impl TableFlash {
-    /// The board's table flash. Only one instance should exist.
-    pub fn take() -> Self {
-        TableFlash(())
-    }
-
     fn check(from: u32, len: usize) -> Result<(), FlashError> {
         let end = (from as usize)
             .checked_add(len)
@@ -209,6 +723,42 @@ impl TableFlash {
             return Err(FlashError::OutOfBounds);
         }
         Ok(())
+    }
+
+    /// QEMU's SSRAM comes up zeroed, a new NOR flash erased: a TABLE region that reads
+    /// all zero (never written: no valid store state is all zero) is erased, so the
+    /// store sees blank banks as on a new device. Any other content (written by an
+    /// earlier boot: QEMU keeps RAM across a system reset) is kept.
+    fn erase_if_never_written(&mut self) {
+        let start = FLASH_BASE + TABLE_REGION_START as usize;
+        let end = FLASH_BASE + FLASH_SIZE as usize;
+        // SAFETY: the TABLE region, plain (emulated) memory, word aligned.
+        let zero = (start..end)
+            .step_by(4)
+            .all(|a| unsafe { read_volatile(a as *const u32) } == 0);
+        if zero {
+            for a in (start..end).step_by(4) {
+                // SAFETY: as above.
+                unsafe { write_volatile(a as *mut u32, u32::from_ne_bytes([FLASH_ERASED; 4])) };
+            }
+        }
+    }
+
+    fn start_busy(&mut self, ticks_needed: u32) {
+        self.busy_until = Some(ticks().wrapping_add(ticks_needed));
+    }
+}
+
+impl FlashStatus for TableFlash {
+    fn busy(&mut self) -> bool {
+        match self.busy_until {
+            // Serial comparison: busy while `now` is before the deadline.
+            Some(t) if (ticks().wrapping_sub(t) as i32) < 0 => true,
+            _ => {
+                self.busy_until = None;
+                false
+            }
+        }
     }
 }
 
@@ -220,9 +770,10 @@ impl ReadNorFlash for TableFlash {
     const READ_SIZE: usize = 1;
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
         Self::check(offset, bytes.len())?;
+        let base = FLASH_BASE + offset as usize;
         for (i, b) in bytes.iter_mut().enumerate() {
             // SAFETY: bounds checked above: inside the reserved TABLE region.
-            *b = unsafe { read_volatile((FLASH_BASE + offset as usize + i) as *const u8) };
+            *b = unsafe { read_volatile((base + i) as *const u8) };
         }
         Ok(())
     }
@@ -244,12 +795,15 @@ impl NorFlash for TableFlash {
             // SAFETY: bounds checked above.
             unsafe { write_volatile((FLASH_BASE + a as usize) as *mut u8, FLASH_ERASED) };
         }
+        let sectors = (to - from) / FLASH_ERASE_SIZE as u32;
+        self.start_busy(FLASH_ERASE_TICKS.saturating_mul(sectors));
         Ok(())
     }
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
         Self::check(offset, bytes.len())?;
+        let base = FLASH_BASE + offset as usize;
         for (i, b) in bytes.iter().enumerate() {
-            let p = (FLASH_BASE + offset as usize + i) as *mut u8;
+            let p = (base + i) as *mut u8;
             // SAFETY: bounds checked above.
             let old = unsafe { read_volatile(p) };
             if b & !old != 0 {
@@ -258,37 +812,7 @@ impl NorFlash for TableFlash {
             // SAFETY: as above.
             unsafe { write_volatile(p, old & b) };
         }
+        self.start_busy(FLASH_PROGRAM_TICKS);
         Ok(())
-    }
-}
-
-// ---------------------------------------------------------------------------------
-// Cycle pacing: SysTick at the control rate.
-
-/// SysTick reload for 1 ms at the 25 MHz core clock QEMU models for mps2 boards.
-const SYSTICK_RELOAD_1MS: u32 = 25_000 - 1;
-
-/// Paces the control loop at 1 kHz.
-pub struct CycleTimer {
-    syst: cortex_m::peripheral::SYST,
-}
-
-impl CycleTimer {
-    /// Starts SysTick (core clock source, 1 ms period, no interrupt).
-    pub fn start(mut syst: cortex_m::peripheral::SYST) -> Self {
-        use cortex_m::peripheral::syst::SystClkSource;
-        syst.set_clock_source(SystClkSource::Core);
-        syst.set_reload(SYSTICK_RELOAD_1MS);
-        syst.clear_current();
-        syst.enable_counter();
-        Self { syst }
-    }
-
-    /// Waits for the next cycle boundary. Returns `true` if the previous cycle overran
-    /// (more than one period elapsed since the last call).
-    pub fn wait(&mut self) -> bool {
-        let overran = self.syst.has_wrapped();
-        while !self.syst.has_wrapped() {}
-        overran
     }
 }

@@ -548,11 +548,14 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
         if let Some((table, source)) = self.reloaded.take() {
             return Some(JobResult::Reloaded { table, source });
         }
-        if let Some(img) = self.scrub.take() {
-            return Some(JobResult::Scrubbed {
+        // Checked where it is (a ~1 KB image: not moved to the stack).
+        if let Some(img) = &self.scrub {
+            let result = JobResult::Scrubbed {
                 generation: img.generation,
                 ok: img.consistent(),
-            });
+            };
+            self.scrub = None;
+            return Some(result);
         }
         if let Some(op) = self.op {
             return self.step_op(op);

@@ -61,7 +61,7 @@ use crate::kinematics::{
 use crate::link::tm::EventSeverity;
 use crate::link::Housekeeping;
 use crate::motion::MotionLimits;
-use crate::supervision::{CycleInputs, FaultFlags, SupervisionConfig, Supervisor};
+use crate::supervision::{CycleInputs, FaultFlags, Supervisor};
 use crate::table::upload::UploadBuffer;
 use crate::table::{BootReport, BootSource, CommitReport, Table};
 use crate::timing::{cycle_to_us, SCRUB_PERIOD_CYCLES};
@@ -290,6 +290,16 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
     /// Starts on the table boot selected (`table`, `boot`: [`crate::table::TableStore::boot`]),
     /// holds the sliders where their drives are, and takes the first reading.
     pub fn new(mech: M, table: Table, boot: BootReport) -> Self {
+        let mut c = Self::unstarted(mech, table, boot);
+        c.start();
+        c
+    }
+
+    /// [`Controller::new`] in two steps, for a board that builds the controller in
+    /// place (a static slot: `slot.write(Controller::unstarted(..)).start()`), so the
+    /// ~6 KB struct is never copied on the stack. Until [`Controller::start`] the
+    /// drives are not held and no reading was taken: call it before the first cycle.
+    pub fn unstarted(mech: M, table: Table, boot: BootReport) -> Self {
         let (active, geometry_ok) = match ActiveTable::new(table, boot.source) {
             Ok(a) => (a, true),
             // A booted table was validated, so this is a defect guard: fall back to the
@@ -302,7 +312,7 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         let params = Parameters::none();
         let supervisor = Supervisor::new(params.supervision(&active.table));
         let ops = Ops::derive(&params, &active.table);
-        let mut c = Self {
+        Self {
             mech,
             active,
             params,
@@ -341,17 +351,26 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             bank_health: 0,
             boot_event_sent: false,
             plan_aborted: false,
-        };
-        c.hold_here();
-        if let Ok(counts) = c.mech.read_counts() {
-            c.encoders_mm = counts_to_mm(&counts);
-            c.encoders_valid = true;
-            if let Ok(sol) = fk(&c.active.geom, &c.encoders_mm, &c.pose_fk, &c.fk_cfg) {
-                c.pose_fk = sol.pose;
-                c.fk_valid = true;
+        }
+    }
+
+    /// Second step of [`Controller::unstarted`]: holds the sliders where their drives
+    /// are and takes the first reading.
+    pub fn start(&mut self) {
+        self.hold_here();
+        if let Ok(counts) = self.mech.read_counts() {
+            self.encoders_mm = counts_to_mm(&counts);
+            self.encoders_valid = true;
+            if let Ok(sol) = fk(
+                &self.active.geom,
+                &self.encoders_mm,
+                &self.pose_fk,
+                &self.fk_cfg,
+            ) {
+                self.pose_fk = sol.pose;
+                self.fk_valid = true;
             }
         }
-        c
     }
 
     /// Restores the on-board parameters persisted with the selection record
@@ -685,7 +704,10 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
     /// Test hook (host): flips RAM bits of the running table, its derived geometry or
     /// the supervision thresholds, as a radiation upset would; the scrub must find it.
     #[cfg(feature = "host")]
-    pub fn upset(&mut self, f: impl FnOnce(&mut ActiveTable, &mut SupervisionConfig)) {
+    pub fn upset(
+        &mut self,
+        f: impl FnOnce(&mut ActiveTable, &mut crate::supervision::SupervisionConfig),
+    ) {
         let mut cfg = *self.supervisor.config();
         f(&mut self.active, &mut cfg);
         self.supervisor.set_config(cfg);

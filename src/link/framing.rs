@@ -159,8 +159,8 @@ impl<const N: usize> Deframer<N> {
         let Some(encoded) = self.buf.get_mut(..len) else {
             return Some(Err(FrameError::Overflow));
         };
-        match cobs::decode_in_place(encoded) {
-            Ok(n) if n > 0 => {
+        match cobs_decode_in_place(encoded) {
+            Some(n) if n > 0 => {
                 self.frames_ok = self.frames_ok.wrapping_add(1);
                 self.buf.get(..n).map(Ok)
             }
@@ -185,5 +185,30 @@ impl<const N: usize> Deframer<N> {
             let _ = self.push_byte(byte);
         }
         (consumed, None)
+    }
+}
+
+/// COBS-decodes one frame (without its delimiter) in place, through the `cobs` crate's
+/// byte state machine ([`cobs::DecoderState`]): its slice decoder indexes with bounds
+/// checks the compiler cannot remove (panic paths in the flight image). The decoded
+/// byte `k` is written at index `k`, never ahead of the encoded byte being read.
+/// `None` if the bytes are not one valid COBS frame.
+fn cobs_decode_in_place(buf: &mut [u8]) -> Option<usize> {
+    let mut state = cobs::DecoderState::Idle;
+    let mut out = 0usize;
+    for i in 0..buf.len() {
+        let byte = *buf.get(i)?;
+        match state.feed(byte) {
+            Ok(cobs::DecodeResult::DataContinue(b)) => {
+                *buf.get_mut(out)? = b;
+                out += 1;
+            }
+            Ok(cobs::DecodeResult::NoData | cobs::DecodeResult::DataStart) => {}
+            Ok(cobs::DecodeResult::DataComplete) | Err(_) => return None,
+        }
+    }
+    match state.feed(FRAME_DELIMITER) {
+        Ok(cobs::DecodeResult::DataComplete) => Some(out),
+        _ => None,
     }
 }

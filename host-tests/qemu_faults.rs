@@ -1,0 +1,147 @@
+//! The fault-test build of the flight image in QEMU (`--features fault-test`, built by
+//! `scripts/qemu-fault-test.sh`): faults injected on purpose, one stage per boot, and
+//! what the firmware reports about each over its UART, as a ground station sees it:
+//! 1. after power-on: five overrunning control cycles (the deadline fault latches,
+//!    event 0x0030, housekeeping counts them), then the control task hangs: the
+//!    watchdog resets the board;
+//! 2. after the watchdog reset: the boot reports the watchdog and boot 2; then a stack
+//!    overflow runs into the MPU guard: MemManage, reset;
+//! 3. after that reset: the boot reports the fault and boot 3; the link works.
+//!
+//! Needs QEMU and the image, so it is `#[ignore]`d in the plain test run.
+
+mod common;
+
+use std::time::{Duration, Instant};
+
+use common::qemu::{elf_at, Qemu};
+use m2ctl::controller::{event, ResetCause};
+use m2ctl::ground::station::Station;
+use m2ctl::link::tm::Verification;
+use m2ctl::link::Command;
+use m2ctl::supervision::FaultFlags;
+
+/// Where scripts/qemu-fault-test.sh puts the fault-test build of m2fw.
+const FAULT_TEST_ELF: &str = "target/m2fw-fault-test";
+/// Overrunning cycles the fault-test build injects after power-on (main.rs).
+const INJECTED_OVERRUNS: u16 = 5;
+
+struct Link {
+    q: Qemu,
+    st: Station,
+}
+
+impl Link {
+    fn until(&mut self, timeout: Duration, mut done: impl FnMut(&Station) -> bool) -> bool {
+        let t0 = Instant::now();
+        while t0.elapsed() < timeout {
+            let bytes = self.q.read_for(Duration::from_millis(50));
+            self.st.receive(&bytes);
+            if done(&self.st) {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Boot-detail events so far: (reset cause code, boot count).
+    fn boots(&self) -> Vec<(u32, u32)> {
+        self.st
+            .events(event::BOOT_DETAIL)
+            .iter()
+            .map(|aux| (aux[1] & 0xFF, aux[1] >> 16))
+            .collect()
+    }
+
+    fn hk(&mut self) -> m2ctl::link::Housekeeping {
+        let (frame, rid) = self.st.frame(&Command::HousekeepingOneShot).unwrap();
+        self.q.send(&frame);
+        assert!(
+            self.until(Duration::from_secs(10), |s| s
+                .reports(rid)
+                .contains(&Verification::CompletionSuccess)),
+            "no housekeeping"
+        );
+        self.st.last_hk().unwrap()
+    }
+}
+
+#[test]
+#[ignore = "needs QEMU and the fault-test image: scripts/qemu-fault-test.sh"]
+fn overruns_hang_and_overflow_reset_with_their_cause_reported() {
+    let mut l = Link {
+        q: Qemu::start_elf(&elf_at(FAULT_TEST_ELF)),
+        st: Station::new(),
+    };
+    let t = Duration::from_secs(30);
+
+    // Boot 1: power-on.
+    assert!(
+        l.until(t, |s| !s.events(event::BOOT_DETAIL).is_empty()),
+        "no boot"
+    );
+    assert_eq!(
+        l.boots(),
+        [(u32::from(ResetCause::PowerOn.code()), 1)],
+        "first boot"
+    );
+
+    // Overruns: the deadline fault latches and the event names the count.
+    assert!(
+        l.until(t, |s| !s.events(event::DEADLINE_MISSED).is_empty()),
+        "no deadline-missed event"
+    );
+    let hk = l.hk();
+    assert!(
+        hk.cycle_overruns >= INJECTED_OVERRUNS,
+        "overruns counted: {}",
+        hk.cycle_overruns
+    );
+    assert_ne!(
+        hk.fault_flags & FaultFlags::DEADLINE_MISSED.bits(),
+        0,
+        "{hk:?}"
+    );
+    println!(
+        "overruns: {} counted, deadline fault latched (flags {:#x})",
+        hk.cycle_overruns, hk.fault_flags
+    );
+
+    // The hang: the watchdog resets; boot 2 reports it.
+    let t_hang = Instant::now();
+    assert!(
+        l.until(t, |s| s.events(event::BOOT_DETAIL).len() >= 2),
+        "no watchdog reset"
+    );
+    assert_eq!(
+        l.boots()[1],
+        (u32::from(ResetCause::Watchdog.code()), 2),
+        "boot after the hang"
+    );
+    println!(
+        "hang: watchdog reset seen {:.2} s after the overrun report, boot 2 reports cause watchdog",
+        t_hang.elapsed().as_secs_f64()
+    );
+
+    // The stack overflow: MPU guard, fault, reset; boot 3 reports it.
+    assert!(
+        l.until(t, |s| s.events(event::BOOT_DETAIL).len() >= 3),
+        "no overflow reset"
+    );
+    assert_eq!(
+        l.boots()[2],
+        (u32::from(ResetCause::HardFault.code()), 3),
+        "boot after the overflow"
+    );
+    let hk = l.hk();
+    assert_eq!(
+        (hk.reset_cause, hk.boot_count),
+        (ResetCause::HardFault.code(), 3)
+    );
+    assert_eq!(
+        hk.fault_flags, 0,
+        "a fresh boot has no latched fault: {hk:?}"
+    );
+    assert_eq!(l.st.bad_frames, 0);
+    println!("overflow: MPU guard fault, reset, boot 3 reports cause hard fault; link up");
+}

@@ -1,0 +1,62 @@
+//! The six sliders of an emulated board: QEMU models no slider, drive or encoder, so
+//! the board stands one in behind the same hardware traits the flight code uses
+//! ([`StrokeEncoders`], [`SliderDrives`]), built on the `no_std` plant core
+//! ([`crate::plant::Sliders`], in `f32`).
+//!
+//! A board part, not flight code: it is what the QEMU board has instead of drivers.
+//! Time: the model moves its sliders by one control period each time the encoders are
+//! read (the controller reads them once per control cycle), at most
+//! [`MODEL_SLIDER_SPEED_MM_PER_S`] times the period; the encoders report the nearest
+//! count of [`crate::hw::ENCODER_MM_PER_COUNT`]. Its drives never fault.
+
+use crate::hw::{DriveError, EncoderError, SliderDrives, StrokeEncoders};
+use crate::kinematics::LEGS;
+use crate::plant::{nearest_count, Sliders};
+use crate::timing::CYCLE_S;
+
+/// Speed of the model's sliders (mm/s): faster than the flight motion limits, so the
+/// model follows the setpoints like a good position-controlled drive.
+pub const MODEL_SLIDER_SPEED_MM_PER_S: f32 = 1.0;
+
+/// The emulated sliders, drives and encoders (one instance, owned by the controller).
+#[derive(Debug)]
+pub struct QemuSliders {
+    sliders: Sliders<f32>,
+    max_step_mm: f32,
+}
+
+impl QemuSliders {
+    /// The sliders at home, at rest. Called once by the board's take-once constructor.
+    pub(super) fn new() -> Self {
+        Self {
+            sliders: Sliders::default(),
+            max_step_mm: MODEL_SLIDER_SPEED_MM_PER_S * CYCLE_S,
+        }
+    }
+}
+
+impl StrokeEncoders for QemuSliders {
+    fn read_counts(&mut self) -> Result<[i32; LEGS], EncoderError> {
+        self.sliders.step(self.max_step_mm, |_| false);
+        Ok(self.sliders.positions_mm().map(nearest_count))
+    }
+}
+
+impl SliderDrives for QemuSliders {
+    fn command_strokes_mm(&mut self, setpoint_mm: &[f32; LEGS]) -> Result<(), DriveError> {
+        self.sliders.command(setpoint_mm);
+        Ok(())
+    }
+
+    fn hold(&mut self) {
+        self.sliders.hold();
+    }
+
+    fn setpoints_mm(&mut self) -> [f32; LEGS] {
+        self.sliders.setpoints_f32()
+    }
+
+    fn status(&mut self) -> Result<(), DriveError> {
+        Ok(())
+    }
+}
