@@ -59,9 +59,6 @@ impl Link {
 
 /// A UART at 115,200 baud, 8N1, carries 11.52 bytes per millisecond.
 const UART_BYTES_PER_MS: usize = 11;
-/// The stack region of memory.x (the board's STACK).
-const STACK_BOTTOM: u32 = 0x2000_0000;
-const STACK_TOP: u32 = 0x2000_4000;
 
 const OK3: [Verification; 3] = [
     Verification::AcceptanceSuccess,
@@ -177,7 +174,14 @@ fn firmware_in_qemu_answers_telecommands() {
         table_id: table.table_id,
         crc32: table.crc32(),
     });
-    assert_eq!(l.complete(rid, t), OK3);
+    let reps = l.complete(rid, t);
+    assert_eq!(
+        l.st.events(event::BOOT).len(),
+        1,
+        "the firmware rebooted: boot detail {:?}",
+        l.st.events(event::BOOT_DETAIL)
+    );
+    assert_eq!(reps, OK3);
 
     // A 50 um move: completion on arrival, then housekeeping shows the new table.
     let target = WirePose {
@@ -206,10 +210,11 @@ fn firmware_in_qemu_answers_telecommands() {
     );
     // The stack the flight image used on this whole path (boot, TC burst, upload,
     // background commit with flash writes, activation, scrubs, housekeeping, a move).
-    let peak = l.q.stack_peak_bytes(STACK_BOTTOM, STACK_TOP);
+    let (stack_bottom, stack_top) = common::qemu::stack_region();
+    let peak = l.q.stack_peak_bytes(stack_bottom, stack_top);
     println!(
         "STACK flight image peak_bytes={peak} of {} (memory.x STACK)",
-        STACK_TOP - STACK_BOTTOM
+        stack_top - stack_bottom
     );
-    assert!(peak < STACK_TOP - STACK_BOTTOM);
+    assert!(peak < stack_top - stack_bottom);
 }

@@ -158,6 +158,33 @@ impl Qemu {
     }
 }
 
+/// The STACK region `[origin, origin + length)` of the mps2-an386 memory map
+/// (`memory/mps2-an386.x`, the one definition).
+pub fn stack_region() -> (u32, u32) {
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/memory/mps2-an386.x"))
+        .expect("memory/mps2-an386.x");
+    let line = text
+        .lines()
+        .map(str::trim)
+        .find(|l| l.starts_with("STACK"))
+        .expect("a STACK region");
+    let field = |key: &str| -> u32 {
+        let v = line
+            .split(key)
+            .nth(1)
+            .expect(key)
+            .trim_start_matches([' ', '=']);
+        let v = v.split(',').next().unwrap_or("").trim();
+        if let Some(k) = v.strip_suffix('K') {
+            k.parse::<u32>().expect("size") * 1024
+        } else {
+            u32::from_str_radix(v.trim_start_matches("0x"), 16).expect("origin")
+        }
+    };
+    let origin = field("ORIGIN");
+    (origin, origin + field("LENGTH"))
+}
+
 /// The paint value of cortex-m-rt's `paint-stack`.
 pub const STACK_PAINT: u32 = 0xCCCC_CCCC;
 
