@@ -10,8 +10,9 @@ use common::{all_ok, calibrated_table, install, wire, JOB_CYCLES};
 use m2ctl::controller::event;
 use m2ctl::ground::station::Tm;
 use m2ctl::link::command::{FunctionId, WirePose, FUNCTION_ID_LEN};
-use m2ctl::link::hk::HK_REPORT_LEN;
+use m2ctl::link::hk::{ScheduleHk, HK_REPORT_LEN};
 use m2ctl::link::tm::EventSeverity;
+use m2ctl::link::tm::TmTime;
 use m2ctl::link::{Command, Housekeeping};
 use m2ctl::sim::{Bench, InjectedFault};
 use m2ctl::table::{Table, TABLE_LEN};
@@ -133,6 +134,9 @@ fn event_table_lists_exactly_the_event_ids_of_the_code() {
         event::BOOT,
         event::BOOT_DETAIL,
         event::DEADLINE_MISSED,
+        event::ACTIVITY_RELEASED,
+        event::ACTIVITY_FAILED,
+        event::ACTIVITY_EXPIRED,
     ]
     .into_iter()
     .collect();
@@ -286,12 +290,24 @@ fn housekeeping_table_matches_the_emitted_bytes() {
         reset_cause: 0x2d,
         boot_count: 0x2e2e,
         bank_health: 0x2f,
+        schedule: ScheduleHk {
+            activities: 0x30,
+            release_enabled: true,
+            released: 0x3232,
+            failed: 0x3333,
+            next_release: TmTime {
+                seconds: 0x3434_3434,
+                fraction: 0x3434,
+            },
+            time_report_rate: 0x35,
+        },
     };
     let mut bytes = [0u8; HK_REPORT_LEN];
     hk.emit(&mut bytes);
     assert_eq!(bytes[0], 1, "structure ID");
     for (k, (off, size)) in rows.iter().enumerate().skip(1) {
-        let marker = if k == 5 { 1 } else { 0x10 + k as u8 };
+        // Rows 5 (FK valid) and 33 (release enabled) are booleans.
+        let marker = if k == 5 || k == 33 { 1 } else { 0x10 + k as u8 };
         assert!(
             bytes[*off..off + size].iter().all(|b| *b == marker),
             "row {k} at {off}+{size}: {:02x?}",

@@ -342,6 +342,17 @@ fn sample_hk() -> Housekeeping {
         reset_cause: 3,
         boot_count: 0xabcd,
         bank_health: 0b10,
+        schedule: m2ctl::link::hk::ScheduleHk {
+            activities: 16,
+            release_enabled: true,
+            released: 0x0102,
+            failed: 3,
+            next_release: TmTime {
+                seconds: 77,
+                fraction: 0x8000,
+            },
+            time_report_rate: 0xff,
+        },
     }
 }
 

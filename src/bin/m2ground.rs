@@ -195,6 +195,53 @@ struct TcCli {
 
 #[derive(Subcommand)]
 enum TcWhat {
+    #[command(flatten)]
+    Now(PlainTc),
+    /// TC[11,4]: the telecommand of the subcommand (numbered first), released on board
+    /// at on-board time --at-s.
+    Schedule {
+        /// Release time: on-board time in seconds since the controller's boot (the clock
+        /// of the TM time stamps), to 1/65536 s.
+        #[arg(long, allow_negative_numbers = true)]
+        at_s: f64,
+        #[command(subcommand)]
+        what: PlainTc,
+    },
+    /// TC[11,1] enable the release of scheduled activities.
+    ScheduleEnable,
+    /// TC[11,2] disable the release of scheduled activities.
+    ScheduleDisable,
+    /// TC[11,3] reset the schedule (delete all; release disabled afterwards).
+    ScheduleReset,
+    /// TC[11,5] delete the activities whose telecommands were sent with these sequence
+    /// counts.
+    ScheduleDelete {
+        /// Sequence count of a scheduled telecommand (repeat for several).
+        #[arg(long = "seq-count", required = true)]
+        seq_counts: Vec<u16>,
+    },
+    /// TC[11,15] move every release time by an offset.
+    ScheduleShift {
+        /// Offset (s, signed), to 1/65536 s.
+        #[arg(long, allow_negative_numbers = true)]
+        by_s: f64,
+    },
+    /// TC[11,17] summary report of the schedule (TM[11,13]).
+    ScheduleReport,
+    /// TC[9,1] time reports TM[9,2] every 2^N s (--exponent N), or --off.
+    TimeReports {
+        /// N of the period 2^N s (0..8).
+        #[arg(long, required_unless_present = "off", conflicts_with = "off")]
+        exponent: Option<u8>,
+        /// Stop the time reports.
+        #[arg(long)]
+        off: bool,
+    },
+}
+
+/// The telecommands that run at once (and that `schedule` can release later).
+#[derive(Subcommand)]
+enum PlainTc {
     /// TC[17,1] are-you-alive.
     Ping,
     /// TC[3,27] one-shot housekeeping report.
@@ -267,9 +314,32 @@ enum TcWhat {
 impl TcWhat {
     fn request(&self) -> TcRequest {
         match self {
-            TcWhat::Ping => TcRequest::Ping,
-            TcWhat::Hk => TcRequest::Housekeeping,
-            TcWhat::Move {
+            TcWhat::Now(t) => t.request(),
+            TcWhat::Schedule { at_s, what } => TcRequest::Schedule {
+                release_s: *at_s,
+                what: Box::new(what.request()),
+            },
+            TcWhat::ScheduleEnable => TcRequest::ScheduleEnable,
+            TcWhat::ScheduleDisable => TcRequest::ScheduleDisable,
+            TcWhat::ScheduleReset => TcRequest::ScheduleReset,
+            TcWhat::ScheduleDelete { seq_counts } => TcRequest::ScheduleDelete {
+                seq_counts: seq_counts.clone(),
+            },
+            TcWhat::ScheduleShift { by_s } => TcRequest::ScheduleShift { by_s: *by_s },
+            TcWhat::ScheduleReport => TcRequest::ScheduleReport,
+            TcWhat::TimeReports { exponent, off } => TcRequest::TimeReportRate {
+                exponent: if *off { None } else { *exponent },
+            },
+        }
+    }
+}
+
+impl PlainTc {
+    fn request(&self) -> TcRequest {
+        match self {
+            PlainTc::Ping => TcRequest::Ping,
+            PlainTc::Hk => TcRequest::Housekeeping,
+            PlainTc::Move {
                 x_um,
                 y_um,
                 z_um,
@@ -282,19 +352,19 @@ impl TcWhat {
                 rotation_arcsec: [*rx_arcsec, *ry_arcsec, *rz_arcsec],
                 relative: *relative,
             },
-            TcWhat::DirectStroke { leg, delta_um } => TcRequest::DirectStroke {
+            PlainTc::DirectStroke { leg, delta_um } => TcRequest::DirectStroke {
                 leg: *leg,
                 delta_um: *delta_um,
             },
-            TcWhat::Stop => TcRequest::Stop,
-            TcWhat::ClearFault => TcRequest::ClearFault,
-            TcWhat::Activate { table_id, crc32 } => TcRequest::Activate {
+            PlainTc::Stop => TcRequest::Stop,
+            PlainTc::ClearFault => TcRequest::ClearFault,
+            PlainTc::Activate { table_id, crc32 } => TcRequest::Activate {
                 table_id: *table_id,
                 crc32: *crc32,
             },
-            TcWhat::SwitchBank => TcRequest::SwitchBank,
-            TcWhat::RevertNominal => TcRequest::RevertToNominal,
-            TcWhat::Upload {
+            PlainTc::SwitchBank => TcRequest::SwitchBank,
+            PlainTc::RevertNominal => TcRequest::RevertToNominal,
+            PlainTc::Upload {
                 geometry,
                 table_id,
                 calibration_id,
@@ -305,7 +375,7 @@ impl TcWhat {
                 calibration_id: *calibration_id,
                 activate: *activate,
             },
-            TcWhat::Dump { upload_buffer } => TcRequest::Dump {
+            PlainTc::Dump { upload_buffer } => TcRequest::Dump {
                 upload_buffer: *upload_buffer,
             },
         }

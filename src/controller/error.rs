@@ -2,6 +2,7 @@
 //! (the kinematics, motion, table and store codes pass through unchanged). Each variant
 //! has a stable code and a 32-bit failure datum for the service-1 report.
 
+use super::schedule::ScheduleError;
 use super::State;
 use crate::motion::{MotionError, StrokeMoveError};
 use crate::supervision::FaultFlags;
@@ -52,6 +53,8 @@ pub enum CommandError {
     NoGeometry,
     /// 0x070D: a table job (commit, selection, reload) is in progress (data: job code).
     JobBusy(u8),
+    /// A time-based schedule telecommand refused (`ScheduleError` codes 0x0B0x).
+    Schedule(ScheduleError),
 }
 
 /// Reasons a leg's encoder is suspect for a direct-stroke move (0x070B's data bits).
@@ -91,6 +94,7 @@ impl CommandError {
             CommandError::EncoderSuspect(_) => 0x070B,
             CommandError::NoGeometry => 0x070C,
             CommandError::JobBusy(_) => 0x070D,
+            CommandError::Schedule(e) => e.code(),
         }
     }
 
@@ -113,6 +117,7 @@ impl CommandError {
             CommandError::PendingMismatch { pending_id } => *pending_id,
             CommandError::EncoderSuspect(bits) => *bits,
             CommandError::JobBusy(job) => *job as u32,
+            CommandError::Schedule(e) => e.data(),
             _ => 0,
         }
     }

@@ -46,7 +46,9 @@
 pub mod comms;
 pub mod error;
 pub mod jobs;
+pub mod schedule;
 pub mod telemetry;
+pub mod time;
 
 mod commands;
 mod motion;
@@ -281,6 +283,10 @@ pub struct Controller<M> {
     boot_event_sent: bool,
     /// A stop or a fault ended a move while it was being planned.
     plan_aborted: bool,
+    // Time-based schedule (ST[11]) and time reports (ST[9]): not persisted, empty and
+    // off at boot.
+    schedule: schedule::Schedule,
+    time_reports: time::TimeReports,
 }
 
 impl<M: SliderDrives + StrokeEncoders> Controller<M> {
@@ -335,6 +341,8 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             bank_health: 0,
             boot_event_sent: false,
             plan_aborted: false,
+            schedule: schedule::Schedule::new(),
+            time_reports: time::TimeReports::new(),
         };
         c.hold_here();
         if let Ok(counts) = c.mech.read_counts() {
@@ -596,6 +604,7 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             reset_cause: self.reset.cause.code(),
             boot_count: self.reset.boot_count,
             bank_health: self.bank_health,
+            schedule: self.schedule_hk(),
         }
     }
 

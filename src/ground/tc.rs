@@ -5,7 +5,10 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use crate::link::command::{TABLE_CHUNK_MAX_LEN, UAS_PER_ARCSEC};
-use crate::link::tc::{EncodeError, TcHeader};
+use crate::link::schedule::{ActivityBlock, ObtOffset, RequestIdList, ScheduleCommand};
+use crate::link::tc::{EncodeError, RequestId, TcHeader, APID_MASK, SEQ_COUNT_MASK};
+use crate::link::time::TimeReportRate;
+use crate::link::tm::{TmTime, TIME_FRACTIONS_PER_SECOND};
 use crate::link::{
     encode_frame, encode_telecommand, AckFlags, Command, TableChunk, WirePose, MAX_TC_FRAME_LEN,
     MAX_TC_PACKET_LEN,
@@ -68,6 +71,71 @@ impl TcSequencer {
     pub fn frames(&mut self, commands: &[Command]) -> Result<Vec<Vec<u8>>, String> {
         commands.iter().map(|c| self.frame(c)).collect()
     }
+
+    /// A TC[11,4] inserting `activities` (release time, telecommand): each embedded
+    /// telecommand is numbered by this sequencer first (in order), then the insert
+    /// itself. Returns the insert and the embedded request IDs (what a delete names).
+    pub fn schedule_insert(
+        &mut self,
+        activities: &[(TmTime, Command)],
+    ) -> Result<(Command, Vec<RequestId>), String> {
+        let mut packets = Vec::new();
+        for (release, command) in activities {
+            if matches!(command, Command::Schedule(_)) {
+                return Err("a schedule telecommand cannot be scheduled".into());
+            }
+            packets.push((*release, self.packet(command)?));
+        }
+        let ids = packets
+            .iter()
+            .map(|(_, p)| RequestId::from_packet(p).unwrap_or_default())
+            .collect();
+        let refs: Vec<(TmTime, &[u8])> = packets.iter().map(|(t, p)| (*t, p.as_slice())).collect();
+        let block = ActivityBlock::new(&refs).map_err(|e| {
+            format!(
+                "the activities do not make a TC[11,4] (code {:#06x}, data {:#x}): at most {} \
+                 bytes, embedded telecommands of at most {} bytes",
+                e.code(),
+                e.data(),
+                crate::link::schedule::MAX_INSERT_APP_DATA_LEN,
+                crate::link::schedule::MAX_SCHEDULED_TC_LEN
+            )
+        })?;
+        Ok((Command::Schedule(ScheduleCommand::Insert(block)), ids))
+    }
+}
+
+/// The request ID of the telecommand this ground sends with sequence count `seq_count`
+/// (APID [`crate::link::M2_APID`], unsegmented): what TC[11,5] names.
+pub fn request_id_of(seq_count: u16) -> RequestId {
+    /// Packet ID bits of a TC with a secondary header (type and flag).
+    const TC_WITH_SEC_HEADER: u16 = 0x1800;
+    /// Sequence flags of an unsegmented packet.
+    const UNSEGMENTED: u16 = 0xC000;
+    RequestId {
+        packet_id: TC_WITH_SEC_HEADER | (crate::link::M2_APID & APID_MASK),
+        sequence_control: UNSEGMENTED | (seq_count & SEQ_COUNT_MASK),
+    }
+}
+
+/// An on-board time from seconds (nearest 1/65536 s); refused if negative, not finite
+/// or beyond CUC 4+2.
+pub fn obt_from_seconds(s: f64) -> Result<TmTime, String> {
+    let ticks = (s * TIME_FRACTIONS_PER_SECOND as f64).round();
+    if !(ticks.is_finite() && ticks >= 0.0 && ticks < 2f64.powi(48)) {
+        return Err(format!("{s} s: not an on-board time (0 .. 2^32 s)"));
+    }
+    TmTime::from_ticks(ticks as u64).ok_or_else(|| format!("{s} s: beyond CUC 4+2"))
+}
+
+/// A time offset from seconds (nearest 1/65536 s); refused if not finite or beyond the
+/// TC[11,15] range (+-2^31 s).
+pub fn offset_from_seconds(s: f64) -> Result<ObtOffset, String> {
+    let ticks = (s * TIME_FRACTIONS_PER_SECOND as f64).round();
+    if !ticks.is_finite() || ticks.abs() >= 2f64.powi(47) {
+        return Err(format!("{s} s: not a time offset (+-2^31 s)"));
+    }
+    ObtOffset::from_ticks(ticks as i64).ok_or_else(|| format!("{s} s: beyond the offset range"))
 }
 
 /// COBS frame of a packet.
@@ -264,6 +332,36 @@ pub enum TcRequest {
         /// Dump the upload buffer instead of the active table.
         upload_buffer: bool,
     },
+    /// TC[11,4]: the telecommands of `what`, released at on-board time `release_s`.
+    Schedule {
+        /// Release time (on-board time, s since the controller's boot).
+        release_s: f64,
+        /// What to release.
+        what: Box<TcRequest>,
+    },
+    /// TC[11,1] enable release.
+    ScheduleEnable,
+    /// TC[11,2] disable release.
+    ScheduleDisable,
+    /// TC[11,3] reset the schedule (empty, release disabled).
+    ScheduleReset,
+    /// TC[11,5] delete the activities sent with these sequence counts.
+    ScheduleDelete {
+        /// Sequence counts of the embedded telecommands.
+        seq_counts: Vec<u16>,
+    },
+    /// TC[11,15] time-shift every activity.
+    ScheduleShift {
+        /// Offset (s, signed).
+        by_s: f64,
+    },
+    /// TC[11,17] summary report.
+    ScheduleReport,
+    /// TC[9,1] time reports every 2^exponent s (`None`: off).
+    TimeReportRate {
+        /// N of 2^N s.
+        exponent: Option<u8>,
+    },
 }
 
 impl TcRequest {
@@ -321,7 +419,63 @@ impl TcRequest {
             } else {
                 MemoryId::ActiveTable
             })],
+            TcRequest::Schedule { .. } => {
+                return Err(
+                    "a schedule insert is built by TcRequest::packets (it numbers \
+                            the embedded telecommands); it cannot be scheduled itself"
+                        .into(),
+                )
+            }
+            TcRequest::ScheduleEnable => vec![Command::Schedule(ScheduleCommand::EnableRelease)],
+            TcRequest::ScheduleDisable => {
+                vec![Command::Schedule(ScheduleCommand::DisableRelease)]
+            }
+            TcRequest::ScheduleReset => vec![Command::Schedule(ScheduleCommand::Reset)],
+            TcRequest::ScheduleDelete { seq_counts } => {
+                let ids: Vec<RequestId> = seq_counts.iter().map(|s| request_id_of(*s)).collect();
+                let list = RequestIdList::new(&ids).ok_or_else(|| {
+                    format!(
+                        "{} request IDs: a delete names 1..={}",
+                        ids.len(),
+                        crate::link::schedule::SCHEDULE_CAPACITY
+                    )
+                })?;
+                vec![Command::Schedule(ScheduleCommand::Delete(list))]
+            }
+            TcRequest::ScheduleShift { by_s } => vec![Command::Schedule(
+                ScheduleCommand::TimeShiftAll(offset_from_seconds(*by_s)?),
+            )],
+            TcRequest::ScheduleReport => vec![Command::Schedule(ScheduleCommand::SummaryReport)],
+            TcRequest::TimeReportRate { exponent } => {
+                let rate = match exponent {
+                    None => TimeReportRate::Off,
+                    Some(n) => TimeReportRate::from_code(*n)
+                        .filter(|r| *r != TimeReportRate::Off)
+                        .ok_or_else(|| {
+                            format!(
+                                "exponent {n}: 0..={}",
+                                crate::link::time::MAX_TIME_REPORT_EXPONENT
+                            )
+                        })?,
+                };
+                vec![Command::SetTimeReportRate(rate)]
+            }
         })
+    }
+
+    /// The PUS packets (unframed) of the request, numbered by `sequencer`; a schedule
+    /// insert numbers its embedded telecommands first, then itself.
+    pub fn packets(&self, sequencer: &mut TcSequencer) -> Result<Vec<Vec<u8>>, String> {
+        let commands = match self {
+            TcRequest::Schedule { release_s, what } => {
+                let release = obt_from_seconds(*release_s)?;
+                let activities: Vec<(TmTime, Command)> =
+                    what.commands()?.into_iter().map(|c| (release, c)).collect();
+                vec![sequencer.schedule_insert(&activities)?.0]
+            }
+            other => other.commands()?,
+        };
+        commands.iter().map(|c| sequencer.packet(c)).collect()
     }
 }
 
@@ -341,17 +495,11 @@ pub fn run_tc(
     output: TcOutput,
     unframed: bool,
 ) -> Result<Vec<u8>, String> {
-    let cmds = request.commands()?;
-    let frames = cmds
-        .iter()
-        .map(|c| {
-            if unframed {
-                sequencer.packet(c)
-            } else {
-                sequencer.frame(c)
-            }
-        })
-        .collect::<Result<Vec<_>, _>>()?;
+    let frames: Vec<Vec<u8>> = request
+        .packets(sequencer)?
+        .into_iter()
+        .map(|p| if unframed { p } else { frame(&p) })
+        .collect();
     Ok(match output {
         TcOutput::HexLines => hex_lines(&frames).into_bytes(),
         TcOutput::Binary => frames.concat(),

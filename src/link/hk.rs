@@ -1,6 +1,6 @@
 //! The housekeeping report TM[3,25]: [`Housekeeping`] and its byte layout.
 //!
-//! # Layout (source data of TM[3,25], [`HK_REPORT_LEN`] = 133 bytes, big-endian)
+//! # Layout (source data of TM[3,25], [`HK_REPORT_LEN`] = 166 bytes, big-endian)
 //!
 //! | offset | size | type    | field                                                        |
 //! |-------:|-----:|---------|--------------------------------------------------------------|
@@ -36,15 +36,27 @@
 //! |    149 |    1 | u8      | reset cause: 0 power-on, 1 watchdog, 2 software, 3 HardFault, 4 panic |
 //! |    150 |    2 | u16     | boot count (wrapping)                                        |
 //! |    152 |    1 | u8      | flash bank health: bit 0 bank A, bit 1 bank B record corrupt |
+//!
+//! Time-based schedule and time reports (ST[11], ST[9]; [`ScheduleHk`]):
+//!
+//! | offset | size | type    | field                                                        |
+//! |-------:|-----:|---------|--------------------------------------------------------------|
+//! |    153 |    1 | u8      | activities in the schedule (0..16)                           |
+//! |    154 |    1 | u8      | release enabled (1) or disabled (0)                          |
+//! |    155 |    2 | u16     | activities released since boot (wrapping)                   |
+//! |    157 |    2 | u16     | released activities that failed (wrapping)                   |
+//! |    159 |    6 | CUC 4+2 | release time of the next activity (0 if none)                |
+//! |    165 |    1 | u8      | time report rate: N of 2^N s, 255 off                        |
 
 use super::command::WirePose;
+use super::tm::TmTime;
 use super::wire::{Order, Reader, Writer};
 use crate::kinematics::LEGS;
 
 /// Structure ID of the one housekeeping report.
 pub const HK_STRUCTURE_ID: u8 = 1;
 /// Length of the TM[3,25] source data (bytes).
-pub const HK_REPORT_LEN: usize = 153;
+pub const HK_REPORT_LEN: usize = 166;
 /// `selected_source` when no selection record exists.
 pub const NO_SELECTION: u8 = 0xFF;
 
@@ -113,6 +125,47 @@ pub struct Housekeeping {
     pub boot_count: u16,
     /// Flash bank health (bit 0 bank A, bit 1 bank B record corrupt).
     pub bank_health: u8,
+    /// The time-based schedule and the time reports (offsets 153..166).
+    pub schedule: ScheduleHk,
+}
+
+/// The housekeeping block of the time-based schedule (ST[11]) and the time reports
+/// (ST[9]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ScheduleHk {
+    /// Activities in the schedule.
+    pub activities: u8,
+    /// Activities are released when their time comes.
+    pub release_enabled: bool,
+    /// Activities released since boot (wrapping).
+    pub released: u16,
+    /// Released activities whose telecommand failed (wrapping).
+    pub failed: u16,
+    /// Release time of the next activity (0 if none).
+    pub next_release: TmTime,
+    /// Time report rate (`link::time::TimeReportRate::code`: N of 2^N s, 255 off).
+    pub time_report_rate: u8,
+}
+
+impl ScheduleHk {
+    fn write(&self, w: &mut Writer<'_>) -> Option<()> {
+        w.put(&[self.activities, u8::from(self.release_enabled)])?;
+        w.u16(self.released)?;
+        w.u16(self.failed)?;
+        w.put(&self.next_release.to_bytes())?;
+        w.u8(self.time_report_rate)
+    }
+
+    fn read(r: &mut Reader<'_>) -> Option<ScheduleHk> {
+        Some(ScheduleHk {
+            activities: r.u8()?,
+            release_enabled: r.u8()? != 0,
+            released: r.u16()?,
+            failed: r.u16()?,
+            next_release: TmTime::from_bytes(r.take()?),
+            time_report_rate: r.u8()?,
+        })
+    }
 }
 
 impl Housekeeping {
@@ -162,7 +215,8 @@ impl Housekeeping {
         }
         w.u8(self.reset_cause)?;
         w.u16(self.boot_count)?;
-        w.u8(self.bank_health)
+        w.u8(self.bank_health)?;
+        self.schedule.write(w)
     }
 
     /// Checked parse of the TM[3,25] source data (exact length, structure ID 1).
@@ -206,6 +260,7 @@ impl Housekeeping {
             reset_cause: r.u8()?,
             boot_count: r.u16()?,
             bank_health: r.u8()?,
+            schedule: ScheduleHk::read(&mut r)?,
         })
     }
 }
