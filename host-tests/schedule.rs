@@ -787,6 +787,7 @@ fn releases_share_the_four_telecommands_of_a_cycle_and_go_first() {
     let t = obt(1.0);
     let (_, ids) = insert(&mut r, &vec![(t, Command::Ping); 6]);
     run_until_just_before(&mut r, t);
+    let accepted = r.ctl.housekeeping().tc_accepted;
     // A ground telecommand arriving in the same cycle waits for the released ones.
     let ping = r.queue(&Command::Ping);
     r.tick();
@@ -807,11 +808,47 @@ fn releases_share_the_four_telecommands_of_a_cycle_and_go_first() {
             .unwrap();
     assert!((secs(last) - secs(first) - CYCLE_S).abs() < 2.0 * TICK_S);
     assert!(all_ok(&r.st.reports(ping)), "then the uplink's");
+    assert_eq!(
+        r.ctl.housekeeping().tc_accepted,
+        accepted + 7,
+        "released telecommands count as accepted ones"
+    );
     // In insertion order.
     assert_eq!(
         released(&r),
         ids.iter().map(|i| request_id_word(*i)).collect::<Vec<_>>()
     );
+}
+
+#[test]
+fn a_release_time_equal_to_now_is_accepted_and_runs_in_the_next_pass() {
+    let mut r = Bench::new();
+    r.run(3);
+    // The insert executes in the next pass, at this OBT.
+    let now = obt_of_cycle(r.ctl.cycle() + 1);
+    let (ins, ids) = insert(&mut r, &[(now, Command::Ping)]);
+    assert_eq!(
+        r.st.report_time(ins, Verification::AcceptanceSuccess),
+        Some(now)
+    );
+    assert!(all_ok(&r.st.reports(ins)));
+    assert!(r.st.reports(ids[0]).is_empty());
+    r.tick();
+    assert!(all_ok(&r.st.reports(ids[0])));
+    assert_eq!(
+        r.st.report_time(ids[0], Verification::AcceptanceSuccess),
+        Some(obt_of_cycle(r.ctl.cycle()))
+    );
+}
+
+#[test]
+fn time_reports_and_summaries_yield_to_reports_and_events_in_the_queue() {
+    use m2ctl::controller::TmRecord;
+    assert!(TmRecord::TimeReport {
+        rate: TimeReportRate::Every { exponent: 0 }
+    }
+    .is_bulk());
+    assert!(TmRecord::ScheduleSummary.is_bulk());
 }
 
 #[test]
@@ -824,11 +861,12 @@ fn time_reports_come_at_the_obt_multiples_of_their_period_with_their_own_time() 
     );
     for exponent in [0u8, 1] {
         let from = r.st.log.len();
-        let reps = r.command(
+        let (rid, reps, at) = run_tc(
+            &mut r,
             &Command::SetTimeReportRate(TimeReportRate::Every { exponent }),
-            2,
         );
         assert!(all_ok(&reps));
+        let _ = rid;
         assert_eq!(r.hk().schedule.time_report_rate, exponent);
         r.run(6_500);
         let period = 1u32 << exponent;
@@ -841,6 +879,8 @@ fn time_reports_come_at_the_obt_multiples_of_their_period_with_their_own_time() 
             })
             .collect();
         assert!(reports.len() >= (6 / period) as usize, "{reports:?}");
+        // The first at the first multiple of the period after the TC, then one a period.
+        assert_eq!(reports[0].2.seconds, (at.seconds / period + 1) * period);
         for w in reports.windows(2) {
             assert_eq!(w[1].2.seconds - w[0].2.seconds, period);
         }
@@ -1246,7 +1286,10 @@ proptest! {
         }
         // At the end, everything still scheduled releases (or expires) as the model says.
         prop_assert!(all_ok(&command(&mut r, ScheduleCommand::EnableRelease)));
-        r.run(3_000);
+        check_releases(&r, &mut model, &mut seen, &mut ever);
+        let last = model.values().max().copied().unwrap_or_default();
+        run_until_just_before(&mut r, last);
+        r.run(5);
         check_releases(&r, &mut model, &mut seen, &mut ever);
         prop_assert!(model.is_empty(), "left over: {:?}", model);
         prop_assert!(summary(&mut r).is_empty());
