@@ -10,8 +10,9 @@ use common::{all_ok, calibrated_table, install, wire, JOB_CYCLES};
 use m2ctl::controller::event;
 use m2ctl::ground::station::Tm;
 use m2ctl::link::command::{FunctionId, WirePose, FUNCTION_ID_LEN};
-use m2ctl::link::hk::HK_REPORT_LEN;
+use m2ctl::link::hk::{ScheduleHk, HK_REPORT_LEN};
 use m2ctl::link::tm::EventSeverity;
+use m2ctl::link::tm::TmTime;
 use m2ctl::link::{Command, Housekeeping};
 use m2ctl::sim::{Bench, InjectedFault};
 use m2ctl::table::{Table, TABLE_LEN};
@@ -284,12 +285,24 @@ fn housekeeping_table_matches_the_emitted_bytes() {
         pose_fk_operator: WirePose::from_array([0x3131_3131; 6]),
         pose_commanded_operator: WirePose::from_array([0x3232_3232; 6]),
         parameters_set: 0x3333_3333,
+        schedule: ScheduleHk {
+            activities: 0x34,
+            release_enabled: true,
+            released: 0x3636,
+            failed: 0x3737,
+            next_release: TmTime {
+                seconds: 0x3838_3838,
+                fraction: 0x3838,
+            },
+            time_report_rate: 0x39,
+        },
     };
     let mut bytes = [0u8; HK_REPORT_LEN];
     hk.emit(&mut bytes);
     assert_eq!(bytes[0], 1, "structure ID");
     for (k, (off, size)) in rows.iter().enumerate().skip(1) {
-        let marker = if k == 5 { 1 } else { 0x10 + k as u8 };
+        // Rows 5 (FK valid) and 33 (release enabled) are booleans.
+        let marker = if k == 5 || k == 37 { 1 } else { 0x10 + k as u8 };
         assert!(
             bytes[*off..off + size].iter().all(|b| *b == marker),
             "row {k} at {off}+{size}: {:02x?}",

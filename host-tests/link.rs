@@ -12,7 +12,9 @@ use m2ctl::ground::tc::{
 use m2ctl::link::command::{TABLE_CHUNK_MAX_LEN, WIRE_POSE_LEN};
 use m2ctl::link::framing::{max_frame_len, DEFRAMER_BUFFER_LEN};
 use m2ctl::link::hk::HK_REPORT_LEN;
+use m2ctl::link::schedule::{ActivityBlock, ObtOffset, RequestIdList, ScheduleCommand};
 use m2ctl::link::tc::{TcHeader, MIN_TC_PACKET_LEN};
+use m2ctl::link::time::TimeReportRate;
 use m2ctl::link::tm::{dump_chunks, event_id, parse_tm, EmitError};
 use m2ctl::link::*;
 use m2ctl::table::{Table, TABLE_LEN};
@@ -51,7 +53,52 @@ fn all_commands() -> Vec<Command> {
         Command::LoadTableChunk(TableChunk::new((TABLE_LEN - 4) as u16, &[0, 1, 0xff, 0]).unwrap()),
         Command::DumpTable(MemoryId::ActiveTable),
         Command::DumpTable(MemoryId::UploadBuffer),
+        // Time-based schedule (ST[11]) and time reports (ST[9]).
+        schedule_insert(),
+        Command::Schedule(ScheduleCommand::Delete(
+            RequestIdList::new(&[
+                RequestId::from_bytes([0x18, 0xb2, 0xc0, 0x01]),
+                RequestId::from_bytes([0x18, 0xb2, 0xff, 0xff]),
+            ])
+            .unwrap(),
+        )),
+        Command::Schedule(ScheduleCommand::TimeShiftAll(ObtOffset::from_parts(
+            -1, 0x8000,
+        ))),
+        Command::Schedule(ScheduleCommand::EnableRelease),
+        Command::Schedule(ScheduleCommand::DisableRelease),
+        Command::Schedule(ScheduleCommand::Reset),
+        Command::Schedule(ScheduleCommand::SummaryReport),
+        Command::SetTimeReportRate(TimeReportRate::Every { exponent: 8 }),
+        Command::SetTimeReportRate(TimeReportRate::Off),
     ]
+}
+
+/// A TC[11,4] of two activities (a ping and a move).
+fn schedule_insert() -> Command {
+    let ping = packet(&Command::Ping, 3);
+    let mv = packet(
+        &Command::MoveAbsolute(WirePose::from_array([1, -2, 3, -4, 5, -6])),
+        4,
+    );
+    let block = ActivityBlock::new(&[
+        (
+            TmTime {
+                seconds: 12,
+                fraction: 0x8000,
+            },
+            &ping[..],
+        ),
+        (
+            TmTime {
+                seconds: 0xffff_0000,
+                fraction: 1,
+            },
+            &mv[..],
+        ),
+    ])
+    .unwrap();
+    Command::Schedule(ScheduleCommand::Insert(block))
 }
 
 fn packet(cmd: &Command, seq: u16) -> Vec<u8> {
@@ -346,6 +393,17 @@ fn sample_hk() -> Housekeeping {
         pose_fk_operator: WirePose::from_array([10, -20, 30, -40, 50, -60]),
         pose_commanded_operator: WirePose::from_array([-1, i32::MIN, i32::MAX, 0, 1, 2]),
         parameters_set: 0x0007_0001,
+        schedule: m2ctl::link::hk::ScheduleHk {
+            activities: 16,
+            release_enabled: true,
+            released: 0x0102,
+            failed: 3,
+            next_release: TmTime {
+                seconds: 77,
+                fraction: 0x8000,
+            },
+            time_report_rate: 0xff,
+        },
     }
 }
 

@@ -12,7 +12,7 @@ use m2ctl::ground::mdb::{
 };
 use m2ctl::kinematics::Refusals;
 use m2ctl::link::command::WirePose;
-use m2ctl::link::hk::HK_REPORT_LEN;
+use m2ctl::link::hk::{ScheduleHk, HK_REPORT_LEN};
 use m2ctl::link::tc::TcHeader;
 use m2ctl::link::tm::{parse_tm, EventSeverity, TmTime, TmWriter, Verification};
 use m2ctl::link::{
@@ -31,21 +31,48 @@ fn samples(f: &Field) -> Vec<ArgValue> {
             .iter()
             .map(|&n| ArgValue::Bytes((0..n).map(|i| (i * 37 + 11) as u8).collect()))
             .collect(),
+        // An embedded telecommand (TC[11,4]): real packets of this controller, the
+        // shortest (ping), a move and one with other header fields.
+        Wire::Packet { .. } => [
+            (Command::Ping, TcHeader::new(3)),
+            (
+                Command::MoveAbsolute(WirePose::from_array([1_500, 0, -20, 0, 0, 7])),
+                TcHeader::new(0x3fff),
+            ),
+            (
+                Command::Stop,
+                TcHeader {
+                    seq_count: 9,
+                    source_id: 0xbeef,
+                    ack: AckFlags::NONE,
+                },
+            ),
+        ]
+        .iter()
+        .map(|(c, h)| {
+            let mut buf = [0u8; 256];
+            let n = m2ctl::link::encode_telecommand(c, *h, &mut buf).unwrap();
+            ArgValue::Bytes(buf[..n].to_vec())
+        })
+        .collect(),
+        // An enumeration's samples are its values (it may have gaps).
+        _ if matches!(f.meaning, Meaning::Enum { .. }) => {
+            let Meaning::Enum { enumeration } = f.meaning else {
+                unreachable!()
+            };
+            let e = mdb()
+                .enums
+                .into_iter()
+                .find(|e| e.name == enumeration)
+                .unwrap();
+            e.values.iter().map(|v| ArgValue::Int(v.0)).collect()
+        }
         w => {
             let (lo, hi) = match f.meaning {
                 Meaning::Number {
                     range: Some((lo, hi)),
                     ..
                 } => (f.to_raw(lo).unwrap(), f.to_raw(hi).unwrap()),
-                Meaning::Enum { enumeration } => {
-                    let e = mdb()
-                        .enums
-                        .into_iter()
-                        .find(|e| e.name == enumeration)
-                        .unwrap();
-                    let vs: Vec<i64> = e.values.iter().map(|v| v.0).collect();
-                    (*vs.iter().min().unwrap(), *vs.iter().max().unwrap())
-                }
                 _ => w.raw_range().unwrap(),
             };
             let mut v = vec![lo, hi, lo + (hi - lo) / 3];
@@ -245,6 +272,17 @@ fn distinct_housekeeping() -> Housekeeping {
         pose_fk_operator: WirePose::from_array([71, -72, 73, -74_000, 75_000, -76_000]),
         pose_commanded_operator: WirePose::from_array([-81, 82, -83, 84_000, -85_000, 86_000]),
         parameters_set: 0x0004_0021,
+        schedule: ScheduleHk {
+            activities: 14,
+            release_enabled: true,
+            released: 0x1415,
+            failed: 0x1617,
+            next_release: TmTime {
+                seconds: 0x1819_1a1b,
+                fraction: 0x1c1d,
+            },
+            time_report_rate: 5,
+        },
     }
 }
 
@@ -456,6 +494,8 @@ fn every_event_is_described_with_its_id_and_severities() {
         "jobs",
         "verification",
         "telemetry",
+        "schedule",
+        "time",
     ]
     .iter()
     .map(|f| src(&format!("src/controller/{f}.rs")))
@@ -518,6 +558,7 @@ fn every_failure_code_in_the_code_is_enumerated() {
         "src/motion/trajectory.rs",
         "src/motion/stroke.rs",
         "src/controller/error.rs",
+        "src/controller/schedule.rs",
     ] {
         for line in src(file).lines() {
             if let Some((_, rest)) = line.split_once("=> 0x0") {

@@ -15,7 +15,8 @@ use m2ctl::ground::plan::{
 };
 use m2ctl::ground::report::{bench, compare_cuckoo, table3, TableConfig};
 use m2ctl::ground::tc::{
-    command_from_args, run_tc, telecommand_list, upload_procedure, TcOutput, TcSequencer,
+    command_from_args, run_tc, schedule_from_args, telecommand_list, upload_procedure, TcOutput,
+    TcSequencer,
 };
 use m2ctl::link::AckFlags;
 use m2ctl::sim::tracker::PoseTracker;
@@ -227,13 +228,17 @@ enum TcWhat {
         activate: bool,
     },
     /// Any telecommand of the mission database by name, arguments as name=value in
-    /// engineering units (`move-absolute x=1.5 rx=-2`; `m2ground tc list`).
+    /// engineering units (`move-absolute x=1.5 rx=-2`; `m2ground tc list`), or
+    /// `schedule at=SECONDS NAME [arg=value ...]` (TC[11,4]: the named telecommand
+    /// released at that on-board time).
     #[command(external_subcommand)]
     Named(Vec<String>),
 }
 
 impl TcWhat {
-    fn commands(&self) -> Result<Vec<m2ctl::link::Command>, String> {
+    /// The telecommands to send; a schedule insert numbers its embedded telecommand
+    /// with `seq` first.
+    fn commands(&self, seq: &mut TcSequencer) -> Result<Vec<m2ctl::link::Command>, String> {
         match self {
             TcWhat::List => Ok(Vec::new()),
             TcWhat::Upload {
@@ -244,6 +249,16 @@ impl TcWhat {
             } => upload_procedure(geometry, *table_id, *calibration_id, *activate),
             TcWhat::Named(words) => {
                 let (name, args) = words.split_first().ok_or("no telecommand named")?;
+                if name == "schedule" {
+                    let (insert, id) = schedule_from_args(args, seq)?;
+                    eprintln!(
+                        "scheduled telecommand: request ID {:04x}{:04x} (sequence count {})",
+                        id.packet_id,
+                        id.sequence_control,
+                        id.seq_count()
+                    );
+                    return Ok(vec![insert]);
+                }
                 Ok(vec![command_from_args(name, args)?])
             }
         }
@@ -263,7 +278,8 @@ fn tc_cmd(a: &TcCli) -> Result<(), String> {
         print!("{}", telecommand_list());
         return Ok(());
     }
-    let bytes = run_tc(&a.what.commands()?, &mut seq, output, a.unframed)?;
+    let commands = a.what.commands(&mut seq)?;
+    let bytes = run_tc(&commands, &mut seq, output, a.unframed)?;
     match &a.out {
         Some(p) => std::fs::write(p, bytes).map_err(|e| format!("{}: {e}", p.display())),
         None => {

@@ -225,6 +225,9 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
                 self.require_idle()?;
                 self.start_job(JobRequest::RevertToNominal)
             }
+            // Time-based schedule (ST[11]) and time reports (ST[9]).
+            Command::Schedule(ref op) => self.execute_schedule(op),
+            Command::SetTimeReportRate(rate) => Ok(self.set_time_report_rate(rate)),
             Command::DumpTable(memory) => {
                 for offset in (0..TABLE_LEN).step_by(TABLE_CHUNK_MAX_LEN) {
                     self.tm.push(

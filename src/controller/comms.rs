@@ -2,7 +2,10 @@
 //! control task's priority.
 //!
 //! One [`LinkService::pass`] (run after every control cycle):
-//! 1. **receive**: takes bytes from the RX queue through the deframer; each complete
+//! 1. **receive**: first the time-based schedule's due activities (ST[11]): each is
+//!    released through [`Controller::release_next_due`] (and a due time report ST[9]
+//!    queued, [`Controller::link_pass_start`]); then it takes bytes from the RX queue
+//!    through the deframer; each complete
 //!    frame is one telecommand for [`Controller::handle_telecommand`]; at most
 //!    [`MAX_TC_PER_PASS`] telecommands per pass (the rest of the bytes wait in the
 //!    queue for the next pass). A frame too long for the deframer (longer than the
@@ -102,6 +105,7 @@ enum Content {
     Hk(Housekeeping),
     Params(heapless::Vec<(u16, i32), { super::params::N_PARAMETERS }>),
     Dump(crate::link::MemoryId, u16, super::commands::DumpChunk),
+    Summary(super::schedule::ScheduleSummary),
     Nothing,
 }
 
@@ -139,13 +143,19 @@ impl LinkService {
         self.transmit(ctl, tx);
     }
 
-    /// Step 1: at most [`MAX_TC_PER_PASS`] telecommands from the RX bytes.
+    /// Step 1: at most [`MAX_TC_PER_PASS`] telecommands: the schedule's due activities
+    /// first, then from the RX bytes.
     pub fn receive<M, C>(&mut self, ctl: &mut C, rx: &mut impl RxBytes)
     where
         M: SliderDrives + StrokeEncoders,
         C: Exclusive<Controller<M>>,
     {
+        ctl.lock(|c| c.link_pass_start());
         let mut handled = 0;
+        // Time-tagged activities due now (ST[11]) share the pass's budget, first.
+        while handled < MAX_TC_PER_PASS && ctl.lock(|c| c.release_next_due()) {
+            handled += 1;
+        }
         while handled < MAX_TC_PER_PASS {
             let Some(byte) = rx.pop() else { break };
             match self.deframer.push_byte(byte) {
@@ -186,6 +196,7 @@ impl LinkService {
                         None => Content::Nothing,
                     },
                     TmRecord::Parameters { mask } => Content::Params(c.parameter_values(mask)),
+                    TmRecord::ScheduleSummary => Content::Summary(c.schedule_summary()),
                     other => Content::Plain(other),
                 };
                 Some((stamped, content))
@@ -224,13 +235,20 @@ impl LinkService {
                 self.tm.emit_move_check(time, *request_id, check, out).ok()
             }
             Content::Params(values) => self.tm.emit_parameter_report(time, values, out).ok(),
+            Content::Plain(TmRecord::TimeReport { rate }) => {
+                self.tm.emit_time_report(time, *rate, out).ok()
+            }
+            Content::Summary(entries) => self.tm.emit_schedule_summary(time, entries, out).ok(),
             Content::Hk(hk) => self.tm.emit_housekeeping(time, hk, out).ok(),
             Content::Dump(memory, offset, chunk) => self
                 .tm
                 .emit_table_dump_chunk(time, *memory, *offset, chunk.bytes(), out)
                 .ok(),
             Content::Plain(
-                TmRecord::Housekeeping | TmRecord::DumpChunk { .. } | TmRecord::Parameters { .. },
+                TmRecord::Housekeeping
+                | TmRecord::DumpChunk { .. }
+                | TmRecord::Parameters { .. }
+                | TmRecord::ScheduleSummary,
             )
             | Content::Nothing => None,
         }

@@ -2,6 +2,7 @@
 //! (the kinematics, motion, table and store codes pass through unchanged). Each variant
 //! has a stable code and a 32-bit failure datum for the service-1 report.
 
+use super::schedule::ScheduleError;
 use super::State;
 use crate::motion::{MotionError, StrokeMoveError};
 use crate::supervision::FaultFlags;
@@ -54,6 +55,8 @@ pub enum CommandError {
     JobBusy(u8),
     /// An on-board parameter refused (0x0720..0x0722).
     Parameter(super::params::ParamError),
+    /// A time-based schedule telecommand refused (`ScheduleError` codes 0x0B0x).
+    Schedule(ScheduleError),
 }
 
 /// Reasons a leg's encoder is suspect for a direct-stroke move (0x070B's data bits).
@@ -94,6 +97,7 @@ impl CommandError {
             CommandError::NoGeometry => 0x070C,
             CommandError::JobBusy(_) => 0x070D,
             CommandError::Parameter(e) => e.code(),
+            CommandError::Schedule(e) => e.code(),
         }
     }
 
@@ -117,6 +121,7 @@ impl CommandError {
             CommandError::EncoderSuspect(bits) => *bits,
             CommandError::JobBusy(job) => *job as u32,
             CommandError::Parameter(e) => e.data(),
+            CommandError::Schedule(e) => e.data(),
             _ => 0,
         }
     }

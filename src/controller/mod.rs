@@ -48,7 +48,9 @@ pub mod comms;
 pub mod error;
 pub mod jobs;
 pub mod params;
+pub mod schedule;
 pub mod telemetry;
+pub mod time;
 
 mod commands;
 pub mod motion;
@@ -284,6 +286,10 @@ pub struct Controller<M> {
     boot_event_sent: bool,
     /// A stop or a fault ended a move while it was being planned.
     plan_aborted: bool,
+    // Time-based schedule (ST[11]) and time reports (ST[9]): not persisted, empty and
+    // off at boot.
+    schedule: schedule::Schedule,
+    time_reports: time::TimeReports,
 }
 
 impl<M: SliderDrives + StrokeEncoders> Controller<M> {
@@ -351,6 +357,8 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             bank_health: 0,
             boot_event_sent: false,
             plan_aborted: false,
+            schedule: schedule::Schedule::new(),
+            time_reports: time::TimeReports::new(),
         }
     }
 
@@ -652,6 +660,7 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
                 &self.ops.frames.to_operator(&self.pose_commanded),
             ),
             parameters_set: self.params.set_mask(),
+            schedule: self.schedule_hk(),
         }
     }
 

@@ -16,6 +16,7 @@
 use heapless::Deque;
 
 use crate::link::tc::RequestId;
+use crate::link::time::TimeReportRate;
 use crate::link::tm::{EventSeverity, Verification};
 use crate::link::MemoryId;
 
@@ -68,12 +69,26 @@ pub enum TmRecord {
         /// Offset of the chunk (bytes).
         offset_bytes: u16,
     },
+    /// TM[9,2]: a time report (its OBT is the record's cycle).
+    TimeReport {
+        /// The generation rate in force.
+        rate: TimeReportRate,
+    },
+    /// TM[11,13]: the schedule summary, read when it is encoded.
+    ScheduleSummary,
 }
 
 impl TmRecord {
-    /// Housekeeping and dump chunks yield to verification reports and events.
+    /// Housekeeping, dump chunks, time reports and schedule summaries yield to
+    /// verification reports and events.
     pub const fn is_bulk(&self) -> bool {
-        matches!(self, TmRecord::Housekeeping | TmRecord::DumpChunk { .. })
+        matches!(
+            self,
+            TmRecord::Housekeeping
+                | TmRecord::DumpChunk { .. }
+                | TmRecord::TimeReport { .. }
+                | TmRecord::ScheduleSummary
+        )
     }
 }
 

@@ -66,6 +66,8 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         }
         self.tm
             .push(self.cycle, TmRecord::Verification { request_id, report });
+        // A released schedule activity's failure is also an event (ST[11]).
+        self.note_scheduled_report(request_id, &report);
     }
 
     /// The start report of the pending telecommand: success (if asked for) or failure

@@ -26,6 +26,7 @@
 use serde::Serialize;
 
 use crate::controller::params::{ParamError, PARAMETERS};
+use crate::controller::schedule::ScheduleError;
 use crate::controller::{CommandError, State};
 use crate::kinematics::{FkError, GeometryError, IkError, Refusals, LEGS};
 use crate::link::command::{
@@ -33,7 +34,13 @@ use crate::link::command::{
     TABLE_CHUNK_MAX_LEN,
 };
 use crate::link::hk::{HK_REPORT_LEN, HK_STRUCTURE_ID};
-use crate::link::tc::{TcHeader, APID_MASK, SEQ_COUNT_MASK};
+use crate::link::schedule::{
+    ActivityBlock, ObtOffset, RequestIdList, ScheduleCommand, ACTIVITY_COUNT_LEN,
+    MAX_SCHEDULED_TC_LEN, RELEASE_TIME_LEN, SCHEDULE_CAPACITY, SUMMARY_ENTRY_LEN,
+};
+use crate::link::tc::{RequestId, TcHeader, APID_MASK, MIN_TC_PACKET_LEN, SEQ_COUNT_MASK};
+use crate::link::time::{TimeReportRate, MAX_TIME_REPORT_EXPONENT, TIME_REPORT_LEN};
+use crate::link::tm::TmTime;
 use crate::link::tm::MOVE_CHECK_REPORT_LEN;
 use crate::link::tm::{event_id, EventSeverity, TIME_FRACTIONS_PER_SECOND};
 use crate::link::{
@@ -90,6 +97,14 @@ pub enum Wire {
         /// Most bytes.
         max_len: usize,
     },
+    /// An embedded CCSDS packet (a telecommand of a TC[11,4] activity): the bytes alone,
+    /// no prefix; the packet's own length field delimits it.
+    Packet {
+        /// Fewest bytes.
+        min_len: usize,
+        /// Most bytes.
+        max_len: usize,
+    },
 }
 
 impl Wire {
@@ -99,7 +114,7 @@ impl Wire {
             Wire::U8 => Some(1),
             Wire::U16 => Some(2),
             Wire::U32 | Wire::I32 => Some(4),
-            Wire::Bytes { .. } => None,
+            Wire::Bytes { .. } | Wire::Packet { .. } => None,
         }
     }
 
@@ -113,7 +128,7 @@ impl Wire {
             Wire::U16 => Some((0, i64::from(u16::MAX))),
             Wire::U32 => Some((0, i64::from(u32::MAX))),
             Wire::I32 => Some((i64::from(i32::MIN), i64::from(i32::MAX))),
-            Wire::Bytes { .. } => None,
+            Wire::Bytes { .. } | Wire::Packet { .. } => None,
         }
     }
 }
@@ -218,6 +233,25 @@ pub struct TmPacket {
     pub fixed_len: Option<usize>,
     /// What it is.
     pub description: String,
+    /// A repeated group after the fields (e.g. the activities of TM[11,13]).
+    pub repeated: Option<Repeated>,
+}
+
+/// A group of fields repeated `count_field` times at the end of a TM packet.
+#[derive(Clone, Debug, Serialize)]
+pub struct Repeated {
+    /// Name of the group (one array parameter in Yamcs).
+    pub name: String,
+    /// The field holding the number of repetitions.
+    pub count_field: String,
+    /// Offset of the first repetition in the source data (bytes).
+    pub offset: usize,
+    /// Bytes of one repetition.
+    pub element_len: usize,
+    /// Most repetitions.
+    pub max_count: usize,
+    /// The fields of one repetition (offsets from its start).
+    pub fields: Vec<Field>,
 }
 
 /// A named enumeration.
@@ -343,6 +377,17 @@ pub fn telecommand_name(command: &Command) -> String {
         Command::DumpTable(_) => "DUMP_TABLE".into(),
         Command::ReportParameters(_) => "REPORT_PARAMETER".into(),
         Command::SetParameters(_) => "SET_PARAMETER".into(),
+        Command::Schedule(s) => match s {
+            ScheduleCommand::EnableRelease => "SCHEDULE_ENABLE_RELEASE",
+            ScheduleCommand::DisableRelease => "SCHEDULE_DISABLE_RELEASE",
+            ScheduleCommand::Reset => "SCHEDULE_RESET",
+            ScheduleCommand::Insert(_) => "SCHEDULE_INSERT_ACTIVITY",
+            ScheduleCommand::Delete(_) => "SCHEDULE_DELETE_ACTIVITY",
+            ScheduleCommand::TimeShiftAll(_) => "SCHEDULE_TIME_SHIFT_ALL",
+            ScheduleCommand::SummaryReport => "SCHEDULE_SUMMARY_REPORT",
+        }
+        .into(),
+        Command::SetTimeReportRate(_) => "SET_TIME_REPORT_RATE".into(),
         Command::MoveAbsolute(_)
         | Command::CheckMove(_)
         | Command::MoveRelative(_)
@@ -529,6 +574,196 @@ fn build_dump(a: &[ArgValue]) -> Result<Command, String> {
     MemoryId::from_code(code)
         .map(Command::DumpTable)
         .ok_or_else(|| format!("memory ID {code}: unknown"))
+}
+
+fn uint_arg<T: TryFrom<i64>>(args: &[ArgValue], i: usize) -> Result<T, String> {
+    T::try_from(int_arg(args, i)?).map_err(|_| format!("argument {i}: out of range"))
+}
+fn schedule(c: ScheduleCommand) -> Result<Command, String> {
+    Ok(Command::Schedule(c))
+}
+fn build_schedule_insert(a: &[ArgValue]) -> Result<Command, String> {
+    let release = TmTime {
+        seconds: uint_arg(a, 0)?,
+        fraction: uint_arg(a, 1)?,
+    };
+    let Some(ArgValue::Bytes(packet)) = a.get(2) else {
+        return Err("argument 2: expected the embedded telecommand's bytes".into());
+    };
+    let block =
+        ActivityBlock::new(&[(release, packet.as_slice())]).map_err(|e| format!("{e:?}"))?;
+    schedule(ScheduleCommand::Insert(block))
+}
+fn build_schedule_delete(a: &[ArgValue]) -> Result<Command, String> {
+    let id = RequestId {
+        packet_id: uint_arg(a, 0)?,
+        sequence_control: uint_arg(a, 1)?,
+    };
+    let list = RequestIdList::new(&[id]).ok_or("one request ID")?;
+    schedule(ScheduleCommand::Delete(list))
+}
+fn build_schedule_shift(a: &[ArgValue]) -> Result<Command, String> {
+    let offset = ObtOffset::from_parts(arg_i32(a, 0)?, uint_arg(a, 1)?);
+    schedule(ScheduleCommand::TimeShiftAll(offset))
+}
+fn build_time_report_rate(a: &[ArgValue]) -> Result<Command, String> {
+    let code: u8 = uint_arg(a, 0)?;
+    TimeReportRate::from_code(code)
+        .map(Command::SetTimeReportRate)
+        .ok_or_else(|| format!("time report rate {code}: unknown"))
+}
+
+/// The telecommands of the time-based schedule (ST[11]) and the time reports (ST[9]).
+/// The Yamcs description inserts or deletes one activity per telecommand (N = 1);
+/// the flight link accepts several (docs/icd.md).
+fn schedule_telecommands() -> Vec<Telecommand> {
+    let tc = |name: &str,
+              sub: u8,
+              fields: Vec<Field>,
+              description: &str,
+              build: BuildFn|
+     -> Telecommand {
+        Telecommand {
+            name: name.into(),
+            service: service::SCHEDULING,
+            subtype: sub,
+            function_id: None,
+            fields,
+            description: description.into(),
+            completion_timeout_s: QUICK_COMPLETION_S,
+            build,
+        }
+    };
+    let n1 = |what: &str| {
+        fixed(
+            "count",
+            0,
+            Wire::U8,
+            1,
+            &format!("N: one {what} (the flight link takes 1..16)"),
+        )
+    };
+    let mut insert = vec![n1("activity")];
+    insert.extend(obt_fields(
+        "release_",
+        ACTIVITY_COUNT_LEN,
+        "release time (on-board time)",
+    ));
+    insert.push(field(
+        "telecommand",
+        ACTIVITY_COUNT_LEN + RELEASE_TIME_LEN,
+        Wire::Packet {
+            min_len: MIN_TC_PACKET_LEN,
+            max_len: MAX_SCHEDULED_TC_LEN,
+        },
+        Meaning::Binary,
+        "the telecommand to release: a whole PUS-C TC packet of this controller \
+         (e.g. `m2ground tc --unframed move ...`), not a TC[11,x]",
+    ));
+    let mut shift = vec![field(
+        "shift_seconds",
+        0,
+        Wire::I32,
+        Meaning::Number {
+            unit: Some("s"),
+            scale: 1.0,
+            range: None,
+        },
+        "offset: whole seconds (signed; the offset is seconds + fraction)",
+    )];
+    shift.push(calibrated(
+        "shift_fraction",
+        4,
+        Wire::U16,
+        "s",
+        S_PER_CUC_FRACTION,
+        "offset: fraction of a second added to the seconds (s; wire u16 in 1/65536 s)",
+    ));
+    vec![
+        tc(
+            "SCHEDULE_ENABLE_RELEASE",
+            subtype::SCHEDULE_ENABLE,
+            Vec::new(),
+            "Release activities when their time comes; those whose time passed while \
+             release was disabled are deleted (event ACTIVITY_EXPIRED).",
+            |_| schedule(ScheduleCommand::EnableRelease),
+        ),
+        tc(
+            "SCHEDULE_DISABLE_RELEASE",
+            subtype::SCHEDULE_DISABLE,
+            Vec::new(),
+            "Release nothing; activities stay in the schedule.",
+            |_| schedule(ScheduleCommand::DisableRelease),
+        ),
+        tc(
+            "SCHEDULE_RESET",
+            subtype::SCHEDULE_RESET,
+            Vec::new(),
+            "Delete every activity; release is disabled afterwards.",
+            |_| schedule(ScheduleCommand::Reset),
+        ),
+        tc(
+            "SCHEDULE_INSERT_ACTIVITY",
+            subtype::SCHEDULE_INSERT,
+            insert,
+            "Insert a time-tagged telecommand (refused if the schedule is full, the time \
+             is past or the request ID is already scheduled).",
+            build_schedule_insert,
+        ),
+        tc(
+            "SCHEDULE_DELETE_ACTIVITY",
+            subtype::SCHEDULE_DELETE,
+            vec![
+                n1("request ID"),
+                count(
+                    "activity_packet_id",
+                    ACTIVITY_COUNT_LEN,
+                    Wire::U16,
+                    "request ID: packet ID of the embedded TC",
+                ),
+                count(
+                    "activity_sequence_control",
+                    ACTIVITY_COUNT_LEN + 2,
+                    Wire::U16,
+                    "request ID: sequence flags and count of the embedded TC",
+                ),
+            ],
+            "Delete the activity with this request ID.",
+            build_schedule_delete,
+        ),
+        tc(
+            "SCHEDULE_TIME_SHIFT_ALL",
+            subtype::SCHEDULE_TIME_SHIFT_ALL,
+            shift,
+            "Move every release time by the offset (refused if one would be in the past).",
+            build_schedule_shift,
+        ),
+        tc(
+            "SCHEDULE_SUMMARY_REPORT",
+            subtype::SCHEDULE_SUMMARY_ALL,
+            Vec::new(),
+            "Report every activity (TM[11,13]).",
+            |_| schedule(ScheduleCommand::SummaryReport),
+        ),
+        Telecommand {
+            name: "SET_TIME_REPORT_RATE".into(),
+            service: service::TIME,
+            subtype: subtype::SET_TIME_REPORT_RATE,
+            function_id: None,
+            fields: vec![field(
+                "rate",
+                0,
+                Wire::U8,
+                Meaning::Enum {
+                    enumeration: "time_report_rate",
+                },
+                "a TM[9,2] every 2^N s of on-board time, or off",
+            )],
+            description: "Set the time report (TM[9,2]) generation rate.".into(),
+            completion_timeout_s: QUICK_COMPLETION_S,
+            build: build_time_report_rate,
+        },
+    ]
 }
 
 /// The TC[8,1] arguments and builder of a function (an exhaustive match: a new function
@@ -765,6 +1000,7 @@ fn telecommands() -> Vec<Telecommand> {
             build,
         });
     }
+    v.extend(schedule_telecommands());
     v
 }
 
@@ -1144,6 +1380,68 @@ pub fn housekeeping_fields() -> Vec<(Field, Option<HkGetter>)> {
         ),
         Some(|h| i64::from(h.parameters_set)),
     ));
+    // Time-based schedule (ST[11]) and time reports (ST[9]): offsets 217..230.
+    let next = obt_fields(
+        "schedule_next_release_",
+        223,
+        "release time of the next activity (0 if none)",
+    );
+    let mut next = next.into_iter();
+    v.extend([
+        (
+            count(
+                "schedule_activities",
+                217,
+                Wire::U8,
+                "activities in the time-based schedule",
+            ),
+            Some((|h| i64::from(h.schedule.activities)) as HkGetter),
+        ),
+        (
+            field(
+                "schedule_release_enabled",
+                218,
+                Wire::U8,
+                Meaning::Boolean,
+                "activities are released when their time comes",
+            ),
+            Some(|h| i64::from(h.schedule.release_enabled)),
+        ),
+        (
+            count(
+                "schedule_released",
+                219,
+                Wire::U16,
+                "activities released since boot (wrapping)",
+            ),
+            Some(|h| i64::from(h.schedule.released)),
+        ),
+        (
+            count(
+                "schedule_failed",
+                221,
+                Wire::U16,
+                "released activities whose telecommand failed (wrapping)",
+            ),
+            Some(|h| i64::from(h.schedule.failed)),
+        ),
+    ]);
+    if let (Some(sec), Some(frac)) = (next.next(), next.next()) {
+        v.push((sec, Some(|h| i64::from(h.schedule.next_release.seconds))));
+        v.push((frac, Some(|h| i64::from(h.schedule.next_release.fraction))));
+    }
+    v.push((
+        field(
+            "time_report_rate",
+            229,
+            Wire::U8,
+            Meaning::Enum {
+                enumeration: "time_report_rate",
+            },
+            "time report (TM[9,2]) rate in force",
+        ),
+        Some(|h| i64::from(h.schedule.time_report_rate)),
+    ));
     v
 }
 
@@ -1197,6 +1495,7 @@ fn telemetry() -> Vec<TmPacket> {
             fields: rid(0),
             fixed_len: Some(4),
             description: "TM[1,1] acceptance, [1,3] start, [1,7] completion success".into(),
+            repeated: None,
         },
         TmPacket {
             name: "verification_failure".into(),
@@ -1209,6 +1508,7 @@ fn telemetry() -> Vec<TmPacket> {
             fields: failure,
             fixed_len: Some(10),
             description: "TM[1,2] acceptance, [1,4] start, [1,8] completion failure".into(),
+            repeated: None,
         },
         TmPacket {
             name: "housekeeping".into(),
@@ -1217,6 +1517,7 @@ fn telemetry() -> Vec<TmPacket> {
             fields: housekeeping_fields().into_iter().map(|(f, _)| f).collect(),
             fixed_len: Some(HK_REPORT_LEN),
             description: "TM[3,25] housekeeping report".into(),
+            repeated: None,
         },
         TmPacket {
             name: "event".into(),
@@ -1242,6 +1543,7 @@ fn telemetry() -> Vec<TmPacket> {
             ],
             fixed_len: Some(crate::link::tm::EVENT_REPORT_LEN),
             description: "TM[5,1] info, [5,2] low, [5,3] medium, [5,4] high severity event".into(),
+            repeated: None,
         },
         TmPacket {
             name: "table_dump".into(),
@@ -1271,6 +1573,7 @@ fn telemetry() -> Vec<TmPacket> {
             ],
             fixed_len: None,
             description: "TM[6,6] table dump chunk".into(),
+            repeated: None,
         },
         TmPacket {
             name: "move_check".into(),
@@ -1320,31 +1623,44 @@ fn telemetry() -> Vec<TmPacket> {
             },
             fixed_len: Some(MOVE_CHECK_REPORT_LEN),
             description: "TM[8,130] move check report (answer to CHECK_MOVE)".into(),
+            repeated: None,
         },
         TmPacket {
             name: "parameter_report".into(),
             service: service::PARAMETER,
             subtypes: vec![subtype::PARAMETER_REPORT],
-            fields: vec![
-                count("report_count", 0, Wire::U8, "number of (ID, value) pairs"),
-                field(
-                    "report_parameter_id",
-                    1,
-                    Wire::U16,
-                    Meaning::Enum {
-                        enumeration: "parameter_id",
-                    },
-                    "first parameter's ID (further pairs follow, 6 bytes each)",
-                ),
-                count(
-                    "report_value",
-                    3,
-                    Wire::I32,
-                    "first parameter's effective value (its wire unit)",
-                ),
-            ],
+            fields: vec![count(
+                "report_count",
+                0,
+                Wire::U8,
+                "number of (ID, value) pairs",
+            )],
             fixed_len: None,
             description: "TM[20,2] parameter report: count, then (ID u16, value i32) pairs".into(),
+            repeated: Some(Repeated {
+                name: "report_parameters".into(),
+                count_field: "report_count".into(),
+                offset: 1,
+                element_len: crate::link::tm::PARAMETER_ENTRY_LEN,
+                max_count: crate::link::command::MAX_PARAMETERS_PER_TC,
+                fields: vec![
+                    field(
+                        "report_parameter_id",
+                        0,
+                        Wire::U16,
+                        Meaning::Enum {
+                            enumeration: "parameter_id",
+                        },
+                        "parameter ID",
+                    ),
+                    count(
+                        "report_value",
+                        2,
+                        Wire::I32,
+                        "the parameter's effective value (its wire unit)",
+                    ),
+                ],
+            }),
         },
         TmPacket {
             name: "ping_reply".into(),
@@ -1353,7 +1669,102 @@ fn telemetry() -> Vec<TmPacket> {
             fields: Vec::new(),
             fixed_len: Some(0),
             description: "TM[17,2] are-you-alive reply".into(),
+            repeated: None,
         },
+        TmPacket {
+            name: "cuc_time_report".into(),
+            service: service::TIME,
+            subtypes: vec![subtype::TIME_REPORT],
+            fields: {
+                let mut f = vec![field(
+                    "cuc_report_rate",
+                    0,
+                    Wire::U8,
+                    Meaning::Enum {
+                        enumeration: "time_report_rate",
+                    },
+                    "time report rate in force",
+                )];
+                f.extend(obt_fields(
+                    "cuc_report_obt_",
+                    1,
+                    "on-board time of the report",
+                ));
+                f
+            },
+            fixed_len: Some(TIME_REPORT_LEN),
+            description: "TM[9,2] CUC time report (on-board time since boot)".into(),
+            repeated: None,
+        },
+        TmPacket {
+            name: "schedule_summary".into(),
+            service: service::SCHEDULING,
+            subtypes: vec![subtype::SCHEDULE_SUMMARY_REPORT],
+            fields: vec![count(
+                "summary_count",
+                0,
+                Wire::U8,
+                "activities in the schedule (N)",
+            )],
+            fixed_len: None,
+            description: "TM[11,13] time-based schedule summary: release time and request ID \
+                          of every activity, in release order"
+                .into(),
+            repeated: Some(Repeated {
+                name: "summary_activities".into(),
+                count_field: "summary_count".into(),
+                offset: ACTIVITY_COUNT_LEN,
+                element_len: SUMMARY_ENTRY_LEN,
+                max_count: SCHEDULE_CAPACITY,
+                fields: {
+                    let mut f = obt_fields("activity_release_", 0, "release time");
+                    f.extend([
+                        count(
+                            "activity_tc_packet_id",
+                            RELEASE_TIME_LEN,
+                            Wire::U16,
+                            "request ID: packet ID of the embedded TC",
+                        ),
+                        count(
+                            "activity_tc_sequence_control",
+                            RELEASE_TIME_LEN + 2,
+                            Wire::U16,
+                            "request ID: sequence flags and count of the embedded TC",
+                        ),
+                    ]);
+                    f
+                },
+            }),
+        },
+    ]
+}
+
+/// Seconds per CUC fraction (engineering unit of a CUC fine field).
+pub const S_PER_CUC_FRACTION: f64 = 1.0 / TIME_FRACTIONS_PER_SECOND as f64;
+
+/// The two fields of a CUC 4+2 on-board time at `offset`: seconds (u32) and the
+/// fraction (u16, calibrated to seconds).
+fn obt_fields(prefix: &str, offset: usize, what: &str) -> Vec<Field> {
+    vec![
+        field(
+            &format!("{prefix}seconds"),
+            offset,
+            Wire::U32,
+            Meaning::Number {
+                unit: Some("s"),
+                scale: 1.0,
+                range: None,
+            },
+            &format!("{what}: whole seconds of on-board time since boot (CUC coarse)"),
+        ),
+        calibrated(
+            &format!("{prefix}fraction"),
+            offset + CUC_COARSE_BYTES,
+            Wire::U16,
+            "s",
+            S_PER_CUC_FRACTION,
+            &format!("{what}: fraction of a second (s; wire u16 in 1/65536 s, CUC fine)"),
+        ),
     ]
 }
 
@@ -1435,6 +1846,24 @@ fn memory_ids() -> Vec<(i64, String, String)> {
         .collect()
 }
 
+fn time_report_rates() -> Vec<(i64, String, String)> {
+    let mut v: Vec<(i64, String, String)> = (0..=MAX_TIME_REPORT_EXPONENT)
+        .map(|n| {
+            (
+                i64::from(n),
+                format!("EVERY_{}_S", 1u32 << n),
+                format!("a TM[9,2] every 2^{n} = {} s", 1u32 << n),
+            )
+        })
+        .collect();
+    v.push((
+        i64::from(TimeReportRate::Off.code()),
+        "OFF".into(),
+        "no time reports (the state at boot)".into(),
+    ));
+    v
+}
+
 /// One instance of every failure the controller reports, by family, with the family
 /// prefix of its label. The labels are the variants' names.
 pub fn failure_samples() -> Vec<(&'static str, u16, String)> {
@@ -1469,6 +1898,7 @@ pub fn failure_samples() -> Vec<(&'static str, u16, String)> {
             offset: 0,
             length: 0,
         },
+        LinkError::EmbeddedTc { index: 0, code: 0 },
     ] {
         push("LINK", e.code(), format!("{e:?}"));
     }
@@ -1590,6 +2020,19 @@ pub fn failure_samples() -> Vec<(&'static str, u16, String)> {
         ParamError::WarningNotBelowFault,
     ] {
         push("CONTROLLER", e.code(), format!("{e:?}"));
+    }
+    // The schedule's codes (CommandError::Schedule passes them through).
+    for e in [
+        ScheduleError::Full { free: 0 },
+        ScheduleError::ReleaseTimeInPast { index: 0 },
+        ScheduleError::DuplicateRequestId { index: 0 },
+        ScheduleError::NotScheduled { index: 0 },
+        ScheduleError::ShiftOutOfRange {
+            request_id: RequestId::default(),
+        },
+        ScheduleError::ReleaseTimeBeyondClock { index: 0 },
+    ] {
+        push("SCHEDULE", e.code(), format!("{e:?}"));
     }
     v
 }
@@ -1754,6 +2197,30 @@ pub fn events() -> Vec<Event> {
             aux0: "parameters set (bit i = parameter index i)",
             aux1: "0",
             message: "on-board parameters changed: set mask {aux0}",
+        },
+        Event {
+            id: event_id::ACTIVITY_RELEASED,
+            name: "ACTIVITY_RELEASED",
+            severities: sev(&[info]),
+            aux0: "request ID of the released TC (packet ID << 16 | sequence control)",
+            aux1: "release time (on-board time, s)",
+            message: "scheduled activity {aux0} released (release time {aux1} s)",
+        },
+        Event {
+            id: event_id::ACTIVITY_FAILED,
+            name: "ACTIVITY_FAILED",
+            severities: sev(&[EventSeverity::Medium]),
+            aux0: "request ID of the released TC (packet ID << 16 | sequence control)",
+            aux1: "report subtype (bits 16..23) and failure code (bits 0..15)",
+            message: "released activity {aux0} failed: subtype and code {aux1}",
+        },
+        Event {
+            id: event_id::ACTIVITY_EXPIRED,
+            name: "ACTIVITY_EXPIRED",
+            severities: sev(&[EventSeverity::Low]),
+            aux0: "request ID of the deleted TC (packet ID << 16 | sequence control)",
+            aux1: "its release time (on-board time, s)",
+            message: "activity {aux0} deleted unrun: release time {aux1} s passed while release was disabled",
         },
     ]
 }
@@ -1967,6 +2434,10 @@ pub fn mdb() -> Mdb {
                 name: "parameter_id",
                 values: parameter_ids(),
             },
+            Enumeration {
+                name: "time_report_rate",
+                values: time_report_rates(),
+            },
         ],
         bit_fields: vec![
             BitField {
@@ -2082,6 +2553,12 @@ impl Telecommand {
                     .ok_or_else(|| format!("{}: missing argument {}", self.name, f.name))?,
             };
             match (f.wire, value) {
+                (Wire::Packet { min_len, max_len }, ArgValue::Bytes(b)) => {
+                    if !(min_len..=max_len).contains(&b.len()) {
+                        return Err(format!("{}: {} bytes", f.name, b.len()));
+                    }
+                    out.extend(b);
+                }
                 (Wire::Bytes { min_len, max_len }, ArgValue::Bytes(b)) => {
                     if !(min_len..=max_len).contains(&b.len()) {
                         return Err(format!("{}: {} bytes", f.name, b.len()));

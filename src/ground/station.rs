@@ -4,11 +4,16 @@
 
 use super::tc::TcSequencer;
 use crate::link::framing::Deframer;
-use crate::link::tm::{parse_tm, EventSeverity, TmReport, Verification};
+use crate::link::schedule::SummaryEntry;
+use crate::link::time::TimeReportRate;
+use crate::link::tm::{parse_tm, EventSeverity, TmReport, TmTime, Verification};
 use crate::link::{Command, Housekeeping, MemoryId, RequestId};
 
 /// One telemetry packet, owned.
 #[derive(Clone, Debug, PartialEq)]
+// The housekeeping report is the one large variant; a parsed report is a transient
+// value (no heap on the target, and the station's log keeps one per packet).
+#[allow(clippy::large_enum_variant)]
 pub enum Tm {
     /// TM[1,x].
     Verify(RequestId, Verification),
@@ -24,6 +29,10 @@ pub enum Tm {
     MoveCheck(RequestId, crate::link::tm::MoveCheckReport),
     /// TM[20,2]: (parameter ID, value) pairs.
     Parameters(Vec<(u16, i32)>),
+    /// TM[9,2]: the rate in force, the on-board time of the report.
+    TimeReport(TimeReportRate, TmTime),
+    /// TM[11,13]: the scheduled activities, in release order.
+    ScheduleSummary(Vec<SummaryEntry>),
 }
 
 /// Sends telecommands, collects telemetry.
@@ -33,6 +42,8 @@ pub struct Station {
     deframer: Deframer,
     /// Every TM packet received, in order.
     pub log: Vec<Tm>,
+    /// The packet time (on-board time) of each entry of `log`.
+    pub log_times: Vec<TmTime>,
     /// Frames that did not deframe or parse (a healthy link keeps this at 0).
     pub bad_frames: usize,
     /// Telecommands encoded so far.
@@ -52,6 +63,7 @@ impl Station {
             seq: TcSequencer::new(0),
             deframer: Deframer::new(),
             log: Vec::new(),
+            log_times: Vec::new(),
             bad_frames: 0,
             tc_sent: 0,
         }
@@ -71,16 +83,25 @@ impl Station {
         Ok((super::tc::frame(&pkt), rid))
     }
 
+    /// A TC[11,4] inserting `activities` (release time, telecommand), each embedded
+    /// telecommand numbered by this station first; and their request IDs.
+    pub fn schedule_insert(
+        &mut self,
+        activities: &[(TmTime, Command)],
+    ) -> Result<(Command, Vec<RequestId>), String> {
+        let out = self.seq.schedule_insert(activities)?;
+        self.tc_sent += activities.len();
+        Ok(out)
+    }
+
     /// Feeds received bytes (any split) through the deframer and parses whole frames.
     pub fn receive(&mut self, bytes: &[u8]) {
         for &b in bytes {
             let Some(frame) = self.deframer.push_byte(b) else {
                 continue;
             };
-            let tm = frame
-                .ok()
-                .and_then(|f| parse_tm(f).ok())
-                .map(|tm| match tm.report {
+            let tm = frame.ok().and_then(|f| parse_tm(f).ok()).map(|tm| {
+                let report = match tm.report {
                     TmReport::Verification { request_id, report } => Tm::Verify(request_id, report),
                     TmReport::Housekeeping(h) => Tm::Hk(h),
                     TmReport::Event {
@@ -97,7 +118,7 @@ impl Station {
                     TmReport::MoveCheck { request_id, check } => Tm::MoveCheck(request_id, check),
                     TmReport::Parameters { entries } => Tm::Parameters(
                         entries
-                            .chunks_exact(6)
+                            .chunks_exact(crate::link::tm::PARAMETER_ENTRY_LEN)
                             .map(|c| {
                                 (
                                     u16::from_be_bytes([c[0], c[1]]),
@@ -106,9 +127,18 @@ impl Station {
                             })
                             .collect(),
                     ),
-                });
+                    TmReport::TimeReport { rate, obt } => Tm::TimeReport(rate, obt),
+                    TmReport::ScheduleSummary(view) => {
+                        Tm::ScheduleSummary(view.entries().collect())
+                    }
+                };
+                (report, tm.time)
+            });
             match tm {
-                Some(t) => self.log.push(t),
+                Some((t, time)) => {
+                    self.log.push(t);
+                    self.log_times.push(time);
+                }
                 None => self.bad_frames += 1,
             }
         }
@@ -152,6 +182,25 @@ impl Station {
             Tm::Hk(h) => Some(*h),
             _ => None,
         })
+    }
+
+    /// The newest schedule summary report.
+    pub fn last_summary(&self) -> Option<&[SummaryEntry]> {
+        self.log.iter().rev().find_map(|t| match t {
+            Tm::ScheduleSummary(s) => Some(s.as_slice()),
+            _ => None,
+        })
+    }
+
+    /// Packet time of the first report `which` for request `rid`.
+    pub fn report_time(&self, rid: RequestId, which: Verification) -> Option<TmTime> {
+        self.log
+            .iter()
+            .zip(&self.log_times)
+            .find_map(|(t, time)| match t {
+                Tm::Verify(r, v) if *r == rid && *v == which => Some(*time),
+                _ => None,
+            })
     }
 
     /// Auxiliary words of the events with this ID, in order.

@@ -5,7 +5,9 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use crate::link::command::{TABLE_CHUNK_MAX_LEN, UAS_PER_ARCSEC};
-use crate::link::tc::{EncodeError, TcHeader};
+use crate::link::schedule::{ActivityBlock, ObtOffset, ScheduleCommand};
+use crate::link::tc::{EncodeError, RequestId, TcHeader, APID_MASK, SEQ_COUNT_MASK};
+use crate::link::tm::{TmTime, TIME_FRACTIONS_PER_SECOND};
 use crate::link::{
     encode_frame, encode_telecommand, AckFlags, Command, TableChunk, WirePose, MAX_TC_FRAME_LEN,
     MAX_TC_PACKET_LEN,
@@ -68,6 +70,71 @@ impl TcSequencer {
     pub fn frames(&mut self, commands: &[Command]) -> Result<Vec<Vec<u8>>, String> {
         commands.iter().map(|c| self.frame(c)).collect()
     }
+
+    /// A TC[11,4] inserting `activities` (release time, telecommand): each embedded
+    /// telecommand is numbered by this sequencer first (in order), then the insert
+    /// itself. Returns the insert and the embedded request IDs (what a delete names).
+    pub fn schedule_insert(
+        &mut self,
+        activities: &[(TmTime, Command)],
+    ) -> Result<(Command, Vec<RequestId>), String> {
+        let mut packets = Vec::new();
+        for (release, command) in activities {
+            if matches!(command, Command::Schedule(_)) {
+                return Err("a schedule telecommand cannot be scheduled".into());
+            }
+            packets.push((*release, self.packet(command)?));
+        }
+        let ids = packets
+            .iter()
+            .map(|(_, p)| RequestId::from_packet(p).unwrap_or_default())
+            .collect();
+        let refs: Vec<(TmTime, &[u8])> = packets.iter().map(|(t, p)| (*t, p.as_slice())).collect();
+        let block = ActivityBlock::new(&refs).map_err(|e| {
+            format!(
+                "the activities do not make a TC[11,4] (code {:#06x}, data {:#x}): at most {} \
+                 bytes, embedded telecommands of at most {} bytes",
+                e.code(),
+                e.data(),
+                crate::link::schedule::MAX_INSERT_APP_DATA_LEN,
+                crate::link::schedule::MAX_SCHEDULED_TC_LEN
+            )
+        })?;
+        Ok((Command::Schedule(ScheduleCommand::Insert(block)), ids))
+    }
+}
+
+/// The request ID of the telecommand this ground sends with sequence count `seq_count`
+/// (APID [`crate::link::M2_APID`], unsegmented): what TC[11,5] names.
+pub fn request_id_of(seq_count: u16) -> RequestId {
+    /// Packet ID bits of a TC with a secondary header (type and flag).
+    const TC_WITH_SEC_HEADER: u16 = 0x1800;
+    /// Sequence flags of an unsegmented packet.
+    const UNSEGMENTED: u16 = 0xC000;
+    RequestId {
+        packet_id: TC_WITH_SEC_HEADER | (crate::link::M2_APID & APID_MASK),
+        sequence_control: UNSEGMENTED | (seq_count & SEQ_COUNT_MASK),
+    }
+}
+
+/// An on-board time from seconds (nearest 1/65536 s); refused if negative, not finite
+/// or beyond CUC 4+2.
+pub fn obt_from_seconds(s: f64) -> Result<TmTime, String> {
+    let ticks = (s * TIME_FRACTIONS_PER_SECOND as f64).round();
+    if !(ticks.is_finite() && ticks >= 0.0 && ticks < 2f64.powi(48)) {
+        return Err(format!("{s} s: not an on-board time (0 .. 2^32 s)"));
+    }
+    TmTime::from_ticks(ticks as u64).ok_or_else(|| format!("{s} s: beyond CUC 4+2"))
+}
+
+/// A time offset from seconds (nearest 1/65536 s); refused if not finite or beyond the
+/// TC[11,15] range (+-2^31 s).
+pub fn offset_from_seconds(s: f64) -> Result<ObtOffset, String> {
+    let ticks = (s * TIME_FRACTIONS_PER_SECOND as f64).round();
+    if !ticks.is_finite() || ticks.abs() >= 2f64.powi(47) {
+        return Err(format!("{s} s: not a time offset (+-2^31 s)"));
+    }
+    ObtOffset::from_ticks(ticks as i64).ok_or_else(|| format!("{s} s: beyond the offset range"))
 }
 
 /// COBS frame of a packet.
@@ -311,6 +378,30 @@ fn parse_integer(s: &str) -> Result<i64, String> {
         Some(h) => i64::from_str_radix(h, 16).map_err(|e| format!("{s}: {e}")),
         None => s.parse().map_err(|e| format!("{s}: {e}")),
     }
+}
+
+/// `m2ground tc schedule at=SECONDS NAME [arg=value ...]`: a TC[11,4] inserting the
+/// named telecommand (as [`command_from_args`]) with release time `at` (on-board time,
+/// s since the controller's boot, to 1/65536 s). The embedded telecommand is numbered
+/// by `sequencer` first, then the insert; returns the insert and the embedded request
+/// ID (what a delete names).
+pub fn schedule_from_args(
+    args: &[String],
+    sequencer: &mut TcSequencer,
+) -> Result<(Command, RequestId), String> {
+    let (at, rest) = args
+        .split_first()
+        .ok_or("schedule: at=SECONDS, then the telecommand")?;
+    let release_s: f64 = at
+        .strip_prefix("at=")
+        .ok_or_else(|| format!("{at}: schedule takes at=SECONDS first"))?
+        .parse()
+        .map_err(|e| format!("{at}: {e}"))?;
+    let (name, targs) = rest.split_first().ok_or("schedule: which telecommand?")?;
+    let command = command_from_args(name, targs)?;
+    let release = obt_from_seconds(release_s)?;
+    let (insert, ids) = sequencer.schedule_insert(&[(release, command)])?;
+    Ok((insert, ids.first().copied().unwrap_or_default()))
 }
 
 /// Hex digits, two per byte, no separators.

@@ -2,6 +2,8 @@
 //! byte layout of each telecommand's application data (parse and emit, big-endian).
 
 use super::error::{sat_u16, LinkError};
+use super::schedule::{ScheduleCommand, MAX_INSERT_APP_DATA_LEN};
+use super::time::TimeReportRate;
 use super::wire::{Order, Reader, Writer};
 use super::{service, subtype};
 use crate::kinematics::{Pose, Real, ARCSEC_PER_RAD, LEGS};
@@ -19,8 +21,21 @@ pub const WIRE_POSE_LEN: usize = 24;
 pub const FUNCTION_ID_LEN: usize = 2;
 /// Bytes of the TC[6,2] header before the data: memory ID u8, offset u16, length u16.
 pub const MEMORY_LOAD_HEADER_LEN: usize = 5;
-/// Largest application data of any telecommand (bytes).
-pub const MAX_TC_APP_DATA_LEN: usize = MEMORY_LOAD_HEADER_LEN + TABLE_CHUNK_MAX_LEN;
+/// Largest application data of any telecommand (bytes): a TC[11,4] insert or a table
+/// chunk, whichever is longer.
+pub const MAX_TC_APP_DATA_LEN: usize = max_len(
+    MEMORY_LOAD_HEADER_LEN + TABLE_CHUNK_MAX_LEN,
+    MAX_INSERT_APP_DATA_LEN,
+);
+
+/// The larger of two lengths (for constants).
+const fn max_len(a: usize, b: usize) -> usize {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
 /// Bytes of a TC[20,3] count, and of one (ID u16, value i32) pair.
 const PARAMETER_COUNT_LEN: usize = 1;
 const PARAMETER_PAIR_LEN: usize = 6;
@@ -384,10 +399,15 @@ pub enum Command {
     LoadTableChunk(TableChunk),
     /// TC[6,5]: dump a memory area as TM[6,6] chunks.
     DumpTable(MemoryId),
+    /// TC[11,x]: the time-based schedule (insert, delete, time-shift, enable, disable,
+    /// reset, summary report; `link::schedule`).
+    Schedule(ScheduleCommand),
+    /// TC[9,1]: set the time report (TM[9,2]) generation rate (`link::time`).
+    SetTimeReportRate(TimeReportRate),
 }
 
 /// Exact application-data length check.
-fn expect_len(app_data: &[u8], expected: usize) -> Result<(), LinkError> {
+pub(super) fn expect_len(app_data: &[u8], expected: usize) -> Result<(), LinkError> {
     if app_data.len() == expected {
         Ok(())
     } else {
@@ -408,6 +428,8 @@ impl Command {
             Command::DumpTable(_) => (service::MEMORY, subtype::MEMORY_DUMP),
             Command::ReportParameters(_) => (service::PARAMETER, subtype::PARAMETER_REPORT_REQUEST),
             Command::SetParameters(_) => (service::PARAMETER, subtype::PARAMETER_SET),
+            Command::Schedule(s) => (service::SCHEDULING, s.subtype()),
+            Command::SetTimeReportRate(_) => (service::TIME, subtype::SET_TIME_REPORT_RATE),
             _ => (service::FUNCTION, subtype::PERFORM_FUNCTION),
         }
     }
@@ -431,11 +453,26 @@ impl Command {
             | Command::DumpTable(_)
             | Command::ReportParameters(_)
             | Command::SetParameters(_) => None,
+            Command::Schedule(_) | Command::SetTimeReportRate(_) => None,
         }
     }
 
     /// Checked parse of the application data of telecommand `[service, subtype]`.
     pub fn parse(service: u8, subtype: u8, app_data: &[u8]) -> Result<Command, LinkError> {
+        if service == service::SCHEDULING {
+            // The embedded telecommands of a TC[11,4] are parsed by `parse_plain`: no
+            // path leads back here (no recursion, no TC[11,x] inside a TC[11,x]).
+            return ScheduleCommand::parse(subtype, app_data).map(Command::Schedule);
+        }
+        Command::parse_plain(service, subtype, app_data)
+    }
+
+    /// [`Command::parse`] of every service but 11 (time-based scheduling).
+    pub(super) fn parse_plain(
+        service: u8,
+        subtype: u8,
+        app_data: &[u8],
+    ) -> Result<Command, LinkError> {
         let unknown_subtype = LinkError::UnknownSubtype { service, subtype };
         match service {
             service::TEST => {
@@ -478,6 +515,12 @@ impl Command {
                 }
                 _ => Err(unknown_subtype),
             },
+            service::TIME => {
+                if subtype != subtype::SET_TIME_REPORT_RATE {
+                    return Err(unknown_subtype);
+                }
+                TimeReportRate::parse(app_data).map(Command::SetTimeReportRate)
+            }
             _ => Err(LinkError::UnknownService { service }),
         }
     }
@@ -508,6 +551,8 @@ impl Command {
                     w.i32(*v)?;
                 }
             }
+            Command::Schedule(s) => s.emit(&mut w)?,
+            Command::SetTimeReportRate(rate) => rate.emit(&mut w)?,
             _ => {
                 let f = self.function_id()?;
                 w.u16(f.code())?;

@@ -77,6 +77,15 @@ pub enum LinkError {
         /// Length of the chunk (bytes).
         length: u16,
     },
+    /// A telecommand embedded in a TC[11,4] activity is refused (ST[11]): `code` is the
+    /// link code the same packet would get on its own (0x0503 also when it is longer
+    /// than a schedule slot, 0x0509 for a TC[11,x] inside).
+    EmbeddedTc {
+        /// Zero-based index of the activity in the TC[11,4].
+        index: u8,
+        /// The embedded packet's own refusal code (0x05xx).
+        code: u16,
+    },
 }
 
 /// Saturating `usize` -> `u16` for error reports.
@@ -102,6 +111,7 @@ impl LinkError {
             LinkError::AppDataLength { .. } => 0x050c,
             LinkError::InvalidArgument { .. } => 0x050d,
             LinkError::ChunkOutOfRange { .. } => 0x050e,
+            LinkError::EmbeddedTc { .. } => 0x050f,
         }
     }
 
@@ -121,6 +131,7 @@ impl LinkError {
             LinkError::AppDataLength { got, expected } => pack(got, expected),
             LinkError::InvalidArgument { index } => index as u32,
             LinkError::ChunkOutOfRange { offset, length } => pack(offset, length),
+            LinkError::EmbeddedTc { index, code } => pack(index as u16, code),
         }
     }
 }

@@ -1,6 +1,6 @@
 //! The housekeeping report TM[3,25]: [`Housekeeping`] and its byte layout.
 //!
-//! # Layout (source data of TM[3,25], [`HK_REPORT_LEN`] = 133 bytes, big-endian)
+//! # Layout (source data of TM[3,25], [`HK_REPORT_LEN`] = 230 bytes, big-endian)
 //!
 //! | offset | size | type    | field                                                        |
 //! |-------:|-----:|---------|--------------------------------------------------------------|
@@ -40,15 +40,27 @@
 //! |    165 |   24 | 6 x i32 | pose from FK in the operator's frames (pivot, user frame; nm, uas) |
 //! |    189 |   24 | 6 x i32 | commanded pose in the operator's frames (nm, uas)            |
 //! |    213 |    4 | u32     | on-board parameters set (bit i = parameter index i)          |
+//!
+//! Time-based schedule and time reports (ST[11], ST[9]; [`ScheduleHk`]):
+//!
+//! | offset | size | type    | field                                                        |
+//! |-------:|-----:|---------|--------------------------------------------------------------|
+//! |    217 |    1 | u8      | activities in the schedule (0..16)                           |
+//! |    218 |    1 | u8      | release enabled (1) or disabled (0)                          |
+//! |    219 |    2 | u16     | activities released since boot (wrapping)                   |
+//! |    221 |    2 | u16     | released activities that failed (wrapping)                   |
+//! |    223 |    6 | CUC 4+2 | release time of the next activity (0 if none)                |
+//! |    229 |    1 | u8      | time report rate: N of 2^N s, 255 off                        |
 
 use super::command::WirePose;
+use super::tm::TmTime;
 use super::wire::{Order, Reader, Writer};
 use crate::kinematics::LEGS;
 
 /// Structure ID of the one housekeeping report.
 pub const HK_STRUCTURE_ID: u8 = 1;
 /// Length of the TM[3,25] source data (bytes).
-pub const HK_REPORT_LEN: usize = 217;
+pub const HK_REPORT_LEN: usize = 230;
 /// `selected_source` when no selection record exists.
 pub const NO_SELECTION: u8 = 0xFF;
 
@@ -125,6 +137,47 @@ pub struct Housekeeping {
     pub pose_commanded_operator: WirePose,
     /// On-board parameters set (bit i = parameter index i).
     pub parameters_set: u32,
+    /// The time-based schedule and the time reports (offsets 217..230).
+    pub schedule: ScheduleHk,
+}
+
+/// The housekeeping block of the time-based schedule (ST[11]) and the time reports
+/// (ST[9]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ScheduleHk {
+    /// Activities in the schedule.
+    pub activities: u8,
+    /// Activities are released when their time comes.
+    pub release_enabled: bool,
+    /// Activities released since boot (wrapping).
+    pub released: u16,
+    /// Released activities whose telecommand failed (wrapping).
+    pub failed: u16,
+    /// Release time of the next activity (0 if none).
+    pub next_release: TmTime,
+    /// Time report rate (`link::time::TimeReportRate::code`: N of 2^N s, 255 off).
+    pub time_report_rate: u8,
+}
+
+impl ScheduleHk {
+    fn write(&self, w: &mut Writer<'_>) -> Option<()> {
+        w.put(&[self.activities, u8::from(self.release_enabled)])?;
+        w.u16(self.released)?;
+        w.u16(self.failed)?;
+        w.put(&self.next_release.to_bytes())?;
+        w.u8(self.time_report_rate)
+    }
+
+    fn read(r: &mut Reader<'_>) -> Option<ScheduleHk> {
+        Some(ScheduleHk {
+            activities: r.u8()?,
+            release_enabled: r.u8()? != 0,
+            released: r.u16()?,
+            failed: r.u16()?,
+            next_release: TmTime::from_bytes(r.take()?),
+            time_report_rate: r.u8()?,
+        })
+    }
 }
 
 impl Housekeeping {
@@ -180,7 +233,8 @@ impl Housekeeping {
         }
         w.pose(&self.pose_fk_operator)?;
         w.pose(&self.pose_commanded_operator)?;
-        w.u32(self.parameters_set)
+        w.u32(self.parameters_set)?;
+        self.schedule.write(w)
     }
 
     /// Checked parse of the TM[3,25] source data (exact length, structure ID 1).
@@ -228,6 +282,7 @@ impl Housekeeping {
             pose_fk_operator: r.pose()?,
             pose_commanded_operator: r.pose()?,
             parameters_set: r.u32()?,
+            schedule: ScheduleHk::read(&mut r)?,
         })
     }
 }

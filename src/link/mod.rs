@@ -18,6 +18,8 @@
 //!   reply, table dump) writing a whole framed TM packet, with sequence and message
 //!   counting; and a checked TM parser for the ground and the tests.
 //! * [`hk`]: the housekeeping report ([`Housekeeping`]) and its byte layout.
+//! * [`schedule`], [`time`]: the layouts of the time-based schedule's telecommands and
+//!   summary report (PUS ST[11]) and of the time reports (ST[9]).
 //!
 //! The interface control document `docs/icd.md` describes every packet byte by byte.
 //! Every multi-byte field on the wire is big-endian (network order), as CCSDS and PUS.
@@ -28,7 +30,9 @@ pub mod command;
 pub mod error;
 pub mod framing;
 pub mod hk;
+pub mod schedule;
 pub mod tc;
+pub mod time;
 pub mod tm;
 pub mod wire;
 
@@ -84,6 +88,10 @@ pub mod service {
     pub const TEST: u8 = 17;
     /// On-board parameter management.
     pub const PARAMETER: u8 = 20;
+    /// Time management: time reports (ST[9]).
+    pub const TIME: u8 = spacepackets::ecss::PusServiceId::TimeManagement as u8;
+    /// Time-based scheduling: time-tagged telecommands (ST[11]).
+    pub const SCHEDULING: u8 = spacepackets::ecss::PusServiceId::Scheduling as u8;
 }
 
 /// PUS message subtypes used by the controller, per service.
@@ -132,4 +140,28 @@ pub mod subtype {
     pub const PARAMETER_REPORT: u8 = 2;
     /// TC[20,3] set parameter values.
     pub const PARAMETER_SET: u8 = 3;
+
+    // Services 9 and 11 (time management, time-based scheduling): the ST[11] numbers
+    // come from `spacepackets::ecss::scheduling::MessageSubtypeId`.
+    use spacepackets::ecss::scheduling::MessageSubtypeId as Sched;
+    /// TC[9,1] set the time report generation rate.
+    pub const SET_TIME_REPORT_RATE: u8 = 1;
+    /// TM[9,2] CUC time report.
+    pub const TIME_REPORT: u8 = 2;
+    /// TC[11,1] enable the release of time-based activities.
+    pub const SCHEDULE_ENABLE: u8 = Sched::TcEnableScheduling as u8;
+    /// TC[11,2] disable the release of time-based activities.
+    pub const SCHEDULE_DISABLE: u8 = Sched::TcDisableScheduling as u8;
+    /// TC[11,3] reset the time-based schedule (delete all, release disabled).
+    pub const SCHEDULE_RESET: u8 = Sched::TcResetScheduling as u8;
+    /// TC[11,4] insert activities into the time-based schedule.
+    pub const SCHEDULE_INSERT: u8 = Sched::TcInsertActivity as u8;
+    /// TC[11,5] delete activities by request ID.
+    pub const SCHEDULE_DELETE: u8 = Sched::TcDeleteActivityByRequestId as u8;
+    /// TC[11,15] time-shift all activities.
+    pub const SCHEDULE_TIME_SHIFT_ALL: u8 = Sched::TcTimeShiftAll as u8;
+    /// TC[11,17] summary-report all activities.
+    pub const SCHEDULE_SUMMARY_ALL: u8 = Sched::TcSummaryReportAll as u8;
+    /// TM[11,13] time-based schedule summary report.
+    pub const SCHEDULE_SUMMARY_REPORT: u8 = Sched::TmSummaryReport as u8;
 }

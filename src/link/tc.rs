@@ -37,8 +37,9 @@ pub const REQUEST_ID_LEN: usize = 4;
 
 /// The PUS-C request ID of a telecommand: its packet ID (version, type, secondary header
 /// flag, APID) and packet sequence control (sequence flags, count), i.e. the first four
-/// bytes of the TC, big-endian. Verification reports name the TC by it.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// bytes of the TC, big-endian. Verification reports name the TC by it (and the
+/// time-based schedule its activities).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct RequestId {
     /// Bytes 0..2 of the TC.
     pub packet_id: u16,

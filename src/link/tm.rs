@@ -1,5 +1,6 @@
 //! Telemetry: [`TmWriter`] emits whole framed PUS-C TM packets (verification, events,
-//! housekeeping, ping reply, table dump) into caller buffers, counting packet sequence
+//! housekeeping, ping reply, table dump, time report, schedule summary) into caller
+//! buffers, counting packet sequence
 //! and per-service message type counters; [`parse_tm`] is the checked inverse for the
 //! ground and the tests.
 //!
@@ -20,7 +21,9 @@ use super::command::{MemoryId, TABLE_CHUNK_MAX_LEN};
 use super::error::{sat_u16, LinkError};
 use super::framing::{encode_frame, FrameError};
 use super::hk::{Housekeeping, HK_REPORT_LEN};
+use super::schedule::{emit_summary, SummaryEntry, SummaryView, MAX_SUMMARY_LEN};
 use super::tc::{RequestId, APID_MASK, REQUEST_ID_LEN, SEQ_COUNT_MASK};
+use super::time::{parse_time_report, time_report_bytes, TimeReportRate, TIME_REPORT_LEN};
 use super::wire::{Order, Reader, Writer};
 use super::{
     service, subtype, CCSDS_PRIMARY_HEADER_LEN, CRC16_LEN, M2_APID, MAX_TM_PACKET_LEN,
@@ -30,8 +33,26 @@ use super::{
 /// Offset of the CCSDS data length field in the primary header (bytes).
 const DATA_LEN_FIELD_OFFSET: usize = 4;
 
-/// Largest source data of any TM packet the controller emits (bytes).
-pub const MAX_TM_SOURCE_DATA_LEN: usize = 240;
+/// Largest source data of any TM packet the controller emits (bytes): the schedule
+/// summary of a full schedule (161), the housekeeping report, a dump chunk,
+/// the move check, a parameter report.
+pub const MAX_TM_SOURCE_DATA_LEN: usize = {
+    let mut m = MAX_SUMMARY_LEN;
+    if MOVE_CHECK_REPORT_LEN > m {
+        m = MOVE_CHECK_REPORT_LEN;
+    }
+    // TM[20,2] answering one TC[20,1]: count, then 6 bytes per ID.
+    if 1 + PARAMETER_ENTRY_LEN * crate::link::command::MAX_PARAMETERS_PER_TC > m {
+        m = 1 + PARAMETER_ENTRY_LEN * crate::link::command::MAX_PARAMETERS_PER_TC;
+    }
+    if HK_REPORT_LEN > m {
+        m = HK_REPORT_LEN;
+    }
+    if DUMP_HEADER_LEN + TABLE_CHUNK_MAX_LEN > m {
+        m = DUMP_HEADER_LEN + TABLE_CHUNK_MAX_LEN;
+    }
+    m
+};
 /// Bytes of the TM[6,6] header before the data: memory ID u8, offset u16, length u16.
 pub const DUMP_HEADER_LEN: usize = 5;
 /// Bytes of a failure notice: code u16, data u32.
@@ -69,8 +90,10 @@ const US_PER_MS: u64 = 1000;
 
 /// The TM timestamp: CCSDS unsegmented time code (CUC) with implicit P-field, 4 bytes of
 /// seconds and 2 bytes of 1/65536 s, big-endian, counted from controller boot (the
-/// controller has no absolute time; the ground correlates).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// controller has no absolute time; the ground correlates). The same code is the
+/// on-board time (OBT) of the schedule's release times (ST[11]) and of the time reports
+/// (ST[9]). Ordered by time (seconds, then fraction).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct TmTime {
     /// Whole seconds since boot.
     pub seconds: u32,
@@ -108,7 +131,39 @@ impl TmTime {
             fraction: u16::from_be_bytes([b[4], b[5]]),
         }
     }
+
+    /// The time as one count of 1/65536 s (48 bits: seconds << 16 | fraction).
+    pub const fn to_ticks(self) -> u64 {
+        ((self.seconds as u64) << FRACTION_BITS) | self.fraction as u64
+    }
+
+    /// From a count of 1/65536 s; `None` beyond the 48 bits of the code.
+    pub const fn from_ticks(ticks: u64) -> Option<TmTime> {
+        if ticks > MAX_TIME_TICKS {
+            return None;
+        }
+        Some(TmTime {
+            seconds: (ticks >> FRACTION_BITS) as u32,
+            fraction: (ticks & FRACTION_MASK) as u16,
+        })
+    }
+
+    /// This time moved by `offset_ticks` (1/65536 s, signed); `None` if the result is
+    /// before 0 or beyond the 48 bits of the code.
+    pub const fn checked_offset(self, offset_ticks: i64) -> Option<TmTime> {
+        match (self.to_ticks() as i64).checked_add(offset_ticks) {
+            Some(t) if t >= 0 => TmTime::from_ticks(t as u64),
+            _ => None,
+        }
+    }
 }
+
+/// Bits of the CUC fraction.
+const FRACTION_BITS: u32 = 16;
+/// Mask of the CUC fraction in a tick count.
+const FRACTION_MASK: u64 = (1 << FRACTION_BITS) - 1;
+/// Largest tick count of CUC 4+2 (2^48 - 1).
+pub const MAX_TIME_TICKS: u64 = (1 << (8 * TM_TIMESTAMP_LEN)) - 1;
 
 /// A service-1 verification report for one telecommand.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -262,6 +317,17 @@ pub mod event_id {
     /// Control cycles overran their period several times in a row: motion stopped.
     /// aux0: consecutive overruns, aux1: overruns since boot.
     pub const DEADLINE_MISSED: u16 = 0x0030;
+    // Time-based schedule (ST[11]).
+    /// A scheduled activity was released: its telecommand runs now. aux0: request ID
+    /// (packet ID << 16 | sequence control), aux1: release time (OBT seconds).
+    pub const ACTIVITY_RELEASED: u16 = 0x00B0;
+    /// A released activity's telecommand failed (its TM[1,2]/[1,4]/[1,8] carries the
+    /// details). aux0: request ID, aux1: report subtype << 16 | failure code.
+    pub const ACTIVITY_FAILED: u16 = 0x00B1;
+    /// An activity whose release time passed while release was disabled was deleted
+    /// when release was enabled (never run). aux0: request ID, aux1: release time (OBT
+    /// seconds).
+    pub const ACTIVITY_EXPIRED: u16 = 0x00B2;
 }
 
 /// Why telemetry could not be emitted.
@@ -280,7 +346,7 @@ impl From<FrameError> for EmitError {
 }
 
 /// Message-type counters are kept per service; index in [`TmWriter`].
-const COUNTED_SERVICES: [u8; 7] = [
+const COUNTED_SERVICES: [u8; 9] = [
     service::VERIFICATION,
     service::HOUSEKEEPING,
     service::EVENT,
@@ -288,6 +354,8 @@ const COUNTED_SERVICES: [u8; 7] = [
     service::FUNCTION,
     service::TEST,
     service::PARAMETER,
+    service::TIME,
+    service::SCHEDULING,
 ];
 
 /// Emits framed TM packets and counts them. One per link.
@@ -404,6 +472,37 @@ impl TmWriter {
             time,
             (service::HOUSEKEEPING, subtype::HK_REPORT),
             &data,
+            out,
+        )
+    }
+
+    /// TM[9,2] time report: the rate in force and the OBT the report was made at (the
+    /// same as its packet time). Returns the frame length.
+    pub fn emit_time_report(
+        &mut self,
+        time: TmTime,
+        rate: TimeReportRate,
+        out: &mut [u8],
+    ) -> Result<usize, EmitError> {
+        let data = time_report_bytes(rate, time);
+        self.emit(time, (service::TIME, subtype::TIME_REPORT), &data, out)
+    }
+
+    /// TM[11,13] schedule summary: N u8, then release time and request ID of each
+    /// activity. Returns the frame length.
+    pub fn emit_schedule_summary(
+        &mut self,
+        time: TmTime,
+        entries: &[SummaryEntry],
+        out: &mut [u8],
+    ) -> Result<usize, EmitError> {
+        let mut data = [0u8; MAX_SUMMARY_LEN];
+        let n = emit_summary(entries, &mut data).ok_or(EmitError::BufferTooSmall)?;
+        let src = data.get(..n).ok_or(EmitError::BufferTooSmall)?;
+        self.emit(
+            time,
+            (service::SCHEDULING, subtype::SCHEDULE_SUMMARY_REPORT),
+            src,
             out,
         )
     }
@@ -525,6 +624,9 @@ pub struct TmPacket<'a> {
 
 /// The content of a TM packet.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+// The housekeeping report is the one large variant; a parsed report is a transient
+// value (no heap on the target, and the station's log keeps one per packet).
+#[allow(clippy::large_enum_variant)]
 pub enum TmReport<'a> {
     /// TM[1,x].
     Verification {
@@ -567,6 +669,15 @@ pub enum TmReport<'a> {
         /// The pairs' bytes (a multiple of 6).
         entries: &'a [u8],
     },
+    /// TM[9,2].
+    TimeReport {
+        /// The generation rate in force.
+        rate: TimeReportRate,
+        /// The on-board time the report was made at.
+        obt: TmTime,
+    },
+    /// TM[11,13].
+    ScheduleSummary(SummaryView<'a>),
 }
 
 fn be_u16(b: &[u8], at: usize) -> Option<u16> {
@@ -719,11 +830,20 @@ pub fn parse_tm(packet: &[u8]) -> Result<TmPacket<'_>, LinkError> {
                 entries: d.get(1..).unwrap_or(&[]),
             }
         }
+        service::TIME if sub == subtype::TIME_REPORT => {
+            let (rate, obt) = parse_time_report(d).ok_or(wrong_len(TIME_REPORT_LEN))?;
+            TmReport::TimeReport { rate, obt }
+        }
+        service::SCHEDULING if sub == subtype::SCHEDULE_SUMMARY_REPORT => {
+            TmReport::ScheduleSummary(SummaryView::new(d).ok_or(wrong_len(MAX_SUMMARY_LEN))?)
+        }
         service::HOUSEKEEPING
         | service::MEMORY
         | service::TEST
         | service::FUNCTION
-        | service::PARAMETER => {
+        | service::PARAMETER
+        | service::TIME
+        | service::SCHEDULING => {
             return Err(LinkError::UnknownSubtype {
                 service: svc,
                 subtype: sub,

@@ -20,7 +20,9 @@ from pathlib import Path
 
 from yamcs.pymdb import (
     AcceptedVerifier,
+    AggregateDataType,
     AlgorithmCheck,
+    ArrayParameter,
     ArgumentEntry,
     BinaryArgument,
     BinaryEncoding,
@@ -34,13 +36,16 @@ from yamcs.pymdb import (
     ExecutionVerifier,
     FixedValueEntry,
     FloatArgument,
+    FloatMember,
     FloatParameter,
     InputParameter,
     IntegerArgument,
     IntegerEncoding,
     IntegerEncodingScheme,
+    IntegerMember,
     IntegerParameter,
     ParameterEntry,
+    ParameterValue,
     Polynomial,
     System,
     UnnamedJavaAlgorithm,
@@ -156,6 +161,52 @@ class Generator:
                     )
         return out
 
+    def member(self, f: dict):
+        """An aggregate member for one field of a repeated group (numbers only)."""
+        m = f["meaning"]
+        wire = f["wire"]["type"]
+        if m["kind"] != "number":
+            raise ValueError(f"{f['name']}: repeated fields are numbers")
+        if m["scale"] != 1.0:
+            return FloatMember(
+                f["name"],
+                bits=64,
+                units=m["unit"],
+                encoding=encoding(wire),
+                calibrator=Polynomial([0.0, m["scale"]]),
+                short_description=f["description"],
+            )
+        return IntegerMember(
+            f["name"],
+            signed=wire == "i32",
+            bits=64 if wire == "u32" else 32,
+            units=m.get("unit"),
+            encoding=encoding(wire),
+            short_description=f["description"],
+        )
+
+    def repeated_entry(self, rep: dict, base_byte: int) -> ParameterEntry:
+        """A repeated group (e.g. the activities of TM[11,13]) as one array parameter
+        of aggregates whose length is the count field."""
+        fields = sorted(rep["fields"], key=lambda f: f["offset"])
+        at = 0
+        for f in fields:
+            if f["offset"] != at:
+                raise ValueError(f"{rep['name']}.{f['name']}: not contiguous")
+            at += WIRE_BITS[f["wire"]["type"]] // 8
+        if at != rep["element_len"]:
+            raise ValueError(f"{rep['name']}: fields cover {at} of {rep['element_len']} bytes")
+        element = AggregateDataType(members=[self.member(f) for f in fields])
+        array = ArrayParameter(
+            self.system,
+            rep["name"],
+            data_type=element,
+            length=ParameterValue(self.params[rep["count_field"]]),
+            short_description=f"up to {rep['max_count']} entries",
+        )
+        self.params[rep["name"]] = array
+        return ParameterEntry(array, bitpos=(base_byte + rep["offset"]) * 8)
+
     def telemetry(self):
         s = self.system
         L = self.link
@@ -251,12 +302,15 @@ class Generator:
         for p in self.mdb["telemetry"]:
             if p["service"] == success["service"]:
                 continue
+            entries = self.entries(p["fields"], src)
+            if p.get("repeated"):
+                entries.append(self.repeated_entry(p["repeated"], src))
             Container(
                 s,
                 p["name"],
                 base=pus_tm,
                 condition=self.packet_condition(p),
-                entries=self.entries(p["fields"], src),
+                entries=entries,
                 short_description=p["description"],
                 hint_partition=True,
             )
@@ -307,11 +361,14 @@ class Generator:
                 short_description=desc,
             )
         if kind == "binary":
+            # "packet": an embedded CCSDS packet, no length prefix (its own length field
+            # delimits it); "bytes": a u16 length, then the bytes.
+            prefix = None if wire["type"] == "packet" else LENGTH_PREFIX_BITS
             return BinaryArgument(
                 name,
                 min_length=wire["min_len"],
                 max_length=wire["max_len"],
-                encoding=BinaryEncoding(length_bits=LENGTH_PREFIX_BITS),
+                encoding=BinaryEncoding(length_bits=prefix),
                 short_description=desc,
             )
         raise ValueError(f"{name}: no argument for meaning {kind}")
