@@ -346,6 +346,10 @@ fn sample_hk() -> Housekeeping {
         pose_fk_operator: WirePose::from_array([10, -20, 30, -40, 50, -60]),
         pose_commanded_operator: WirePose::from_array([-1, i32::MIN, i32::MAX, 0, 1, 2]),
         parameters_set: 0x0007_0001,
+        limit_lower_legs: 0b00_0001,
+        limit_upper_legs: 0b10_0000,
+        reference_legs: 0b00_0100,
+        switch_unreadable_legs: 0b01_0000,
     }
 }
 

@@ -245,6 +245,10 @@ fn distinct_housekeeping() -> Housekeeping {
         pose_fk_operator: WirePose::from_array([71, -72, 73, -74_000, 75_000, -76_000]),
         pose_commanded_operator: WirePose::from_array([-81, 82, -83, 84_000, -85_000, 86_000]),
         parameters_set: 0x0004_0021,
+        limit_lower_legs: 0b00_0101,
+        limit_upper_legs: 0b10_1000,
+        reference_legs: 0b01_0001,
+        switch_unreadable_legs: 0b00_0110,
     }
 }
 

@@ -1,6 +1,6 @@
 //! The housekeeping report TM[3,25]: [`Housekeeping`] and its byte layout.
 //!
-//! # Layout (source data of TM[3,25], [`HK_REPORT_LEN`] = 133 bytes, big-endian)
+//! # Layout (source data of TM[3,25], [`HK_REPORT_LEN`] = 221 bytes, big-endian)
 //!
 //! | offset | size | type    | field                                                        |
 //! |-------:|-----:|---------|--------------------------------------------------------------|
@@ -40,6 +40,12 @@
 //! |    165 |   24 | 6 x i32 | pose from FK in the operator's frames (pivot, user frame; nm, uas) |
 //! |    189 |   24 | 6 x i32 | commanded pose in the operator's frames (nm, uas)            |
 //! |    213 |    4 | u32     | on-board parameters set (bit i = parameter index i)          |
+//! |    217 |    1 | u8      | legs at the lower end-of-travel switch (bit i = leg i+1)     |
+//! |    218 |    1 | u8      | legs at the upper end-of-travel switch (bit i = leg i+1)     |
+//! |    219 |    1 | u8      | legs at the reference (home) sensor (bit i = leg i+1)        |
+//! |    220 |    1 | u8      | legs with a switch input that cannot be read (bit i = leg i+1) |
+//!
+//! The four switch bytes are the last cycle's read (`hw::TravelSwitches`), unfiltered.
 
 use super::command::WirePose;
 use super::wire::{Order, Reader, Writer};
@@ -48,7 +54,7 @@ use crate::kinematics::LEGS;
 /// Structure ID of the one housekeeping report.
 pub const HK_STRUCTURE_ID: u8 = 1;
 /// Length of the TM[3,25] source data (bytes).
-pub const HK_REPORT_LEN: usize = 217;
+pub const HK_REPORT_LEN: usize = 221;
 /// `selected_source` when no selection record exists.
 pub const NO_SELECTION: u8 = 0xFF;
 
@@ -125,6 +131,14 @@ pub struct Housekeeping {
     pub pose_commanded_operator: WirePose,
     /// On-board parameters set (bit i = parameter index i).
     pub parameters_set: u32,
+    /// Legs at their lower end-of-travel switch (bit i = leg i+1), last cycle's read.
+    pub limit_lower_legs: u8,
+    /// Legs at their upper end-of-travel switch (bit i = leg i+1).
+    pub limit_upper_legs: u8,
+    /// Legs at their reference (home) sensor (bit i = leg i+1).
+    pub reference_legs: u8,
+    /// Legs with a switch input that could not be read (bit i = leg i+1).
+    pub switch_unreadable_legs: u8,
 }
 
 impl Housekeeping {
@@ -180,7 +194,13 @@ impl Housekeeping {
         }
         w.pose(&self.pose_fk_operator)?;
         w.pose(&self.pose_commanded_operator)?;
-        w.u32(self.parameters_set)
+        w.u32(self.parameters_set)?;
+        w.put(&[
+            self.limit_lower_legs,
+            self.limit_upper_legs,
+            self.reference_legs,
+            self.switch_unreadable_legs,
+        ])
     }
 
     /// Checked parse of the TM[3,25] source data (exact length, structure ID 1).
@@ -228,6 +248,10 @@ impl Housekeeping {
             pose_fk_operator: r.pose()?,
             pose_commanded_operator: r.pose()?,
             parameters_set: r.u32()?,
+            limit_lower_legs: r.u8()?,
+            limit_upper_legs: r.u8()?,
+            reference_legs: r.u8()?,
+            switch_unreadable_legs: r.u8()?,
         })
     }
 }
