@@ -582,6 +582,8 @@ fn self_check_failure_is_a_read_failure_of_its_leg() {
             residual_mm: 0.0,
         })),
         drive: Ok(()),
+        switches: TravelSwitches::default(),
+        encoder_warning_legs: 0,
     };
     assert!(sup.check(&inputs(Ok(home))).new_faults.is_empty());
     let v = sup.check(&inputs(Err(EncoderError::SelfCheckFailed { leg: 2 })));

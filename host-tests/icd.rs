@@ -14,7 +14,7 @@ use m2ctl::link::hk::{ScheduleHk, HK_REPORT_LEN};
 use m2ctl::link::tm::EventSeverity;
 use m2ctl::link::tm::TmTime;
 use m2ctl::link::{Command, Housekeeping};
-use m2ctl::sim::{Bench, InjectedFault};
+use m2ctl::sim::{Bench, InjectedFault, SwitchEnd};
 use m2ctl::table::{Table, TABLE_LEN};
 
 fn icd() -> String {
@@ -179,6 +179,16 @@ fn every_event_arrives_with_the_severity_the_icd_names() {
         m2ctl::link::command::ParameterValues::new(&[(0x0003, 25_000_000)]).unwrap(),
     );
     assert!(all_ok(&r.command(&set, JOB_CYCLES)));
+    // An end-of-travel switch (stuck active): event 0x0007, then repaired.
+    r.plant.with(|p| {
+        p.inject(InjectedFault::SwitchStuckActive {
+            leg: 3,
+            end: SwitchEnd::Upper,
+        })
+    });
+    r.run(3);
+    r.plant.with(|p| p.clear_faults());
+    r.run(3);
     let documented = documented_events();
     let mut seen = BTreeSet::new();
     for tm in &r.st.log {
@@ -206,6 +216,7 @@ fn every_event_arrives_with_the_severity_the_icd_names() {
         event::BOOT,
         event::BOOT_DETAIL,
         event::PARAMETERS_CHANGED,
+        event::END_OF_TRAVEL,
     ] {
         assert!(seen.contains(&id), "the scenario did not raise {id:#06x}");
     }
@@ -296,6 +307,10 @@ fn housekeeping_table_matches_the_emitted_bytes() {
             },
             time_report_rate: 0x39,
         },
+        limit_lower_legs: 0x3a,
+        limit_upper_legs: 0x3b,
+        reference_legs: 0x3c,
+        switch_unreadable_legs: 0x3d,
     };
     let mut bytes = [0u8; HK_REPORT_LEN];
     hk.emit(&mut bytes);

@@ -404,6 +404,10 @@ fn sample_hk() -> Housekeeping {
             },
             time_report_rate: 0xff,
         },
+        limit_lower_legs: 0b00_0001,
+        limit_upper_legs: 0b10_0000,
+        reference_legs: 0b00_0100,
+        switch_unreadable_legs: 0b01_0000,
     }
 }
 

@@ -283,6 +283,10 @@ fn distinct_housekeeping() -> Housekeeping {
             },
             time_report_rate: 5,
         },
+        limit_lower_legs: 0b00_0101,
+        limit_upper_legs: 0b10_1000,
+        reference_legs: 0b01_0001,
+        switch_unreadable_legs: 0b00_0110,
     }
 }
 

@@ -66,6 +66,7 @@ fn sliders_move_at_finite_speed_and_encoders_quantise() {
         max_speed_mm_per_s: 0.5,
         encoder_noise_mm: 0.0,
         seed: 1,
+        ..PlantConfig::default()
     };
     let mut p = Plant::new(&PROTOTYPE, cfg).unwrap();
     p.command_strokes_mm(&[1.0, -1.0, 0.5, 0.0, 0.25, 0.123_456_7])

@@ -58,6 +58,10 @@ fn soak_holds_the_operator_contract_every_cycle() {
         share(3),
         share(4)
     );
+    println!(
+        "soak end of travel: {} switch trips (event 0x0007), {} cycles in motion with a leg blocked by a switch",
+        f.switch_trips, f.blocked_motion_cycles
+    );
     assert!(
         s.violations().is_empty(),
         "{} violations, first: {:?}",
@@ -68,5 +72,9 @@ fn soak_holds_the_operator_contract_every_cycle() {
     assert!(
         f.reboots > 0 && f.tcs_done > 100,
         "the soak did too little: {f:?}"
+    );
+    assert!(
+        f.switch_trips > 0 && f.blocked_motion_cycles > 0,
+        "the adversary never tripped a switch during a motion: {f:?}"
     );
 }

@@ -8,7 +8,9 @@
 // Index loops over legs read more clearly than zips here.
 #![allow(clippy::needless_range_loop)]
 
-use m2ctl::hw::{counts_to_mm, DriveError, EncoderError, SliderDrives, StrokeEncoders};
+use m2ctl::hw::{
+    counts_to_mm, DriveError, EncoderError, SliderDrives, StrokeEncoders, TravelSwitches,
+};
 use m2ctl::kinematics::{fk, ik, FkConfig, FkError, FkSolution, Geometry, Pose, LEGS};
 use m2ctl::motion::{MotionLimits, Trajectory, CYCLE_S};
 use m2ctl::nominal::prototype_with_flight_limits;
@@ -36,6 +38,8 @@ fn clean(strokes_mm: [f32; LEGS]) -> CycleInputs {
         motion_commanded: false,
         fk: fk_ok(Pose::home()),
         drive: Ok(()),
+        switches: TravelSwitches::default(),
+        encoder_warning_legs: 0,
     }
 }
 
@@ -305,6 +309,8 @@ fn encoder_stuck_detected_200_readings_after_the_last_progress() {
             motion_commanded: true,
             fk: fk_ok(Pose::home()),
             drive: Ok(()),
+            switches: TravelSwitches::default(),
+            encoder_warning_legs: 0,
         }
     });
     assert_eq!(detected(&v, FaultFlags::ENCODER_STUCK), Some((200, 0b10)));
@@ -329,6 +335,8 @@ fn encoder_stuck_detected_200_readings_after_the_last_progress() {
             motion_commanded: true,
             fk: fk_ok(Pose::home()),
             drive: Ok(()),
+            switches: TravelSwitches::default(),
+            encoder_warning_legs: 0,
         }
     });
     assert_eq!(
@@ -349,6 +357,8 @@ fn encoder_stuck_detected_200_readings_after_the_last_progress() {
             motion_commanded: true,
             fk: fk_ok(Pose::home()),
             drive: Ok(()),
+            switches: TravelSwitches::default(),
+            encoder_warning_legs: 0,
         }
     });
     assert_eq!(all_faults(&v), FaultFlags::empty());
@@ -479,7 +489,9 @@ fn fault_flag_bits_are_stable() {
         (FaultFlags::DRIVE_FAULT, 1 << 7),
         (FaultFlags::TABLE_CORRUPT, 1 << 8),
         (FaultFlags::DEADLINE_MISSED, 1 << 9),
+        (FaultFlags::LIMIT_SWITCH, 1 << 10),
         (FaultFlags::FOLLOWING_WARNING, 1 << 16),
+        (FaultFlags::ENCODER_WARNING, 1 << 17),
     ];
     let mut all = FaultFlags::empty();
     for (f, bits) in expected {
@@ -606,6 +618,8 @@ impl Loop {
             motion_commanded: self.moving_prev,
             fk: fk_res,
             drive: self.drive_prev,
+            switches: TravelSwitches::default(),
+            encoder_warning_legs: 0,
         });
         if !v.warnings.is_empty() {
             self.warnings += 1;

@@ -162,6 +162,14 @@ pub trait EndOfTravel {
     fn read_switches(&mut self) -> TravelSwitches;
 }
 
+/// Everything the controller reads and commands of one mechanism, every control cycle:
+/// the encoders and their warnings, the drives, the end-of-travel switches. The
+/// controller is generic over it; anything with the four parts has it (drivers on a
+/// board, the simulated plant, a board's slider model).
+pub trait MechanismIo: StrokeEncoders + SliderDrives + EndOfTravel + EncoderWarnings {}
+
+impl<T: StrokeEncoders + SliderDrives + EndOfTravel + EncoderWarnings + ?Sized> MechanismIo for T {}
+
 /// Converts encoder counts to strokes (mm) in f32.
 pub fn counts_to_mm(counts: &[i32; LEGS]) -> [f32; LEGS] {
     // f32 holds integers exactly up to 2^24 counts (1.6 m of stroke), far beyond the slider.

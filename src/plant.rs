@@ -7,8 +7,13 @@
 //!   encoder noise, missed steps and the other injected faults.
 //!
 //! Strokes are in mm along base z, 0 at home; counts are [`ENCODER_MM_PER_COUNT`].
+//!
+//! The core has no end-of-travel switches, reference sensors or encoder warnings: its
+//! [`EndOfTravel`] reads every input inactive and readable, its [`EncoderWarnings`]
+//! none. That is what a board model built on it (QEMU's, which emulates no GPIO behind
+//! the sliders) reports by delegating to it; the host simulation has its own.
 
-use crate::hw::ENCODER_MM_PER_COUNT;
+use crate::hw::{EncoderWarnings, EndOfTravel, TravelSwitches, ENCODER_MM_PER_COUNT};
 use crate::kinematics::{Real, LEGS};
 
 /// Six position-commanded sliders: each drive moves its slider toward its setpoint by at
@@ -109,6 +114,20 @@ impl<T: Real> Sliders<T> {
             .zip(self.setpoint_mm.iter())
             .enumerate()
             .all(|(leg, (p, sp))| p == sp || blocked(leg))
+    }
+}
+
+/// No switches: every input inactive and readable.
+impl<T> EndOfTravel for Sliders<T> {
+    fn read_switches(&mut self) -> TravelSwitches {
+        TravelSwitches::default()
+    }
+}
+
+/// No encoder warnings.
+impl<T> EncoderWarnings for Sliders<T> {
+    fn warning_legs(&self) -> u8 {
+        0
     }
 }
 

@@ -60,3 +60,17 @@ impl SliderDrives for QemuSliders {
         Ok(())
     }
 }
+
+// An emulated board has no end-of-travel switches and no encoder warnings: the model's
+// own (none active, none reported).
+impl crate::hw::EndOfTravel for QemuSliders {
+    fn read_switches(&mut self) -> crate::hw::TravelSwitches {
+        self.sliders.read_switches()
+    }
+}
+
+impl crate::hw::EncoderWarnings for QemuSliders {
+    fn warning_legs(&self) -> u8 {
+        self.sliders.warning_legs()
+    }
+}

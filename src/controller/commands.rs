@@ -4,7 +4,7 @@ use super::error::CommandError;
 use super::jobs::{JobKind, JobRequest};
 use super::verification::{Outcome, PendingKind, PendingTc};
 use super::{event, Controller, TmRecord};
-use crate::hw::{SliderDrives, StrokeEncoders};
+use crate::hw::MechanismIo;
 use crate::link::command::{NM_PER_MM, TABLE_CHUNK_MAX_LEN};
 use crate::link::tc::{decode_telecommand, Telecommand};
 use crate::link::tm::{EventSeverity, Verification};
@@ -14,7 +14,7 @@ use crate::table::TABLE_LEN;
 /// Nanometres per millimetre, in the f32 the flight code converts with.
 const NM_PER_MM_F32: f32 = NM_PER_MM as f32;
 
-impl<M: SliderDrives + StrokeEncoders> Controller<M> {
+impl<M: MechanismIo> Controller<M> {
     /// One telecommand packet (the bytes of one deframed frame): decode, report,
     /// execute. A refused telecommand changes nothing but the counters and the reports.
     pub fn handle_telecommand(&mut self, packet: &[u8]) {

@@ -23,7 +23,7 @@
 
 use super::telemetry::{Stamped, TmRecord};
 use super::{Controller, JobRequest, JobResult};
-use crate::hw::{SliderDrives, StrokeEncoders};
+use crate::hw::MechanismIo;
 use crate::link::framing::{max_cobs_len, Deframer};
 use crate::link::tm::{TmTime, TmWriter};
 use crate::link::{Housekeeping, MAX_TC_PACKET_LEN, MAX_TM_FRAME_LEN};
@@ -136,7 +136,7 @@ impl LinkService {
     /// One pass: receive, then transmit (module documentation).
     pub fn pass<M, C>(&mut self, ctl: &mut C, rx: &mut impl RxBytes, tx: &mut impl TxBytes)
     where
-        M: SliderDrives + StrokeEncoders,
+        M: MechanismIo,
         C: Exclusive<Controller<M>>,
     {
         self.receive(ctl, rx);
@@ -147,7 +147,7 @@ impl LinkService {
     /// first, then from the RX bytes.
     pub fn receive<M, C>(&mut self, ctl: &mut C, rx: &mut impl RxBytes)
     where
-        M: SliderDrives + StrokeEncoders,
+        M: MechanismIo,
         C: Exclusive<Controller<M>>,
     {
         ctl.lock(|c| c.link_pass_start());
@@ -174,7 +174,7 @@ impl LinkService {
     /// Step 2: encode queued records while their frames fit in the TX queue.
     pub fn transmit<M, C>(&mut self, ctl: &mut C, tx: &mut impl TxBytes)
     where
-        M: SliderDrives + StrokeEncoders,
+        M: MechanismIo,
         C: Exclusive<Controller<M>>,
     {
         loop {
@@ -257,7 +257,7 @@ impl LinkService {
     /// Moves job requests from the controller to the worker and results back.
     pub fn exchange_jobs<M, C>(&mut self, ctl: &mut C, port: &mut impl JobPort)
     where
-        M: SliderDrives + StrokeEncoders,
+        M: MechanismIo,
         C: Exclusive<Controller<M>>,
     {
         while let Some(result) = port.recv() {

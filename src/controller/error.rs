@@ -57,6 +57,10 @@ pub enum CommandError {
     Parameter(super::params::ParamError),
     /// A time-based schedule telecommand refused (`ScheduleError` codes 0x0B0x).
     Schedule(ScheduleError),
+    /// 0x070E: a direct-stroke move toward an end-of-travel switch that is active, or
+    /// was seen since the limit-switch fault latched (data: the legs blocked in the
+    /// move's direction, bit i = leg i+1).
+    TowardEndOfTravel(u8),
 }
 
 /// Reasons a leg's encoder is suspect for a direct-stroke move (0x070B's data bits).
@@ -96,6 +100,7 @@ impl CommandError {
             CommandError::EncoderSuspect(_) => 0x070B,
             CommandError::NoGeometry => 0x070C,
             CommandError::JobBusy(_) => 0x070D,
+            CommandError::TowardEndOfTravel(_) => 0x070E,
             CommandError::Parameter(e) => e.code(),
             CommandError::Schedule(e) => e.code(),
         }
@@ -120,6 +125,7 @@ impl CommandError {
             CommandError::PendingMismatch { pending_id } => *pending_id,
             CommandError::EncoderSuspect(bits) => *bits,
             CommandError::JobBusy(job) => *job as u32,
+            CommandError::TowardEndOfTravel(legs) => u32::from(*legs),
             CommandError::Parameter(e) => e.data(),
             CommandError::Schedule(e) => e.data(),
             _ => 0,

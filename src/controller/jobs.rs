@@ -31,7 +31,7 @@
 //!   it is the validated table byte for byte.
 
 use super::{ActiveTable, Controller};
-use crate::hw::{SliderDrives, StrokeEncoders};
+use crate::hw::MechanismIo;
 use crate::link::tm::EventSeverity;
 use crate::supervision::{FaultFlags, SupervisionConfig};
 use crate::table::{
@@ -234,7 +234,7 @@ impl JobLane {
     }
 }
 
-impl<M: SliderDrives + StrokeEncoders> Controller<M> {
+impl<M: MechanismIo> Controller<M> {
     /// The next request for the worker (an operator job first, then a scrub snapshot).
     pub fn take_job_request(&mut self) -> Option<JobRequest> {
         if let Some(r) = self.jobs.outbox.take() {

@@ -18,11 +18,16 @@
 //!    image of the running table.
 //!
 //! # A control cycle, in order
-//! 1. encoders ([`StrokeEncoders`]); 2. FK warm-started from the last pose;
+//! 1. encoders ([`StrokeEncoders`]), their warnings ([`EncoderWarnings`]) and the
+//!    end-of-travel switches ([`EndOfTravel`]), one read each; a change to a non-empty
+//!    set of active switches is event [`event::END_OF_TRAVEL`];
+//! 2. FK warm-started from the last pose;
 //! 3. supervision ([`Supervisor`]): a new fault stops any motion at the acceleration
 //!    limit (a corrupted running table holds at once), latches, and is reported;
 //! 4. motion: the active trajectory's setpoint pose -> IK -> six strokes -> drives
-//!    ([`SliderDrives`]), or a direct-stroke move; at rest the drives are polled;
+//!    ([`SliderDrives`]), or a direct-stroke move; at rest the drives are polled. A
+//!    leg whose end-of-travel switch is active (or unreadable) is never commanded
+//!    further toward it, from the cycle the switch is seen to the end of that motion;
 //! 5. periodic work: housekeeping every `hk_period` cycles (a parameter, default
 //!    [`crate::timing::HK_PERIOD_CYCLES`]), a RAM-scrub snapshot every
 //!    [`SCRUB_PERIOD_CYCLES`];
@@ -33,13 +38,23 @@
 //! * a move is all-or-nothing: refused with every workspace reason unless every leg can
 //!   make the whole path; no move while a fault is latched, while moving or while a
 //!   table job runs;
-//! * every motion starts from the strokes the drives hold ([`SliderDrives::setpoints_mm`]),
-//!   so its first setpoint is continuous with them; a direct-stroke move moves one leg
-//!   from its own held setpoint and every other leg keeps exactly its setpoint;
+//! * every motion starts from the strokes the drives hold
+//!   ([`SliderDrives::setpoints_mm`]), so its first setpoint is continuous with them;
+//!   a direct-stroke move moves one leg from its own held setpoint and every other leg
+//!   keeps exactly its setpoint;
 //! * tables change between motions only; a commit never changes what boots; what the
 //!   operator last selected (activate, switch bank, revert to nominal) is what boots;
 //! * completion of a move is reported when the mirror has arrived (TM[1,7]) or, if a
-//!   stop or a fault ended it, as a completion failure (TM[1,8]).
+//!   stop or a fault ended it, as a completion failure (TM[1,8]);
+//! * an end-of-travel switch stops its leg in that direction in the cycle it is seen and
+//!   latches [`FaultFlags::LIMIT_SWITCH`]; until it is cleared only direct strokes away
+//!   from the switches seen are accepted, and the clear only once no switch is active.
+//!
+//! [`StrokeEncoders`]: crate::hw::StrokeEncoders
+//! [`EncoderWarnings`]: crate::hw::EncoderWarnings
+//! [`EndOfTravel`]: crate::hw::EndOfTravel
+//! [`SliderDrives`]: crate::hw::SliderDrives
+//! [`SliderDrives::setpoints_mm`]: crate::hw::SliderDrives::setpoints_mm
 
 // `!(x <= t)` is deliberate: unlike `x > t` it is also true for NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -56,7 +71,7 @@ mod commands;
 pub mod motion;
 mod verification;
 
-use crate::hw::{counts_to_mm, DriveError, SliderDrives, StrokeEncoders};
+use crate::hw::{counts_to_mm, DriveError, MechanismIo, TravelSwitches};
 use crate::kinematics::{
     fk, FkConfig, FkError, FkSolution, Frames, Geometry, GeometryError, Pose, LEGS,
 };
@@ -272,6 +287,18 @@ pub struct Controller<M> {
     last_drive: Result<(), DriveError>,
     moving_prev: bool,
     warnings: FaultFlags,
+    /// The end-of-travel switches and reference sensors as read in the last cycle.
+    switches: TravelSwitches,
+    /// Every switch seen active or unreadable while [`FaultFlags::LIMIT_SWITCH`] has
+    /// been latched: the directions a direct stroke may not take until the clear.
+    switches_since_latch: TravelSwitches,
+    /// Legs the current motion may not move toward smaller / larger strokes: every
+    /// switch seen since the motion began (a switch that releases mid-motion keeps its
+    /// leg held, so the command never jumps back to the path).
+    clamp_negative: u8,
+    clamp_positive: u8,
+    /// The set of active switches last reported by [`event::END_OF_TRAVEL`] (its aux0).
+    end_of_travel_reported: u32,
     /// Control cycles run since boot: the motion time base and the telemetry clock.
     cycle: u32,
     tm: TmQueue,
@@ -292,7 +319,7 @@ pub struct Controller<M> {
     time_reports: time::TimeReports,
 }
 
-impl<M: SliderDrives + StrokeEncoders> Controller<M> {
+impl<M: MechanismIo> Controller<M> {
     /// Starts on the table boot selected (`table`, `boot`: [`crate::table::TableStore::boot`]),
     /// holds the sliders where their drives are, and takes the first reading.
     pub fn new(mech: M, table: Table, boot: BootReport) -> Self {
@@ -346,6 +373,11 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             last_drive: Ok(()),
             moving_prev: false,
             warnings: FaultFlags::empty(),
+            switches: TravelSwitches::default(),
+            switches_since_latch: TravelSwitches::default(),
+            clamp_negative: 0,
+            clamp_positive: 0,
+            end_of_travel_reported: 0,
             cycle: 0,
             tm: TmQueue::new(),
             tc_accepted: 0,
@@ -366,7 +398,9 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
     /// are and takes the first reading.
     pub fn start(&mut self) {
         self.hold_here();
-        if let Ok(counts) = self.mech.read_counts() {
+        let first = self.mech.read_counts();
+        self.switches = self.mech.read_switches();
+        if let Ok(counts) = first {
             self.encoders_mm = counts_to_mm(&counts);
             self.encoders_valid = true;
             if let Ok(sol) = fk(
@@ -432,8 +466,11 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             self.boot_event_sent = true;
             self.emit_boot_events();
         }
-        // 1. Encoders.
+        // 1. Encoders, their warnings, the end-of-travel switches.
         let readings = self.mech.read_counts().map(|c| counts_to_mm(&c));
+        let encoder_warning_legs = self.mech.warning_legs();
+        self.switches = self.mech.read_switches();
+        self.report_end_of_travel();
         // 2. Forward kinematics, warm-started.
         let fk_result: Option<Result<FkSolution<f32>, FkError>> = match &readings {
             Ok(s) => {
@@ -471,7 +508,14 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             motion_commanded: self.moving_prev,
             fk: fk_result,
             drive: self.last_drive,
+            switches: self.switches,
+            encoder_warning_legs,
         });
+        self.switches_since_latch = if verdict.latched.contains(FaultFlags::LIMIT_SWITCH) {
+            or_switches(&self.switches_since_latch, &self.switches)
+        } else {
+            TravelSwitches::default()
+        };
         if verdict.warnings != self.warnings {
             self.warnings = verdict.warnings;
             self.event(
@@ -541,6 +585,33 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             self.supervisor
                 .set_external_condition(FaultFlags::DEADLINE_MISSED, false);
         }
+    }
+
+    /// Event [`event::END_OF_TRAVEL`] when the set of active end-of-travel switches (or
+    /// unreadable inputs) changes to a non-empty one.
+    fn report_end_of_travel(&mut self) {
+        let word = end_of_travel_word(&self.switches);
+        if word != self.end_of_travel_reported {
+            self.end_of_travel_reported = word;
+            if word != 0 {
+                self.event(
+                    EventSeverity::High,
+                    event::END_OF_TRAVEL,
+                    [word, self.cycle],
+                );
+            }
+        }
+    }
+
+    /// Legs a direct stroke may not move toward smaller (`.0`) and larger (`.1`) strokes:
+    /// the switches of the last read, and while [`FaultFlags::LIMIT_SWITCH`] is latched
+    /// every switch seen since it latched.
+    pub(super) fn end_of_travel_blocked(&self) -> (u8, u8) {
+        let mut s = self.switches;
+        if self.supervisor.latched().contains(FaultFlags::LIMIT_SWITCH) {
+            s = or_switches(&s, &self.switches_since_latch);
+        }
+        (s.blocked_negative(), s.blocked_positive())
     }
 
     fn emit_boot_events(&mut self) {
@@ -661,6 +732,10 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             ),
             parameters_set: self.params.set_mask(),
             schedule: self.schedule_hk(),
+            limit_lower_legs: self.switches.lower,
+            limit_upper_legs: self.switches.upper,
+            reference_legs: self.switches.reference,
+            switch_unreadable_legs: self.switches.unreadable,
         }
     }
 
@@ -705,6 +780,16 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         self.strokes_commanded_mm
     }
 
+    /// The end-of-travel switches and reference sensors as read in the last cycle.
+    pub fn switches(&self) -> TravelSwitches {
+        self.switches
+    }
+
+    /// The mechanism (drives, encoders, switches) the controller owns.
+    pub fn mechanism(&self) -> &M {
+        &self.mech
+    }
+
     /// The telemetry records waiting for the link service.
     pub fn tm_queue(&mut self) -> &mut TmQueue {
         &mut self.tm
@@ -720,6 +805,32 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         let mut cfg = *self.supervisor.config();
         f(&mut self.active, &mut cfg);
         self.supervisor.set_config(cfg);
+    }
+}
+
+/// Bit of the lowest leg in the lower-switch byte of [`event::END_OF_TRAVEL`]'s aux0.
+const EOT_LOWER_SHIFT: u32 = 0;
+/// Bit of the lowest leg in the upper-switch byte.
+const EOT_UPPER_SHIFT: u32 = 8;
+/// Bit of the lowest leg in the unreadable-input byte.
+const EOT_UNREADABLE_SHIFT: u32 = 16;
+
+/// aux0 of [`event::END_OF_TRAVEL`]: legs at the lower switch (bits 0..5), at the upper
+/// switch (bits 8..13), with an unreadable input (bits 16..21); 0: none.
+fn end_of_travel_word(s: &TravelSwitches) -> u32 {
+    let legs = crate::supervision::ALL_LEGS;
+    (u32::from(s.lower & legs) << EOT_LOWER_SHIFT)
+        | (u32::from(s.upper & legs) << EOT_UPPER_SHIFT)
+        | (u32::from(s.unreadable & legs) << EOT_UNREADABLE_SHIFT)
+}
+
+/// Every input active (or unreadable) in either reading.
+fn or_switches(a: &TravelSwitches, b: &TravelSwitches) -> TravelSwitches {
+    TravelSwitches {
+        lower: a.lower | b.lower,
+        upper: a.upper | b.upper,
+        reference: a.reference | b.reference,
+        unreadable: a.unreadable | b.unreadable,
     }
 }
 

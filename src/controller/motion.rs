@@ -4,8 +4,8 @@
 use super::error::{suspect, CommandError};
 use super::verification::Outcome;
 use super::{event, Controller, State};
-use crate::hw::{SliderDrives, StrokeEncoders};
-use crate::kinematics::{fk, ik, Pose};
+use crate::hw::MechanismIo;
+use crate::kinematics::{fk, ik, Pose, LEGS};
 use crate::link::tm::EventSeverity;
 use crate::motion::{
     DirectStrokeLimits, PlanStart, StrokeMove, Trajectory, TrajectoryPlanner, PATH_SAMPLE_INTERVALS,
@@ -43,7 +43,7 @@ const ENCODER_FAULTS: [(FaultFlags, u32); 3] = [
     (FaultFlags::ENCODER_STUCK, suspect::STUCK),
 ];
 
-impl<M: SliderDrives + StrokeEncoders> Controller<M> {
+impl<M: MechanismIo> Controller<M> {
     /// Turns the current motion into a stop ramp (no-op when holding).
     pub(super) fn begin_stop(&mut self) {
         let now = self.cycle;
@@ -195,9 +195,13 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             }
         };
         if matches!(self.motion, Motion::Hold | Motion::Planning(_)) {
-            // Nothing is commanded at rest: poll the drives' health instead.
+            // Nothing is commanded at rest: poll the drives' health instead. The next
+            // motion's end-of-travel clamp starts from its own first cycle's switches.
             self.last_drive = self.mech.status();
+            self.clamp_negative = 0;
+            self.clamp_positive = 0;
         } else {
+            let strokes = self.clamp_to_switches(strokes);
             self.strokes_commanded_mm = strokes;
             self.last_drive = self.mech.command_strokes_mm(&strokes);
         }
@@ -216,6 +220,32 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
             }
             self.end_pending_move(stopping);
         }
+    }
+
+    /// The end-of-travel clamp, applied to every stroke command just before it goes to
+    /// the drives: a leg whose switch blocks larger strokes (upper switch active, or an
+    /// input unreadable) is commanded no further up than its previous command, one
+    /// blocked toward smaller strokes no further down; blocked both ways, it keeps its
+    /// previous command. A block lasts from the cycle the switch is seen to the end of
+    /// the motion, so the command never jumps back to the path when a switch releases.
+    fn clamp_to_switches(&mut self, mut strokes: [f32; LEGS]) -> [f32; LEGS] {
+        self.clamp_negative |= self.switches.blocked_negative();
+        self.clamp_positive |= self.switches.blocked_positive();
+        for (i, (s, prev)) in strokes
+            .iter_mut()
+            .zip(self.strokes_commanded_mm.iter())
+            .enumerate()
+        {
+            let bit = 1u8 << i;
+            // `!(a <= b)` also catches NaN: the leg keeps its previous command.
+            if self.clamp_positive & bit != 0 && !(*s <= *prev) {
+                *s = *prev;
+            }
+            if self.clamp_negative & bit != 0 && !(*s >= *prev) {
+                *s = *prev;
+            }
+        }
+        strokes
     }
 
     fn require_geometry(&self) -> Result<(), CommandError> {
@@ -409,6 +439,20 @@ impl<M: SliderDrives + StrokeEncoders> Controller<M> {
         let why = self.encoder_suspect(usize::from(idx), own);
         if why != 0 {
             return Err(CommandError::EncoderSuspect(why));
+        }
+        // Only away from an end-of-travel switch: not toward one active now or seen
+        // since the limit-switch fault latched (an unreadable input blocks both ways).
+        let (blocked_negative, blocked_positive) = self.end_of_travel_blocked();
+        let leg_bit = 1u8.checked_shl(u32::from(idx)).unwrap_or(0);
+        let toward = if delta_mm > 0.0 {
+            blocked_positive
+        } else if delta_mm < 0.0 {
+            blocked_negative
+        } else {
+            0
+        };
+        if toward & leg_bit != 0 {
+            return Err(CommandError::TowardEndOfTravel(toward));
         }
         let (speed, accel, delta) = self.ops.direct;
         let limits = DirectStrokeLimits {

@@ -45,7 +45,7 @@ use heapless::Vec;
 use super::error::CommandError;
 use super::verification::Outcome;
 use super::{event, Controller, TmRecord};
-use crate::hw::{SliderDrives, StrokeEncoders};
+use crate::hw::MechanismIo;
 use crate::link::hk::ScheduleHk;
 use crate::link::schedule::{
     ActivityBlock, ObtOffset, RequestIdList, ScheduleCommand, SummaryEntry, TimeTagged,
@@ -337,7 +337,7 @@ impl Schedule {
 /// The schedule's entries, copied out for the summary report.
 pub type ScheduleSummary = Vec<SummaryEntry, SCHEDULE_CAPACITY>;
 
-impl<M: SliderDrives + StrokeEncoders> Controller<M> {
+impl<M: MechanismIo> Controller<M> {
     /// The on-board time now: the time stamp of the records made now, and the clock of
     /// the schedule's release times.
     pub fn obt(&self) -> TmTime {

@@ -9,7 +9,7 @@
 
 use super::verification::Outcome;
 use super::{Controller, TmRecord};
-use crate::hw::{SliderDrives, StrokeEncoders};
+use crate::hw::MechanismIo;
 use crate::link::time::TimeReportRate;
 use crate::timing::CONTROL_RATE_HZ;
 
@@ -45,7 +45,7 @@ fn next_multiple(rate: TimeReportRate, cycle: u64) -> Option<u64> {
         .checked_mul(period)
 }
 
-impl<M: SliderDrives + StrokeEncoders> Controller<M> {
+impl<M: MechanismIo> Controller<M> {
     /// TC[9,1]: the new rate applies from the next multiple of its period.
     pub(super) fn set_time_report_rate(&mut self, rate: TimeReportRate) -> Outcome {
         self.time_reports = TimeReports {

@@ -16,7 +16,7 @@
 
 use super::error::CommandError;
 use super::{Controller, TmRecord};
-use crate::hw::{SliderDrives, StrokeEncoders};
+use crate::hw::MechanismIo;
 use crate::link::tc::{AckFlags, RequestId};
 use crate::link::tm::Verification;
 
@@ -58,7 +58,7 @@ impl PendingTc {
     }
 }
 
-impl<M: SliderDrives + StrokeEncoders> Controller<M> {
+impl<M: MechanismIo> Controller<M> {
     /// Queues a verification report; a failure is also remembered for housekeeping.
     pub(super) fn verify(&mut self, request_id: RequestId, report: Verification) {
         if let Some((code, _)) = report.failure() {

@@ -10,6 +10,9 @@
 //! * [`switches`]: lower/upper end-of-travel switches and a reference sensor per slider
 //!   -> [`hw::EndOfTravel`].
 //! * [`Mechanism`]: the three together as the one `mech` object the controller takes.
+//!   Its switch read also stops the drives at once in every blocked direction
+//!   ([`DirectionInhibit`]): an end-of-travel switch stops its leg in the driver, within
+//!   the cycle it is read, independently of what the controller commands next.
 //!
 //! Nothing here allocates or panics; every hardware failure becomes a [`hw`] error.
 //!
@@ -85,8 +88,34 @@ impl<E, D: IssuedStrokes, S> IssuedStrokes for Mechanism<E, D, S> {
     }
 }
 
-impl<E, D, S: EndOfTravel> EndOfTravel for Mechanism<E, D, S> {
+/// Drives that can refuse motion in one direction per leg at once: the hardware-level
+/// stop of the end-of-travel switches.
+pub trait DirectionInhibit {
+    /// Blocks motion toward smaller (`negative_legs`) and larger (`positive_legs`)
+    /// strokes, per leg (bit i = leg i+1), until the next call; a motion already under
+    /// way in a newly blocked direction stops now. Motion away stays possible.
+    fn inhibit(&mut self, negative_legs: u8, positive_legs: u8);
+}
+
+impl<P, DIR, EN, FLT> DirectionInhibit for stepper::StepDirDrives<P, DIR, EN, FLT>
+where
+    P: stepper::StepPulses,
+    DIR: embedded_hal::digital::OutputPin,
+    EN: embedded_hal::digital::OutputPin,
+    FLT: embedded_hal::digital::InputPin,
+{
+    fn inhibit(&mut self, negative_legs: u8, positive_legs: u8) {
+        stepper::StepDirDrives::inhibit(self, negative_legs, positive_legs);
+    }
+}
+
+/// Reads the switches and, before returning, applies them to the drives
+/// ([`DirectionInhibit::inhibit`] with `blocked_negative`/`blocked_positive`).
+impl<E, D: DirectionInhibit, S: EndOfTravel> EndOfTravel for Mechanism<E, D, S> {
     fn read_switches(&mut self) -> TravelSwitches {
-        self.switches.read_switches()
+        let s = self.switches.read_switches();
+        self.drives
+            .inhibit(s.blocked_negative(), s.blocked_positive());
+        s
     }
 }

@@ -1442,6 +1442,35 @@ pub fn housekeeping_fields() -> Vec<(Field, Option<HkGetter>)> {
         ),
         Some(|h| i64::from(h.schedule.time_report_rate)),
     ));
+    let switches: [(&str, usize, &str, HkGetter); 4] = [
+        (
+            "limit_lower_legs",
+            230,
+            "legs at their lower end-of-travel switch (last cycle's read)",
+            |h| i64::from(h.limit_lower_legs),
+        ),
+        (
+            "limit_upper_legs",
+            231,
+            "legs at their upper end-of-travel switch (last cycle's read)",
+            |h| i64::from(h.limit_upper_legs),
+        ),
+        (
+            "reference_legs",
+            232,
+            "legs at their reference (home) sensor",
+            |h| i64::from(h.reference_legs),
+        ),
+        (
+            "switch_unreadable_legs",
+            233,
+            "legs with a switch input that cannot be read (both directions blocked)",
+            |h| i64::from(h.switch_unreadable_legs),
+        ),
+    ];
+    for (name, off, what, g) in switches {
+        v.push((b(name, off, Wire::U8, "leg_mask", what), Some(g)));
+    }
     v
 }
 
@@ -2011,6 +2040,7 @@ pub fn failure_samples() -> Vec<(&'static str, u16, String)> {
         CommandError::EncoderSuspect(0),
         CommandError::NoGeometry,
         CommandError::JobBusy(0),
+        CommandError::TowardEndOfTravel(0),
     ] {
         push("CONTROLLER", e.code(), format!("{e:?}"));
     }
@@ -2125,6 +2155,14 @@ pub fn events() -> Vec<Event> {
             aux0: "refusal bits (refusal_bits)",
             aux1: "control cycle",
             message: "setpoint on a planned path failed IK (motion holds): refusal bits {aux0}, cycle {aux1}",
+        },
+        Event {
+            id: event_id::END_OF_TRAVEL,
+            name: "END_OF_TRAVEL",
+            severities: sev(&[EventSeverity::High]),
+            aux0: "legs at the lower switch (bits 0..5), at the upper switch (bits 8..13), with an unreadable input (bits 16..21)",
+            aux1: "control cycle",
+            message: "end of travel: switches {aux0} at cycle {aux1} (legs stopped toward them)",
         },
         Event {
             id: event_id::TABLE_ACTIVATED,
@@ -2294,9 +2332,19 @@ pub fn fault_flag_bits() -> Vec<(u32, String, String)> {
             "fault: control cycles overran their period 3 times in a row",
         ),
         (
+            FaultFlags::LIMIT_SWITCH,
+            "LIMIT_SWITCH",
+            "fault: an end-of-travel switch active, or a switch input unreadable",
+        ),
+        (
             FaultFlags::FOLLOWING_WARNING,
             "FOLLOWING_WARNING",
             "warning: following error above the warning threshold",
+        ),
+        (
+            FaultFlags::ENCODER_WARNING,
+            "ENCODER_WARNING",
+            "warning: an encoder reports its warning bit (maintenance: e.g. a dirty scale)",
         ),
     ];
     flags

@@ -1,6 +1,6 @@
 //! The housekeeping report TM[3,25]: [`Housekeeping`] and its byte layout.
 //!
-//! # Layout (source data of TM[3,25], [`HK_REPORT_LEN`] = 230 bytes, big-endian)
+//! # Layout (source data of TM[3,25], [`HK_REPORT_LEN`] = 234 bytes, big-endian)
 //!
 //! | offset | size | type    | field                                                        |
 //! |-------:|-----:|---------|--------------------------------------------------------------|
@@ -51,6 +51,17 @@
 //! |    221 |    2 | u16     | released activities that failed (wrapping)                   |
 //! |    223 |    6 | CUC 4+2 | release time of the next activity (0 if none)                |
 //! |    229 |    1 | u8      | time report rate: N of 2^N s, 255 off                        |
+//!
+//! End-of-travel switches and reference sensors:
+//!
+//! | offset | size | type    | field                                                        |
+//! |-------:|-----:|---------|--------------------------------------------------------------|
+//! |    230 |    1 | u8      | legs at the lower end-of-travel switch (bit i = leg i+1)     |
+//! |    231 |    1 | u8      | legs at the upper end-of-travel switch (bit i = leg i+1)     |
+//! |    232 |    1 | u8      | legs at the reference (home) sensor (bit i = leg i+1)        |
+//! |    233 |    1 | u8      | legs with a switch input that cannot be read (bit i = leg i+1) |
+//!
+//! The four switch bytes are the last cycle's read (`hw::TravelSwitches`), unfiltered.
 
 use super::command::WirePose;
 use super::tm::TmTime;
@@ -60,7 +71,7 @@ use crate::kinematics::LEGS;
 /// Structure ID of the one housekeeping report.
 pub const HK_STRUCTURE_ID: u8 = 1;
 /// Length of the TM[3,25] source data (bytes).
-pub const HK_REPORT_LEN: usize = 230;
+pub const HK_REPORT_LEN: usize = 234;
 /// `selected_source` when no selection record exists.
 pub const NO_SELECTION: u8 = 0xFF;
 
@@ -137,6 +148,14 @@ pub struct Housekeeping {
     pub pose_commanded_operator: WirePose,
     /// On-board parameters set (bit i = parameter index i).
     pub parameters_set: u32,
+    /// Legs at their lower end-of-travel switch (bit i = leg i+1), last cycle's read.
+    pub limit_lower_legs: u8,
+    /// Legs at their upper end-of-travel switch (bit i = leg i+1).
+    pub limit_upper_legs: u8,
+    /// Legs at their reference (home) sensor (bit i = leg i+1).
+    pub reference_legs: u8,
+    /// Legs with a switch input that could not be read (bit i = leg i+1).
+    pub switch_unreadable_legs: u8,
     /// The time-based schedule and the time reports (offsets 217..230).
     pub schedule: ScheduleHk,
 }
@@ -234,7 +253,13 @@ impl Housekeeping {
         w.pose(&self.pose_fk_operator)?;
         w.pose(&self.pose_commanded_operator)?;
         w.u32(self.parameters_set)?;
-        self.schedule.write(w)
+        self.schedule.write(w)?;
+        w.put(&[
+            self.limit_lower_legs,
+            self.limit_upper_legs,
+            self.reference_legs,
+            self.switch_unreadable_legs,
+        ])
     }
 
     /// Checked parse of the TM[3,25] source data (exact length, structure ID 1).
@@ -283,6 +308,10 @@ impl Housekeeping {
             pose_commanded_operator: r.pose()?,
             parameters_set: r.u32()?,
             schedule: ScheduleHk::read(&mut r)?,
+            limit_lower_legs: r.u8()?,
+            limit_upper_legs: r.u8()?,
+            reference_legs: r.u8()?,
+            switch_unreadable_legs: r.u8()?,
         })
     }
 }

@@ -294,6 +294,11 @@ pub mod event_id {
     /// A setpoint on a planned path failed IK (a defect guard: the motion holds).
     /// aux0: refusal bits, aux1: control cycle.
     pub const SETPOINT_REFUSED: u16 = 0x0006;
+    /// The set of active end-of-travel switches changed to a non-empty one (the leg is
+    /// stopped in that direction; fault `LIMIT_SWITCH` latches). aux0: legs at the lower
+    /// switch (bits 0..5), at the upper switch (bits 8..13), with an unreadable switch
+    /// input (bits 16..21), bit i = leg i+1; aux1: control cycle.
+    pub const END_OF_TRAVEL: u16 = 0x0007;
     /// A table was activated. aux0: table ID, aux1: CRC-32.
     pub const TABLE_ACTIVATED: u16 = 0x0010;
     /// A table was rejected (commit/activation). aux0: failure code, aux1: table ID.
@@ -623,10 +628,10 @@ pub struct TmPacket<'a> {
 }
 
 /// The content of a TM packet.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-// The housekeeping report is the one large variant; a parsed report is a transient
-// value (no heap on the target, and the station's log keeps one per packet).
+// The housekeeping variant is the whole report (234 bytes): a parse result is matched
+// where it is made and never stored in bulk, and a `no_std` link has no heap to box it.
 #[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TmReport<'a> {
     /// TM[1,x].
     Verification {

@@ -18,4 +18,4 @@ pub mod soak;
 pub mod tracker;
 
 pub use bench::{Bench, BenchConfig};
-pub use plant::{InjectedFault, Plant, PlantConfig, SharedPlant};
+pub use plant::{InjectedFault, Plant, PlantConfig, SharedPlant, SwitchEnd};

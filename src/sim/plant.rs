@@ -3,7 +3,15 @@
 //!
 //! The sliders and the encoder quantisation are the `no_std` core in [`crate::plant`]
 //! (the same code the QEMU board runs); this module adds what only a simulation has: the
-//! true geometry, encoder noise, missed steps and the other injected faults.
+//! true geometry, encoder noise and warnings, the end-of-travel switches and reference
+//! sensors, missed steps and the other injected faults.
+//!
+//! Switches: per leg a lower and an upper end-of-travel switch at fixed strokes
+//! ([`PlantConfig::lower_switch_mm`], [`PlantConfig::upper_switch_mm`], by default
+//! [`DEFAULT_SWITCH_MARGIN_MM`] beyond the ±[`STROKE_LIMIT_MM`] stroke limits), active
+//! while the **true** slider stroke is at or beyond them, and a reference sensor active
+//! within [`REFERENCE_HALF_WIDTH_MM`] of home. They are read when the controller reads
+//! them ([`EndOfTravel::read_switches`]), from where the sliders are then.
 //!
 //! The controller owns its hardware; the simulation's test bench must still advance the
 //! plant's time and inject faults. [`SharedPlant`] is that: a cheap handle onto one
@@ -17,10 +25,14 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use rand_pcg::Pcg64;
 
-use crate::hw::{DriveError, EncoderError, SliderDrives, StrokeEncoders};
+use crate::hw::{
+    DriveError, EncoderError, EncoderWarnings, EndOfTravel, SliderDrives, StrokeEncoders,
+    TravelSwitches,
+};
 use crate::kinematics::{
     fk, FkConfig, FkError, Geometry, GeometryError, GeometryParams, Pose, LEGS,
 };
+use crate::nominal::STROKE_LIMIT_MM;
 use crate::plant::{nearest_count, Sliders};
 
 /// Plant settings.
@@ -32,12 +44,24 @@ pub struct PlantConfig {
     pub encoder_noise_mm: f64,
     /// Seed of the encoder-noise generator.
     pub seed: u64,
+    /// Stroke (mm) of each leg's lower end-of-travel switch: active while the true
+    /// stroke is at or below it.
+    pub lower_switch_mm: [f64; LEGS],
+    /// Stroke (mm) of each leg's upper end-of-travel switch: active while the true
+    /// stroke is at or above it.
+    pub upper_switch_mm: [f64; LEGS],
 }
 
 /// Default slider speed (mm/s): a fine-pitch screw slider.
 pub const DEFAULT_MAX_SPEED_MM_PER_S: f64 = 0.5;
 /// Default encoder noise (mm): 0.02 um, a fifth of a count.
 pub const DEFAULT_ENCODER_NOISE_MM: f64 = 2.0e-5;
+/// Default distance (mm) of the end-of-travel switches beyond the flight stroke limits:
+/// the controller never commands a slider there, a runaway trips them at once.
+pub const DEFAULT_SWITCH_MARGIN_MM: f64 = 0.2;
+/// Half-width (mm) of the stroke band about home in which the reference sensor is
+/// active.
+pub const REFERENCE_HALF_WIDTH_MM: f64 = 0.01;
 
 impl Default for PlantConfig {
     fn default() -> Self {
@@ -45,8 +69,19 @@ impl Default for PlantConfig {
             max_speed_mm_per_s: DEFAULT_MAX_SPEED_MM_PER_S,
             encoder_noise_mm: DEFAULT_ENCODER_NOISE_MM,
             seed: 0,
+            lower_switch_mm: [-(STROKE_LIMIT_MM + DEFAULT_SWITCH_MARGIN_MM); LEGS],
+            upper_switch_mm: [STROKE_LIMIT_MM + DEFAULT_SWITCH_MARGIN_MM; LEGS],
         }
     }
+}
+
+/// Which end-of-travel switch of a slider.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SwitchEnd {
+    /// The lower switch (smallest strokes).
+    Lower,
+    /// The upper switch (largest strokes).
+    Upper,
 }
 
 /// A fault the plant can be made to show, from the moment it is injected
@@ -101,6 +136,35 @@ pub enum InjectedFault {
         /// 0-based leg.
         leg: u8,
     },
+    /// The `end` switch of `leg` sits at stroke `at_mm` instead of where the
+    /// configuration puts it (misadjusted: moved inside the stroke range, a normal move
+    /// trips it).
+    SwitchMisadjusted {
+        /// 0-based leg.
+        leg: u8,
+        /// Which switch.
+        end: SwitchEnd,
+        /// Where it trips now (mm, along base z).
+        at_mm: f64,
+    },
+    /// The `end` switch of `leg` reads active wherever the slider is (a welded contact,
+    /// or a broken wire of a normally-closed switch).
+    SwitchStuckActive {
+        /// 0-based leg.
+        leg: u8,
+        /// Which switch.
+        end: SwitchEnd,
+    },
+    /// The switch inputs of `leg` cannot be read.
+    SwitchUnreadable {
+        /// 0-based leg.
+        leg: u8,
+    },
+    /// The encoder of `leg` sets its warning bit (the position stays valid).
+    EncoderWarning {
+        /// 0-based leg.
+        leg: u8,
+    },
 }
 
 impl InjectedFault {
@@ -113,7 +177,11 @@ impl InjectedFault {
             | InjectedFault::MissedSteps { leg, .. }
             | InjectedFault::StuckSlider { leg }
             | InjectedFault::NoiseBurst { leg, .. }
-            | InjectedFault::DriveFault { leg } => leg,
+            | InjectedFault::DriveFault { leg }
+            | InjectedFault::SwitchMisadjusted { leg, .. }
+            | InjectedFault::SwitchStuckActive { leg, .. }
+            | InjectedFault::SwitchUnreadable { leg }
+            | InjectedFault::EncoderWarning { leg } => leg,
         })
     }
 }
@@ -135,6 +203,8 @@ pub struct Plant {
     faults: Vec<(InjectedFault, i32)>,
     /// Travel lost per slider by missed steps (mm): true stroke = drive position - loss.
     loss_mm: [f64; LEGS],
+    /// Legs whose encoder warned in the last [`StrokeEncoders::read_counts`].
+    warning_legs: u8,
 }
 
 impl Plant {
@@ -156,6 +226,7 @@ impl Plant {
             last_pose: Pose::home(),
             faults: Vec::new(),
             loss_mm: [0.0; LEGS],
+            warning_legs: 0,
         })
     }
 
@@ -270,6 +341,19 @@ impl Plant {
 
 impl StrokeEncoders for Plant {
     fn read_counts(&mut self) -> Result<[i32; LEGS], EncoderError> {
+        // Warnings come with intact frames only.
+        self.warning_legs = (0..LEGS)
+            .filter(|&leg| {
+                self.has(leg, |f| matches!(f, InjectedFault::EncoderWarning { .. }))
+                    && !self.has(leg, |f| {
+                        matches!(
+                            f,
+                            InjectedFault::EncoderNoResponse { .. }
+                                | InjectedFault::EncoderCorrupted { .. }
+                        )
+                    })
+            })
+            .fold(0u8, |m, leg| m | 1 << leg);
         let mut out = [0i32; LEGS];
         let strokes = self.strokes_mm();
         for (leg, (o, s)) in out.iter_mut().zip(strokes.iter()).enumerate() {
@@ -304,6 +388,53 @@ impl StrokeEncoders for Plant {
             *o = frozen.unwrap_or(nearest_count(s + offset + noise));
         }
         Ok(out)
+    }
+}
+
+impl EncoderWarnings for Plant {
+    fn warning_legs(&self) -> u8 {
+        self.warning_legs
+    }
+}
+
+impl EndOfTravel for Plant {
+    fn read_switches(&mut self) -> TravelSwitches {
+        let mut s = TravelSwitches::default();
+        let strokes = self.strokes_mm();
+        for (leg, x) in strokes.iter().enumerate() {
+            let bit = 1u8 << leg;
+            let mut lower_mm = self.cfg.lower_switch_mm.get(leg).copied().unwrap_or(0.0);
+            let mut upper_mm = self.cfg.upper_switch_mm.get(leg).copied().unwrap_or(0.0);
+            let (mut lower_stuck, mut upper_stuck, mut unreadable) = (false, false, false);
+            for (f, _) in self.faults.iter().filter(|(f, _)| f.leg() == leg) {
+                match *f {
+                    InjectedFault::SwitchMisadjusted { end, at_mm, .. } => match end {
+                        SwitchEnd::Lower => lower_mm = at_mm,
+                        SwitchEnd::Upper => upper_mm = at_mm,
+                    },
+                    InjectedFault::SwitchStuckActive { end, .. } => match end {
+                        SwitchEnd::Lower => lower_stuck = true,
+                        SwitchEnd::Upper => upper_stuck = true,
+                    },
+                    InjectedFault::SwitchUnreadable { .. } => unreadable = true,
+                    _ => {}
+                }
+            }
+            if unreadable {
+                s.unreadable |= bit;
+                continue;
+            }
+            if lower_stuck || *x <= lower_mm {
+                s.lower |= bit;
+            }
+            if upper_stuck || *x >= upper_mm {
+                s.upper |= bit;
+            }
+            if x.abs() <= REFERENCE_HALF_WIDTH_MM {
+                s.reference |= bit;
+            }
+        }
+        s
     }
 }
 
@@ -351,6 +482,18 @@ impl SharedPlant {
 impl StrokeEncoders for SharedPlant {
     fn read_counts(&mut self) -> Result<[i32; LEGS], EncoderError> {
         self.0.borrow_mut().read_counts()
+    }
+}
+
+impl EncoderWarnings for SharedPlant {
+    fn warning_legs(&self) -> u8 {
+        self.0.borrow().warning_legs()
+    }
+}
+
+impl EndOfTravel for SharedPlant {
+    fn read_switches(&mut self) -> TravelSwitches {
+        self.0.borrow_mut().read_switches()
     }
 }
 

@@ -5,7 +5,8 @@
 //!
 //! 1. commanded and true strokes stay inside the running table's stroke limits;
 //! 2. no commanded stroke changes by more than the speed limit times a cycle (plus
-//!    rounding), whatever the sequence;
+//!    rounding) from the last command or from what the drives held, whatever the
+//!    sequence;
 //! 3. while a fault is latched nothing moves except a stop ramp and the recovery move's
 //!    own leg;
 //! 4. during a recovery move the other legs keep exactly their setpoints;
@@ -13,7 +14,12 @@
 //!    telemetry queue never drops);
 //! 6. after every reboot the running table is the one the operator's last completed
 //!    selection implies (or, if a selection was being written at the cut, that one),
-//!    never a table nobody committed.
+//!    never a table nobody committed;
+//! 7. no leg's commanded stroke moves toward an end-of-travel switch that the cycle's
+//!    read showed active (or unreadable), unless the drives hold where their sliders are.
+//!
+//! The adversary's plant faults include the switches' (a switch misadjusted into the
+//! path of the sliders, stuck active, an unreadable input) and encoder warnings.
 //!
 //! The sequence comes from a [`Choices`] source: a seeded generator for the soak test
 //! (`host-tests/soak.rs`, `M2_SOAK_SECONDS`, `M2_SOAK_SEED`) or the fuzzer's bytes
@@ -32,7 +38,7 @@ use crate::link::{Command, MemoryId, RequestId, TableChunk};
 use crate::motion::{CYCLE_S, DEFAULT_MAX_SPEED_MM_PER_S};
 use crate::nominal::PROTOTYPE;
 use crate::sim::bench::UART_115200_BYTES_PER_CYCLE;
-use crate::sim::{Bench, BenchConfig, InjectedFault, Plant, PlantConfig};
+use crate::sim::{Bench, BenchConfig, InjectedFault, Plant, PlantConfig, SwitchEnd};
 use crate::table::mock_flash::{MockFlash, TearMode};
 use crate::table::Table;
 
@@ -139,6 +145,11 @@ pub struct SoakFigures {
     pub faults_injected: u64,
     /// Cycles per state (idle, moving, stopping, recovery move, faulted).
     pub state_cycles: [u64; 5],
+    /// End-of-travel events (0x0007) received: switches seen active.
+    pub switch_trips: u64,
+    /// Cycles in motion with a leg blocked by an active (or unreadable) switch: the
+    /// cycles invariant 7 constrained.
+    pub blocked_motion_cycles: u64,
     /// Invariant violations.
     pub violations: u64,
 }
@@ -171,6 +182,8 @@ pub struct Soak<C> {
     cuts_in_writes: u64,
     faults_injected: u64,
     cycles: u64,
+    switch_trips: u64,
+    blocked_motion_cycles: u64,
     violations: Vec<String>,
     /// Where the station log was at the last check.
     log_seen: usize,
@@ -234,6 +247,8 @@ impl<C: Choices> Soak<C> {
             cuts_in_writes: 0,
             faults_injected: 0,
             cycles: 0,
+            switch_trips: 0,
+            blocked_motion_cycles: 0,
             violations: Vec::new(),
             log_seen: 0,
             prev_cmd,
@@ -480,7 +495,12 @@ impl<C: Choices> Soak<C> {
 
     fn inject_fault(&mut self) {
         let leg = self.below(6) as u8;
-        let f = match self.below(8) {
+        let end = if self.below(2) == 0 {
+            SwitchEnd::Lower
+        } else {
+            SwitchEnd::Upper
+        };
+        let f = match self.below(12) {
             0 => InjectedFault::EncoderNoResponse { leg },
             1 => InjectedFault::EncoderCorrupted { leg },
             2 => InjectedFault::EncoderJump {
@@ -497,7 +517,21 @@ impl<C: Choices> Soak<C> {
                 leg,
                 sigma_mm: 0.05,
             },
-            _ => InjectedFault::DriveFault { leg },
+            7 => InjectedFault::DriveFault { leg },
+            8 => {
+                // Into the path: up to 1 mm from where the slider is now, on the side
+                // of the switch (already passed if the distance is small).
+                let here = self.r.plant.with(|p| p.strokes_mm())[usize::from(leg)];
+                let d = 1.0 * self.uniform() - 0.05;
+                let at_mm = match end {
+                    SwitchEnd::Lower => here - d,
+                    SwitchEnd::Upper => here + d,
+                };
+                InjectedFault::SwitchMisadjusted { leg, end, at_mm }
+            }
+            9 => InjectedFault::SwitchStuckActive { leg, end },
+            10 => InjectedFault::SwitchUnreadable { leg },
+            _ => InjectedFault::EncoderWarning { leg },
         };
         self.faults_injected += 1;
         if matches!(f, InjectedFault::MissedSteps { .. }) {
@@ -649,12 +683,18 @@ impl<C: Choices> Soak<C> {
                     self.prev_state
                 ));
             }
-            let reference = if moving(self.prev_state) {
-                f64::from(self.prev_cmd[i])
+            // Continuous with the last command, or with what the drives held: a motion
+            // that ended in a hold (faulted: the drives hold where they are, e.g. a
+            // faulted drive that refused the commands) and a new one that started from
+            // the held strokes in the same cycle.
+            let from_drives = (f64::from(c[i]) - self.prev_drives[i]).abs();
+            let d = if moving(self.prev_state) {
+                (f64::from(c[i]) - f64::from(self.prev_cmd[i]))
+                    .abs()
+                    .min(from_drives)
             } else {
-                self.prev_drives[i]
+                from_drives
             };
-            let d = (f64::from(c[i]) - reference).abs();
             if moving(state) && d > step_limit {
                 self.violation(format!(
                     "leg {} commanded step {:.3} um ({:?} -> {state:?})",
@@ -702,6 +742,27 @@ impl<C: Choices> Soak<C> {
             self.tm_dropped_seen = hk.tm_dropped;
             self.violation(format!("{} telemetry records dropped", hk.tm_dropped));
         }
+        // 7. Not toward an active switch: a blocked leg's command does not move toward
+        //    it (a hold, where the drive's setpoint is its slider's position, is no move).
+        let sw = self.r.ctl.switches();
+        let (neg, pos) = (sw.blocked_negative(), sw.blocked_positive());
+        if moving(state) && (neg | pos) != 0 {
+            self.blocked_motion_cycles += 1;
+        }
+        for i in 0..LEGS {
+            let bit = 1u8 << i;
+            let d = f64::from(c[i]) - f64::from(self.prev_cmd[i]);
+            let hold = (drives[i] - positions[i]).abs() <= STILL_MM;
+            let toward = (pos & bit != 0 && d > 0.0) || (neg & bit != 0 && d < 0.0);
+            if toward && !hold && !skip {
+                self.violation(format!(
+                    "leg {} commanded {:+.6} um toward an active end-of-travel switch ({sw:?}, {:?} -> {state:?})",
+                    i + 1,
+                    d * 1e3,
+                    self.prev_state
+                ));
+            }
+        }
         // 6. Track completed selections from the telemetry.
         self.track_selections();
         self.prev_cmd = c;
@@ -716,6 +777,9 @@ impl<C: Choices> Soak<C> {
     fn track_selections(&mut self) {
         let new = self.r.st.log.len();
         for k in self.log_seen..new {
+            if let Tm::Event(_, event::END_OF_TRAVEL, _) = self.r.st.log[k] {
+                self.switch_trips += 1;
+            }
             if let Tm::Event(_, event::TABLE_ACTIVATED, [id, crc]) = self.r.st.log[k] {
                 let t = TableRef { id, crc };
                 if !self.known.contains_key(&crc) {
@@ -738,6 +802,8 @@ impl<C: Choices> Soak<C> {
             cuts_in_writes: self.cuts_in_writes,
             faults_injected: self.faults_injected,
             state_cycles: self.state_cycles,
+            switch_trips: self.switch_trips,
+            blocked_motion_cycles: self.blocked_motion_cycles,
             violations: self.violations.len() as u64,
         }
     }

@@ -12,9 +12,11 @@
 //! | 7 | [`FaultFlags::DRIVE_FAULT`] | fault |
 //! | 8 | [`FaultFlags::TABLE_CORRUPT`] | fault (raised by the RAM scrub) |
 //! | 9 | [`FaultFlags::DEADLINE_MISSED`] | fault (raised by consecutive cycle overruns) |
-//! | 10..15 | reserved for faults | |
+//! | 10 | [`FaultFlags::LIMIT_SWITCH`] | fault (an end-of-travel switch active, or its input unreadable) |
+//! | 11..15 | reserved for faults | |
 //! | 16 | [`FaultFlags::FOLLOWING_WARNING`] | warning (not latched) |
-//! | 17..31 | reserved for warnings | |
+//! | 17 | [`FaultFlags::ENCODER_WARNING`] | warning (the encoder's own warning bit) |
+//! | 18..31 | reserved for warnings | |
 //!
 //! Bits are never renumbered; new checks take reserved bits.
 
@@ -46,15 +48,21 @@ impl FaultFlags {
     pub const TABLE_CORRUPT: Self = Self(1 << 8);
     /// Bit 9: control cycles overran their period several times in a row.
     pub const DEADLINE_MISSED: Self = Self(1 << 9);
+    /// Bit 10: an end-of-travel switch of a slider is active, or one of its switch
+    /// inputs cannot be read (`hw::TravelSwitches::end_of_travel`).
+    pub const LIMIT_SWITCH: Self = Self(1 << 10);
     /// Bit 16 (warning): following error above the warning threshold.
     pub const FOLLOWING_WARNING: Self = Self(1 << 16);
+    /// Bit 17 (warning): an encoder reports its warning bit (position still valid;
+    /// maintenance asked for, e.g. a dirty scale).
+    pub const ENCODER_WARNING: Self = Self(1 << 17);
 
-    /// Every fault bit in use (bits 0..9).
-    pub const ALL_FAULTS: Self = Self(0x0000_03FF);
-    /// Every warning bit in use (bit 16).
-    pub const ALL_WARNINGS: Self = Self(1 << 16);
+    /// Every fault bit in use (bits 0..10).
+    pub const ALL_FAULTS: Self = Self(0x0000_07FF);
+    /// Every warning bit in use (bits 16, 17).
+    pub const ALL_WARNINGS: Self = Self(0x0003_0000);
     /// Bit positions of the faults, in bit order (index = bit).
-    pub const FAULT_BITS: usize = 10;
+    pub const FAULT_BITS: usize = 11;
 
     /// No flag.
     pub const fn empty() -> Self {

@@ -24,6 +24,8 @@
 //! | `FK_NOT_CONVERGED` | `fk` is `Some(Err)` | 3 | c0 + 2 |
 //! | `POSE_OUTSIDE_WORKSPACE` | FK pose axis beyond half-range by > tolerance | 3 | c0 + 2 |
 //! | `ENCODER_STUCK` | see below | 1 | a + W |
+//! | `LIMIT_SWITCH` | `switches.end_of_travel() != 0`: an end-of-travel switch active, or a switch input unreadable (that leg) | 1 (fixed) | c0 |
+//! | `ENCODER_WARNING` (warning) | `encoder_warning_legs != 0`: the encoder's own warning bit (that leg) | 1 (fixed) | c0 |
 //!
 //! Stuck: while motion is commanded, each slider keeps an anchor (reading and commanded
 //! stroke) that moves whenever the reading has progressed `stuck_min_progress_mm` from
@@ -33,6 +35,12 @@
 //! W = 200): for a slider frozen at cycle `f`, `a` is the last cycle before `f` at which
 //! the reading progressed (at most `stuck_min_progress_mm / speed` cycles before `f`).
 //! Anchors are reset whenever motion is not commanded.
+//!
+//! End of travel: the switches are a hardware input, not a measurement; there is nothing
+//! to filter, so `LIMIT_SWITCH` latches in the cycle a switch is first seen (the
+//! controller has already kept that cycle's drive command from moving the leg further
+//! toward it) and cannot be cleared while any switch is active or unreadable. The
+//! reference sensors are information only and never raise anything.
 //!
 //! Checks that cannot be evaluated in a cycle (no encoder reading: following, jump, soft
 //! limit, stuck; no FK: FK and workspace) keep their debounce counts unchanged: a missed
@@ -50,7 +58,7 @@
 
 use super::config::SupervisionConfig;
 use super::flags::FaultFlags;
-use crate::hw::{DriveError, EncoderError};
+use crate::hw::{DriveError, EncoderError, TravelSwitches};
 use crate::kinematics::{FkError, FkSolution, LEGS};
 
 /// What the controller knows at the supervision point of one control cycle.
@@ -69,6 +77,12 @@ pub struct CycleInputs {
     pub fk: Option<Result<FkSolution<f32>, FkError>>,
     /// Result of the previous cycle's drive command.
     pub drive: Result<(), DriveError>,
+    /// The end-of-travel switches and reference sensors, read this cycle right after the
+    /// encoders ([`crate::hw::EndOfTravel::read_switches`]).
+    pub switches: TravelSwitches,
+    /// Legs (bit i = leg i+1) whose encoder flagged its warning bit in this cycle's read
+    /// ([`crate::hw::EncoderWarnings::warning_legs`]).
+    pub encoder_warning_legs: u8,
 }
 
 /// The supervisor's answer for one cycle.
@@ -186,6 +200,9 @@ fn debounce_legs(counts: &mut LegCounts, conditions: u8, n: u16) -> u8 {
     }
     raised
 }
+
+/// Bit position of [`FaultFlags::LIMIT_SWITCH`] (index of its recorded legs).
+const LIMIT_SWITCH_BIT: usize = FaultFlags::LIMIT_SWITCH.bits().trailing_zeros() as usize;
 
 /// Every leg (bits 0..5): the leg mask of telemetry.
 pub const ALL_LEGS: u8 = (1u8 << LEGS) - 1;
@@ -466,6 +483,21 @@ impl Supervisor {
         };
         let drive_raised = debounce_legs(&mut c.drive, drive_cond, db.drive);
         t.record(FaultFlags::DRIVE_FAULT, drive_cond, drive_raised, 7);
+
+        // --- End of travel, encoder warnings ---------------------------------------------
+        // A switch is a hardware input: latched in the cycle it is seen (N = 1).
+        let eot_cond = inp.switches.end_of_travel() & ALL_LEGS;
+        t.record(
+            FaultFlags::LIMIT_SWITCH,
+            eot_cond,
+            eot_cond,
+            LIMIT_SWITCH_BIT,
+        );
+        let enc_warn = inp.encoder_warning_legs & ALL_LEGS;
+        if enc_warn != 0 {
+            warnings |= FaultFlags::ENCODER_WARNING;
+            warning_legs |= enc_warn;
+        }
 
         // --- Latch -----------------------------------------------------------------------------
         let new_faults = t.raised.difference(self.latched);
