@@ -218,3 +218,213 @@ fn firmware_in_qemu_answers_telecommands() {
     );
     assert!(peak < stack_top - stack_bottom);
 }
+
+/// Fails if the firmware rebooted (more than one boot event), naming the phase.
+fn assert_one_boot(l: &Link, phase: &str) {
+    assert_eq!(
+        l.st.events(event::BOOT).len(),
+        1,
+        "the firmware rebooted during {phase}: boot detail (flags, cause | count << 16) {:?}",
+        l.st.events(event::BOOT_DETAIL)
+    );
+}
+
+/// Seconds of an on-board time.
+fn secs(t: m2ctl::link::tm::TmTime) -> f64 {
+    t.to_ticks() as f64 / m2ctl::link::tm::TIME_FRACTIONS_PER_SECOND as f64
+}
+
+/// The answer (TM[20,2]) to a parameter report telecommand.
+fn report_parameters(l: &mut Link, ids: &[u16], t: Duration) -> Vec<(u16, i32)> {
+    let from = l.st.log.len();
+    let rid = l.send(&Command::ReportParameters(
+        m2ctl::link::command::ParameterIds::new(ids).unwrap(),
+    ));
+    assert_eq!(l.complete(rid, t), OK3);
+    l.st.log[from..]
+        .iter()
+        .find_map(|tm| match tm {
+            Tm::Parameters(v) => Some(v.clone()),
+            _ => None,
+        })
+        .expect("TM[20,2]")
+}
+
+/// Issue 13's operations scenario on the flight image: set a pivot (and the
+/// housekeeping period) by ST[20], check moves without moving, schedule three rotations
+/// about the pivot by ST[11] in one insert, let them release, see the mirror turn about
+/// the pivot, read the parameters back. Prints the timeline.
+#[test]
+#[ignore = "needs QEMU and the firmware image: scripts/qemu-link-test.sh"]
+fn operations_in_qemu_pivot_check_schedule_parameters() {
+    use m2ctl::link::command::ParameterValues;
+    const PIVOT_X: u16 = 0x0001;
+    const PIVOT_Y: u16 = 0x0002;
+    const PIVOT_Z: u16 = 0x0003;
+    const HK_PERIOD: u16 = 0x0020;
+    /// The mirror vertex 250 mm above M's origin (nm).
+    const PIVOT_Z_NM: i32 = 250_000_000;
+    let mut l = Link {
+        q: Qemu::start(),
+        st: Station::new(),
+    };
+    let t = Duration::from_secs(20);
+    assert!(
+        l.until(t, |s| !s.events(event::BOOT).is_empty()),
+        "no boot event"
+    );
+
+    // 1. The pivot and a 0.5 s housekeeping period, persisted, then applied.
+    let rid = l.send(&Command::SetParameters(
+        ParameterValues::new(&[(PIVOT_Z, PIVOT_Z_NM), (HK_PERIOD, 500)]).unwrap(),
+    ));
+    assert_eq!(l.complete(rid, t), OK3);
+    assert_eq!(l.st.events(event::PARAMETERS_CHANGED).len(), 1);
+    let set_at = secs(
+        l.st.report_time(rid, Verification::CompletionSuccess)
+            .unwrap(),
+    );
+    println!(
+        "OPS t={set_at:7.3} s  pivot z = 250 mm, HK period 500 cycles: set, persisted, applied"
+    );
+    assert!(l.until(t, |s| s
+        .last_hk()
+        .is_some_and(|h| h.pivot_nm == [0, 0, PIVOT_Z_NM])));
+    assert_one_boot(&l, "the parameter set");
+
+    // 2. Move checks: nothing moves, the answers are the move's.
+    for (target, want) in [
+        (WirePose::from_array([0, 0, 0, 100_000_000, 0, 0]), 0),
+        (WirePose::from_array([0, 0, 0, 700_000_000, 0, 0]), 0x0604),
+    ] {
+        let from = l.st.log.len();
+        let rid = l.send(&Command::CheckMove(target));
+        assert_eq!(l.complete(rid, t), OK3);
+        let check = l.st.log[from..]
+            .iter()
+            .find_map(|tm| match tm {
+                Tm::MoveCheck(r, c) if *r == rid => Some(*c),
+                _ => None,
+            })
+            .expect("TM[8,130]");
+        assert_eq!(check.code, want, "{check:?}");
+        println!(
+            "OPS            check move rx = {}\": code {:#06x}, target refusal bits {:#010x}",
+            target.rotation_uas[0] / 1_000_000,
+            check.code,
+            check.target_refusals
+        );
+        assert_one_boot(&l, "a move check");
+    }
+
+    // 3. Three rotations about the pivot, one TC[11,4], 3 s apart from 1 s after now.
+    let now = secs(l.st.log_times.last().copied().unwrap());
+    let poses = [
+        [0, 0, 0, 100_000_000, 0, 0],
+        [0, 0, 0, 100_000_000, -80_000_000, 0],
+        [0, 0, 0, 100_000_000, -80_000_000, 60_000_000],
+    ];
+    let acts: Vec<_> = poses
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            (
+                m2ctl::ground::tc::obt_from_seconds(now + 1.0 + 3.0 * k as f64).unwrap(),
+                Command::MoveAbsolute(WirePose::from_array(*p)),
+            )
+        })
+        .collect();
+    let (insert, ids) = l.st.schedule_insert(&acts).unwrap();
+    let rid = l.send(&insert);
+    assert_eq!(l.complete(rid, t), OK3);
+    println!(
+        "OPS t={now:7.3} s  three moves scheduled at {:.3}, {:.3}, {:.3} s",
+        now + 1.0,
+        now + 4.0,
+        now + 7.0
+    );
+    let rid = l.send(&Command::Schedule(
+        m2ctl::link::schedule::ScheduleCommand::SummaryReport,
+    ));
+    assert_eq!(l.complete(rid, t), OK3);
+    assert_eq!(l.st.last_summary().map(<[_]>::len), Some(3));
+    assert_one_boot(&l, "the schedule insert");
+
+    // 4. Each released at its time, completed, the mirror turned about the pivot.
+    for (k, id) in ids.iter().enumerate() {
+        let reps = l.complete(*id, Duration::from_secs(30));
+        assert_one_boot(&l, &format!("activity {k}"));
+        assert_eq!(reps, OK3, "activity {k}");
+        let released = secs(
+            l.st.report_time(*id, Verification::AcceptanceSuccess)
+                .unwrap(),
+        );
+        let arrived = secs(
+            l.st.report_time(*id, Verification::CompletionSuccess)
+                .unwrap(),
+        );
+        let due = secs(acts[k].0);
+        assert!(
+            released >= due && released < due + 0.002,
+            "activity {k}: released {released} s, due {due} s"
+        );
+        // The next housekeeping after arrival: the pivot has not moved (operator
+        // translation ~ 0), M's origin has (about |c| x angle).
+        let seen = l.st.log.len();
+        assert!(l.until(t, |s| s.log[seen..].iter().any(|m| matches!(m, Tm::Hk(_)))));
+        let hk = l.st.last_hk().unwrap();
+        let op = hk.pose_fk_operator.to_array();
+        let origin = hk.pose_fk.to_array();
+        let pivot_um = op[..3].iter().map(|v| v.abs()).max().unwrap() as f64 / 1e3;
+        let origin_um = origin[..3].iter().map(|v| v.abs()).max().unwrap() as f64 / 1e3;
+        // At rest the commanded pose is FK of the held strokes: the target to 1 mas.
+        let cmd = hk.pose_commanded_operator.to_array();
+        for (got, want) in cmd[3..].iter().zip(&poses[k][3..]) {
+            assert!((got - want).abs() <= 1_000, "activity {k}: {cmd:?}");
+        }
+        assert!(
+            pivot_um < 0.5,
+            "activity {k}: the pivot moved {pivot_um} um"
+        );
+        assert!(
+            origin_um > 50.0,
+            "activity {k}: M's origin moved only {origin_um} um"
+        );
+        println!(
+            "OPS t={released:7.3} s  move {} released (due {due:.3} s), arrived {arrived:.3} s: rx/ry/rz = {}/{}/{}\", pivot moved {pivot_um:.3} um (FK of the encoders, 0.1 um counts), M's origin {origin_um:.1} um",
+            k + 1,
+            poses[k][3] / 1_000_000,
+            poses[k][4] / 1_000_000,
+            poses[k][5] / 1_000_000,
+        );
+    }
+    assert_eq!(l.st.events(event::ACTIVITY_RELEASED).len(), 3);
+    assert!(l.st.events(event::ACTIVITY_FAILED).is_empty());
+
+    // 5. Read the parameters back.
+    let back = report_parameters(&mut l, &[PIVOT_X, PIVOT_Y, PIVOT_Z, HK_PERIOD], t);
+    assert_eq!(
+        back,
+        vec![
+            (PIVOT_X, 0),
+            (PIVOT_Y, 0),
+            (PIVOT_Z, PIVOT_Z_NM),
+            (HK_PERIOD, 500)
+        ]
+    );
+    println!("OPS            parameters read back: {back:?}");
+    let boots: Vec<f64> =
+        l.st.log
+            .iter()
+            .zip(&l.st.log_times)
+            .filter(|(m, _)| matches!(m, Tm::Event(_, id, _) if *id == event::BOOT))
+            .map(|(_, t)| secs(*t))
+            .collect();
+    assert_eq!(
+        boots.len(),
+        1,
+        "the firmware rebooted: boot events at {boots:?} s (of the boot count), detail {:?}",
+        l.st.events(event::BOOT_DETAIL)
+    );
+    assert_eq!(l.st.bad_frames, 0);
+}
