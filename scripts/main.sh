@@ -6,7 +6,8 @@
 #     calibration campaign, ground calibration (improved cuckoo search + LM), the table
 #     uploaded/validated/activated by telecommand, the targets again; summary + plot;
 #  3. the flight firmware on the emulated Cortex-M4F: kinematics self-test (target bits
-#     == host bits), then the flight image driven over its UART;
+#     == host bits), then the flight image driven over its UART, then its fault handling (overruns, a
+#     hang reset by the watchdog, a stack overflow caught by the MPU guard);
 #  4. the firmware figures (instruction counts, sizes, stack).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -16,6 +17,7 @@ cargo build --release --features host --bin m2ground
 target/release/m2ground mission --plot target/mission/errors.svg "$@"
 scripts/qemu-selftest.sh
 scripts/qemu-link-test.sh
+scripts/qemu-fault-test.sh
 scripts/bench.sh
 echo
 echo "main: mission plot target/mission/errors.svg; all steps passed"

@@ -204,7 +204,7 @@ fn build_controller(
     reset: ResetInfo,
 ) -> &'static mut Controller<QemuSliders> {
     sliders.hold();
-    let ctl = slot.write(Controller::unstarted(sliders, table, boot));
+    let ctl = Controller::unstarted_in(slot, sliders, table, boot);
     // Called out of line (through a pointer the optimiser cannot see through), so that
     // its frame (FK of the held strokes) and the construction's are not on the stack
     // together.
@@ -292,7 +292,7 @@ mod app {
         rx_in: RxIn,
         uart_tx: UartTx,
         tx_out: TxOut,
-        link: LinkService,
+        link: &'static mut LinkService,
         rx_out: RxOut,
         tx_in: TxIn,
         uart_errors: UartErrors,
@@ -311,6 +311,7 @@ mod app {
         res_q: Queue<JobResult, JOB_QUEUE_LEN> = Queue::new(),
         ctl_slot: MaybeUninit<Controller<QemuSliders>> = MaybeUninit::uninit(),
         worker_slot: MaybeUninit<Worker<board::TableFlash>> = MaybeUninit::uninit(),
+        link_slot: MaybeUninit<LinkService> = MaybeUninit::uninit(),
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
         let mut core = cx.core;
@@ -350,7 +351,7 @@ mod app {
                 rx_in,
                 uart_tx,
                 tx_out,
-                link: LinkService::new(),
+                link: cx.local.link_slot.write(LinkService::new()),
                 rx_out,
                 tx_in,
                 uart_errors,

@@ -26,9 +26,15 @@ pub fn elf_at(relative: &str) -> PathBuf {
 }
 
 /// Virtual time of QEMU's CPU: every guest instruction takes 2^ICOUNT_SHIFT ns (8 ns:
-/// 125 M instructions per second of guest time). Timers, the watchdog and the control
-/// rate run on this clock, so a loaded host slows the guest down instead of making
-/// its cycles overrun; `sleep=on` keeps guest time from running ahead of real time.
+/// 125 M instructions per second of guest time), and the timers, the watchdog and the
+/// control rate run on this clock only. `sleep=off`: while the guest waits (WFI) its
+/// clock skips to the next timer deadline instead of following the host's clock, so
+/// guest time is a function of the instructions executed, whatever the host's load.
+/// With `sleep=on` an idle guest's clock followed host time: a QEMU process the host
+/// did not schedule for 10 ms (two cores shared by parallel builds) saw 10 ms pass in
+/// one step while its guest idled, more than the watchdog's window, and the watchdog
+/// reset a guest whose every control cycle had completed (the link test failed so in
+/// about 1 run of 5; README, "Firmware in QEMU").
 pub const ICOUNT_SHIFT: u32 = 3;
 
 /// A running QEMU with the firmware; killed on drop.
@@ -61,7 +67,7 @@ impl Qemu {
             .arg("-monitor")
             .arg(format!("unix:{},server=on,wait=off", monitor.display()))
             .arg("-icount")
-            .arg(format!("shift={ICOUNT_SHIFT},sleep=on"))
+            .arg(format!("shift={ICOUNT_SHIFT},sleep=off"))
             .arg("-chardev")
             .arg(format!(
                 "socket,id=tc,path={},server=on,wait=on",
@@ -92,6 +98,22 @@ impl Qemu {
             sock,
             monitor,
         }
+    }
+
+    /// Stops the QEMU process for `pause` of host time (SIGSTOP, then SIGCONT), as a
+    /// loaded host does when it does not schedule it: the guest's clock must not see
+    /// that time ([`ICOUNT_SHIFT`]).
+    pub fn stall_host(&self, pause: Duration) {
+        let signal = |name: &str| {
+            let ok = Command::new("kill")
+                .args([name, &self.child.id().to_string()])
+                .status()
+                .is_ok_and(|s| s.success());
+            assert!(ok, "kill {name} QEMU");
+        };
+        signal("-STOP");
+        std::thread::sleep(pause);
+        signal("-CONT");
     }
 
     /// Sends bytes to the firmware's UART.

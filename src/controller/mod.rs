@@ -332,6 +332,7 @@ impl<M: MechanismIo> Controller<M> {
     /// place (a static slot: `slot.write(Controller::unstarted(..)).start()`), so the
     /// ~6 KB struct is never copied on the stack. Until [`Controller::start`] the
     /// drives are not held and no reading was taken: call it before the first cycle.
+    #[inline(always)]
     pub fn unstarted(mech: M, table: Table, boot: BootReport) -> Self {
         let (active, geometry_ok) = match ActiveTable::new(table, boot.source) {
             Ok(a) => (a, true),
@@ -392,6 +393,20 @@ impl<M: MechanismIo> Controller<M> {
             schedule: schedule::Schedule::new(),
             time_reports: time::TimeReports::new(),
         }
+    }
+
+    /// [`Controller::unstarted`] written into `slot` (the flight image's static slot).
+    /// Not inlined, with the construction inlined into it: the optimiser then writes
+    /// each field into the slot instead of building the whole struct on the stack and
+    /// copying it (the boot stack of the flight image).
+    #[inline(never)]
+    pub fn unstarted_in(
+        slot: &mut core::mem::MaybeUninit<Self>,
+        mech: M,
+        table: Table,
+        boot: BootReport,
+    ) -> &mut Self {
+        slot.write(Self::unstarted(mech, table, boot))
     }
 
     /// Second step of [`Controller::unstarted`]: holds the sliders where their drives
