@@ -172,7 +172,9 @@ impl Activity {
 /// The schedule's state (module documentation).
 #[derive(Clone, Debug)]
 pub struct Schedule {
-    /// In release order; equal release times in insertion order.
+    /// In **reverse** release order (the next activity is the last element, taken with
+    /// `pop`, which has no index and so no out-of-bounds panic path); among equal
+    /// release times the one inserted first is nearest the end.
     activities: Vec<Activity, SCHEDULE_CAPACITY>,
     release_enabled: bool,
     released: u16,
@@ -245,10 +247,12 @@ impl Schedule {
             }
         }
         for a in block.activities() {
+            // Before every activity released at or before it (reverse release order;
+            // equal release times: the earlier insert stays nearer the end).
             let at = self
                 .activities
                 .iter()
-                .position(|b| b.release > a.release)
+                .position(|b| b.release <= a.release)
                 .unwrap_or(self.activities.len());
             // Room was checked above: the insert cannot fail.
             let _ = self.activities.insert(at, Activity::new(&a));
@@ -313,8 +317,8 @@ impl Schedule {
     }
 
     fn take_first_if(&mut self, f: impl Fn(&Activity) -> bool) -> Option<Activity> {
-        if self.activities.first().is_some_and(f) {
-            Some(self.activities.remove(0))
+        if self.activities.last().is_some_and(f) {
+            self.activities.pop()
         } else {
             None
         }
@@ -322,7 +326,7 @@ impl Schedule {
 
     /// The activities in release order (the TM[11,13] entries).
     pub fn entries(&self) -> impl Iterator<Item = SummaryEntry> + '_ {
-        self.activities.iter().map(|a| SummaryEntry {
+        self.activities.iter().rev().map(|a| SummaryEntry {
             release: a.release,
             request_id: a.request_id,
         })
@@ -330,7 +334,7 @@ impl Schedule {
 
     /// Release time of the next activity.
     pub fn next_release(&self) -> Option<TmTime> {
-        self.activities.first().map(|a| a.release)
+        self.activities.last().map(|a| a.release)
     }
 }
 
@@ -444,7 +448,13 @@ impl<M: MechanismIo> Controller<M> {
 
     /// The schedule's entries, in release order (TM[11,13]).
     pub fn schedule_summary(&self) -> ScheduleSummary {
-        self.schedule.entries().collect()
+        // Not `collect()`: heapless' `FromIterator` has an `expect` (a panic path) for
+        // an iterator longer than the capacity; the entries never exceed it.
+        let mut summary = ScheduleSummary::new();
+        for entry in self.schedule.entries() {
+            let _ = summary.push(entry);
+        }
+        summary
     }
 
     /// The housekeeping block of the schedule and the time reports.
