@@ -522,3 +522,45 @@ fn selftest_passes_on_host_and_reports_its_figures() {
     assert_eq!((s.rows, s.failures), (40, 0));
     assert!(s.max_ik_err_mm <= 1e-6 && s.max_fk_err_mm <= 5e-6 && s.max_fk_err_arcsec <= 1e-3);
 }
+
+/// The f32 `sin_cosm1` beyond the small-angle polynomial (frame rotations: argument
+/// reduction modulo pi/2 in f32, no libm) against f64 `sin`/`cos` of the same f32
+/// argument, over +-12,000 rad and densely over +-2 pi; `asin` (f32: atan2 of our
+/// square root) against f64 `asin` over [-1, 1].
+#[test]
+fn f32_sin_cosm1_and_asin_beyond_the_small_angles_agree_with_f64() {
+    let (mut worst_s, mut worst_c, mut worst_asin) = (0.0f64, 0.0f64, 0.0f64);
+    let mut check = |x: f32| {
+        let (s, c) = x.sin_cosm1();
+        let xd = f64::from(x);
+        worst_s = worst_s.max((f64::from(s) - xd.sin()).abs());
+        worst_c = worst_c.max((f64::from(c) - (xd.cos() - 1.0)).abs());
+    };
+    for k in -200_000..=200_000 {
+        check(k as f32 * (2.0 * std::f32::consts::PI / 200_000.0));
+    }
+    for k in -120_000..=120_000 {
+        check(k as f32 * 0.1 + 0.0123);
+    }
+    for k in -100_000..=100_000 {
+        let x = k as f32 / 100_000.0;
+        worst_asin = worst_asin.max((f64::from(x.asin()) - f64::from(x).asin()).abs());
+    }
+    println!(
+        "f32 sin {worst_s:.2e}, cos - 1 {worst_c:.2e}, asin {worst_asin:.2e} (f32 epsilon {:.2e})",
+        f32::EPSILON
+    );
+    // A few rounding units of results of magnitude <= 2 (pi/2 for asin).
+    assert!(worst_s <= 2.0 * f64::from(f32::EPSILON), "sin {worst_s:e}");
+    assert!(
+        worst_c <= 4.0 * f64::from(f32::EPSILON),
+        "cos - 1 {worst_c:e}"
+    );
+    assert!(
+        worst_asin <= 4.0 * f64::from(f32::EPSILON),
+        "asin {worst_asin:e}"
+    );
+    // Non-finite input: NaN, no panic.
+    assert!(f32::INFINITY.sin_cosm1().0.is_nan() && f32::NAN.sin_cosm1().1.is_nan());
+    assert!(1.5f32.asin().is_nan());
+}

@@ -11,8 +11,9 @@
 //!   where such an error is suppressed by a factor of about 1e-2 (see `ik`).
 //! * [`Real::sin_cosm1`] returns `sin x` and `cos x - 1` (not `cos x`), so that the
 //!   rotation minus the identity can be formed without cancellation. For the small angles
-//!   of the mechanism (|x| <= [`SMALL_ANGLE_RAD`]) it is a short polynomial; beyond, it
-//!   falls back to `libm` (slow on the target, never used by flight poses).
+//!   of the mechanism (|x| <= [`SMALL_ANGLE_RAD`]) it is a short polynomial; beyond (frame
+//!   rotations, never flight poses), `f32` reduces the argument modulo pi/2 and uses a
+//!   longer polynomial (f32 arithmetic only), `f64` calls `libm`.
 //!
 //! Both are deterministic IEEE-754 arithmetic (no fused multiply-add is emitted by rustc
 //! unless asked), so the target and the host produce bit-identical `f32` results.
@@ -111,6 +112,62 @@ const COSM1_COEFF_F32: [f32; 3] = [
     COSM1_COEFF[2] as f32,
 ];
 
+/// The sine coefficients x^3 .. x^11 in f32, for the reduced argument |r| <= pi/4 of
+/// [`sin_cosm1_reduced_f32`] (the x^13 term is at most 7e-12 there, 1e-11 of `sin r`).
+const SIN_COEFF_REDUCED_F32: [f32; 5] = [
+    SIN_COEFF[0] as f32,
+    SIN_COEFF[1] as f32,
+    SIN_COEFF[2] as f32,
+    SIN_COEFF[3] as f32,
+    (-1.0 / 39_916_800.0) as f32,
+];
+/// The `cos - 1` coefficients x^2 .. x^12 in f32 for |r| <= pi/4 (the x^14 term is at
+/// most 4e-13 there).
+const COSM1_COEFF_REDUCED_F32: [f32; 6] = [
+    COSM1_COEFF[0] as f32,
+    COSM1_COEFF[1] as f32,
+    COSM1_COEFF[2] as f32,
+    COSM1_COEFF[3] as f32,
+    COSM1_COEFF[4] as f32,
+    (1.0 / 479_001_600.0) as f32,
+];
+/// pi/2 in three f32 parts (Cody-Waite reduction; Cephes' `sinf` constants, doubled):
+/// `PIO2_HI` has 8 significant bits and `PIO2_MID` 11, so `n * PIO2_HI` and
+/// `n * PIO2_MID` are exact for |n| < 2^13 (|x| < 12,800 rad).
+const PIO2_HI: f32 = 1.570_312_5;
+const PIO2_MID: f32 = 4.837_512_969_970_703e-4;
+const PIO2_LO: f32 = 7.549_789_954_891_882e-8;
+
+/// `(sin x, cos x - 1)` of an `f32` beyond [`SMALL_ANGLE_RAD`], in f32 arithmetic only
+/// (libm's `sinf` computes in f64: software on the Cortex-M4F): `x = n pi/2 + r` with
+/// |r| <= pi/4 (Cody-Waite), the series of `sin r` and `cos r - 1`, and the quadrant
+/// `n mod 4`. Within a few f32 rounding units of the exact values for |x| < 12,800 rad
+/// (host test against f64); NaN for a non-finite `x`. Not inlined: the rare large-angle
+/// path (frame rotations) stays out of the small-angle callers.
+#[inline(never)]
+fn sin_cosm1_reduced_f32(x: f32) -> (f32, f32) {
+    if !x.is_finite() {
+        return (f32::NAN, f32::NAN);
+    }
+    let half = if x < 0.0 { -0.5 } else { 0.5 };
+    // Nearest integer of x 2/pi (the cast saturates: no panic for any finite x).
+    let n = (x * core::f32::consts::FRAC_2_PI + half) as i32;
+    let nf = n as f32;
+    let r = ((x - nf * PIO2_HI) - nf * PIO2_MID) - nf * PIO2_LO;
+    let y = r * r;
+    let s = r + r * poly_in_square(y, &SIN_COEFF_REDUCED_F32);
+    let c = poly_in_square(y, &COSM1_COEFF_REDUCED_F32);
+    match n & 3 {
+        0 => (s, c),
+        // x = r + pi/2: sin x = cos r, cos x = -sin r.
+        1 => (1.0 + c, -s - 1.0),
+        // x = r + pi: sin x = -sin r, cos x = -cos r.
+        2 => (-s, -c - 2.0),
+        // x = r + 3 pi/2: sin x = -cos r, cos x = sin r.
+        _ => (-(1.0 + c), s - 1.0),
+    }
+}
+
 /// Horner evaluation of `sum c_k y^(k+1)` for `y = x^2`.
 #[inline(always)]
 fn poly_in_square<T: Real, const N: usize>(y: T, coeff: &[T; N]) -> T {
@@ -155,13 +212,15 @@ impl Real for f32 {
             let c = poly_in_square(y, &COSM1_COEFF_F32);
             (s, c)
         } else {
-            let h = libm::sinf(0.5 * self);
-            (libm::sinf(self), -2.0 * h * h)
+            sin_cosm1_reduced_f32(self)
         }
     }
     #[inline]
     fn asin(self) -> Self {
-        libm::asinf(self)
+        // asin x = atan2(x, sqrt(1 - x^2)), with (1 - x)(1 + x) exact near |x| = 1 to
+        // the rounding of the product. libm's `asinf` takes its square root in f64
+        // (software on the Cortex-M4F).
+        libm::atan2f(self, sqrt_f32_newton((1.0 - self) * (1.0 + self)))
     }
     #[inline]
     fn atan2(self, x: Self) -> Self {
