@@ -60,7 +60,7 @@ trap cleanup EXIT
 trap 'exit 130' INT TERM
 
 SOCK=$W/uart.sock
-qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none -icount shift=auto \
+qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -monitor none -icount shift=3,align=on \
   -semihosting-config enable=on,target=native \
   -chardev "socket,id=uart0,path=$SOCK,server=on,wait=on" -serial chardev:uart0 \
   -kernel "$ELF" > "$W/logs/qemu.log" 2>&1 &

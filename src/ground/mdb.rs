@@ -1673,14 +1673,11 @@ fn telemetry() -> Vec<TmPacket> {
                 element_len: crate::link::tm::PARAMETER_ENTRY_LEN,
                 max_count: crate::link::command::MAX_PARAMETERS_PER_TC,
                 fields: vec![
-                    field(
+                    count(
                         "report_parameter_id",
                         0,
                         Wire::U16,
-                        Meaning::Enum {
-                            enumeration: "parameter_id",
-                        },
-                        "parameter ID",
+                        "parameter ID (the parameter_id enumeration's values)",
                     ),
                     count(
                         "report_value",
