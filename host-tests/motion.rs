@@ -687,3 +687,56 @@ fn stepwise_planning_gives_the_same_trajectory_as_one_call() {
         }
     }
 }
+
+/// Why `micromath` is not in the flight image (README, "Packages"), measured. Outside
+/// the kinematics (where its error is excluded by the 1 nm budget) the only non-rational
+/// function of the flight code is the motion planner's square root, evaluated once per
+/// plan (17 times in a trajectory plan of ~12,000 instructions, once in a ramp), never
+/// per cycle: nothing to gain in time. Telemetry scaling is a multiplication and a
+/// rounding (no function micromath offers), and the supervision has no statistics
+/// (thresholds on differences). And it would cost: in [`Ramp::plan`] the acceleration
+/// phase lasts `ceil(sqrt(1 / a_max))` cycles; micromath's square root (one bit
+/// manipulation) over-estimates by up to 6 %, so moves would accelerate longer than the
+/// limit requires. This sweep over the per-cycle accelerations the planner sees (1e-10
+/// .. 1 per cycle^2) measures both against f64: ours (`Real::sqrt`, the planner's)
+/// keeps the triangular ramp's acceleration at its limit to f32 rounding (1.7e-7);
+/// micromath's error and the phases it would lengthen are printed. If micromath became
+/// accurate to 1 % this test fails and the decision is to be revisited.
+#[test]
+fn micromath_sqrt_measured_where_the_motion_planner_would_use_it() {
+    use m2ctl::kinematics::Real;
+    use micromath::F32Ext;
+    let overshoot = |n: f64, t_true: f64| ((t_true / n.max(1.0)).powi(2) - 1.0).max(0.0);
+    let (mut ours_err, mut mm_err) = (0.0f64, 0.0f64);
+    let (mut ours_over, mut longer, mut longest) = (0.0f64, 0u32, 1.0f64);
+    let steps = 200_000;
+    for k in 0..=steps {
+        // Per-cycle acceleration, log-uniform over ten decades.
+        let a = 10f64.powf(-10.0 * f64::from(k) / f64::from(steps));
+        let inv = (1.0 / a) as f32;
+        let t_true = f64::from(inv).sqrt();
+        let ours = f64::from(Real::sqrt(inv));
+        let mm = f64::from(F32Ext::sqrt(inv));
+        ours_err = ours_err.max((ours - t_true).abs() / t_true);
+        mm_err = mm_err.max((mm - t_true).abs() / t_true);
+        ours_over = ours_over.max(overshoot(ours.ceil(), t_true));
+        if mm.ceil() > ours.ceil() {
+            longer += 1;
+            longest = longest.max(mm.ceil() / ours.ceil());
+        }
+    }
+    println!(
+        "sqrt relative error vs f64: ours {ours_err:.1e}, micromath {mm_err:.1e}; ramp \
+         acceleration above its limit with ours {ours_over:.1e}; micromath would lengthen \
+         the acceleration phase in {longer} of {} cases, by up to {:.1} %",
+        steps + 1,
+        100.0 * (longest - 1.0)
+    );
+    assert!(ours_err <= f64::from(f32::EPSILON), "our sqrt {ours_err:e}");
+    assert!(ours_over <= 1e-6, "ours overshoots {ours_over:e}");
+    assert!(
+        mm_err > 0.01,
+        "micromath's sqrt is now within 1 % ({mm_err:e}): revisit"
+    );
+    assert!(longer > 0);
+}
