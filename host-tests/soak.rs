@@ -1,6 +1,7 @@
 //! The model-based soak (the model, the actions and the invariants are
 //! `m2ctl::sim::soak`): about 20 s of wall time in the suite; `M2_SOAK_SECONDS=600` for
-//! ten minutes; `M2_SOAK_SEED` picks the sequence.
+//! ten minutes; `M2_SOAK_SEED` picks the sequence; `M2_SOAK_CYCLES` runs to a cycle count
+//! (to replay a long run up to a violation it printed).
 //!
 //! `cargo test --features host --test soak -- --nocapture` prints the figures.
 
@@ -30,7 +31,15 @@ fn soak_holds_the_operator_contract_every_cycle() {
     let mut s = Soak::new(SeededChoices(seed));
     let t0 = Instant::now();
     let deadline = Duration::from_secs(seconds);
-    while t0.elapsed() < deadline {
+    // `M2_SOAK_CYCLES` ends the run at a cycle count instead (a replay of a long run to
+    // a violation it printed: the sequence depends on the seed only).
+    let max_cycles: Option<u64> = std::env::var("M2_SOAK_CYCLES")
+        .ok()
+        .and_then(|v| v.parse().ok());
+    while match max_cycles {
+        Some(n) => s.cycles() < n,
+        None => t0.elapsed() < deadline,
+    } {
         s.round(MAX_GAP_CYCLES);
     }
     s.drain(DRAIN_CYCLES);

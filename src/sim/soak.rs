@@ -191,6 +191,8 @@ pub struct Soak<C> {
     prev_truth: [f64; LEGS],
     prev_drives: [f64; LEGS],
     prev_state: State,
+    /// The legs of the motion of the last cycle (housekeeping's `moving_legs`).
+    prev_moving_legs: u8,
     prev_faulted: bool,
     tm_dropped_seen: u16,
     /// Consecutive cycles in the faulted state.
@@ -255,6 +257,7 @@ impl<C: Choices> Soak<C> {
             prev_truth: [0.0; LEGS],
             prev_drives: [0.0; LEGS],
             prev_state: State::Idle,
+            prev_moving_legs: 0,
             prev_faulted: false,
             tm_dropped_seen: 0,
             rest_cycles: 0,
@@ -272,16 +275,41 @@ impl<C: Choices> Soak<C> {
     }
 
     fn violation(&mut self, what: String) {
-        if self.violations.is_empty() {
-            eprintln!("history before the first violation:");
+        if self.violations.len() < MAX_PRINTED_VIOLATIONS {
+            // Each printed violation with what led to it and the state it was seen in
+            // (a long run is replayed to it with the same seed and `M2_SOAK_CYCLES`).
+            eprintln!("history before the violation:");
             for h in &self.history {
                 eprintln!("  {h}");
             }
-        }
-        if self.violations.len() < MAX_PRINTED_VIOLATIONS {
             eprintln!("VIOLATION at cycle {}: {what}", self.cycles);
+            eprintln!("  {}", self.snapshot());
         }
         self.violations.push(what);
+    }
+
+    /// The state a violation is seen in: controller state, latched faults, moving legs,
+    /// commanded strokes now and in the last cycle, the drives' setpoints now and in the
+    /// last cycle, the true strokes (mm).
+    fn snapshot(&self) -> String {
+        let hk = self.r.ctl.housekeeping();
+        format!(
+            "state {:?} (last {:?}), faults {:#x}, moving legs {:#08b}, commanded {:?} (last {:?}), drives {:?} (last {:?}), true {:?}",
+            self.r.ctl.state(),
+            self.prev_state,
+            self.r.ctl.faults().bits(),
+            hk.moving_legs,
+            self.r.ctl.strokes_commanded_mm(),
+            self.prev_cmd,
+            self.r.plant.with(|p| p.drive_setpoints_mm()),
+            self.prev_drives,
+            self.r.plant.with(|p| p.strokes_mm()),
+        )
+    }
+
+    /// Control cycles run so far.
+    pub fn cycles(&self) -> u64 {
+        self.cycles
     }
 
     fn note(&mut self, what: String) {
@@ -601,6 +629,7 @@ impl<C: Choices> Soak<C> {
         self.prev_truth = self.r.plant.with(|p| p.strokes_mm());
         self.prev_drives = self.r.plant.with(|p| p.drive_setpoints_mm());
         self.prev_state = self.r.ctl.state();
+        self.prev_moving_legs = self.r.ctl.housekeeping().moving_legs;
         self.prev_faulted = !self.r.ctl.faults().is_empty();
         self.tm_dropped_seen = 0;
         self.rest_cycles = 0;
@@ -723,8 +752,14 @@ impl<C: Choices> Soak<C> {
             }
         }
         // 4. During a recovery move only its leg's drive setpoint changes; the others
-        //    keep exactly theirs.
-        if state == State::StrokeMoving && self.prev_state == State::StrokeMoving && !skip {
+        //    keep exactly theirs. Checked from the second cycle of the same move: a move
+        //    may come to rest (its leg's last setpoint) and the next start in one cycle,
+        //    the last step then belonging to the move that ended (invariant 2 bounds it).
+        if state == State::StrokeMoving
+            && self.prev_state == State::StrokeMoving
+            && hk.moving_legs == self.prev_moving_legs
+            && !skip
+        {
             for i in (0..LEGS).filter(|i| hk.moving_legs & (1 << i) == 0) {
                 if drives[i] != self.prev_drives[i] {
                     self.violation(format!(
@@ -769,6 +804,7 @@ impl<C: Choices> Soak<C> {
         self.prev_truth = truth;
         self.prev_drives = drives;
         self.prev_state = state;
+        self.prev_moving_legs = hk.moving_legs;
         self.prev_faulted = faulted;
     }
 
