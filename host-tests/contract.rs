@@ -17,9 +17,7 @@ use m2ctl::nominal::PROTOTYPE;
 use m2ctl::sim::{Bench, InjectedFault, Plant, PlantConfig};
 use m2ctl::supervision::FaultFlags;
 use m2ctl::table::{Table, TABLE_LEN};
-
-/// mm per nm.
-const MM_PER_NM: f64 = 1e-6;
+use m2ctl::units::MM_PER_NM;
 
 fn plant_at(strokes_mm: [f64; 6]) -> Plant {
     let mut p = Plant::new(

@@ -10,6 +10,7 @@ use m2ctl::kinematics::fk::strokes_and_jacobian;
 use m2ctl::kinematics::linalg::UnitZJacobian;
 use m2ctl::kinematics::*;
 use m2ctl::nominal::{prototype_with_flight_limits, PROTOTYPE};
+use m2ctl::units::ARCSEC_PER_RAD;
 use nalgebra::{Matrix6, Vector6};
 
 fn g64() -> Geometry<f64> {

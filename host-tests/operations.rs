@@ -17,10 +17,9 @@ use m2ctl::link::{Command, RequestId};
 use m2ctl::nominal::PROTOTYPE;
 use m2ctl::sim::{Bench, InjectedFault};
 use m2ctl::table::mock_flash::TearMode;
+use m2ctl::units::{ARCSEC_PER_RAD, NM_PER_MM};
 use nalgebra::{Matrix3, Vector3};
 
-/// Nanometres per millimetre.
-const NM_PER_MM: f64 = 1.0e6;
 /// Parameter IDs used here.
 const PIVOT_X: u16 = 0x0001;
 const PIVOT_Z: u16 = 0x0003;

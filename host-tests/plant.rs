@@ -3,10 +3,11 @@
 #![allow(clippy::needless_range_loop)] // index loops over six legs/axes read clearer here
 
 use m2ctl::hw::{counts_to_mm, SliderDrives, StrokeEncoders, ENCODER_MM_PER_COUNT};
-use m2ctl::kinematics::{fk, ik, FkConfig, Geometry, Pose, ARCSEC_PER_RAD};
+use m2ctl::kinematics::{fk, ik, FkConfig, Geometry, Pose};
 use m2ctl::nominal::PROTOTYPE;
 use m2ctl::sim::manufacturing::perturbed;
 use m2ctl::sim::{Plant, PlantConfig};
+use m2ctl::units::ARCSEC_PER_RAD;
 
 const DT_S: f64 = 1e-3;
 

@@ -8,10 +8,9 @@ use rand_pcg::Pcg64;
 
 use super::campaign::{reached, CampaignError};
 use super::plan::DEFAULT_AXIS_MM;
-use crate::kinematics::{ik, Geometry, GeometryParams, Pose, ARCSEC_PER_RAD};
+use crate::kinematics::{ik, Geometry, GeometryParams, Pose};
+use crate::units::{ARCSEC_PER_RAD, UM_PER_MM};
 
-/// um per mm.
-pub const UM_PER_MM: f64 = 1.0e3;
 /// Default number of held-out evaluation poses.
 pub const DEFAULT_EVAL_POSES: usize = 200;
 /// Default translation half-range of held-out poses (mm): the paper's stroke, 1 mm.

@@ -6,13 +6,10 @@ use super::schedule::{ScheduleCommand, MAX_INSERT_APP_DATA_LEN};
 use super::time::TimeReportRate;
 use super::wire::{Order, Reader, Writer};
 use super::{service, subtype};
-use crate::kinematics::{Pose, Real, ARCSEC_PER_RAD, LEGS};
+use crate::kinematics::{Pose, Real, LEGS};
 use crate::table::TABLE_LEN;
+use crate::units::{ARCSEC_PER_RAD, NM_PER_MM, UAS_PER_ARCSEC};
 
-/// Nanometres per millimetre.
-pub const NM_PER_MM: f64 = 1.0e6;
-/// Micro-arcseconds per arcsecond.
-pub const UAS_PER_ARCSEC: f64 = 1.0e6;
 /// Largest table chunk in one TC[6,2] or TM[6,6] (bytes).
 pub const TABLE_CHUNK_MAX_LEN: usize = 128;
 /// Bytes of a pose on the wire: six i32.

@@ -10,6 +10,7 @@
 //! message type counter per service (u16, wrapping), destination ID 0, timestamp
 //! [`TmTime`]), source data, CRC-16/CCITT-FALSE.
 
+use crate::units::{US_PER_MS, US_PER_S};
 use arbitrary_int::{u11, u14};
 use spacepackets::ecss::tm::{
     GenericPusTmSecondaryHeader, PusTmCreator, PusTmReader, PusTmSecondaryHeader,
@@ -83,10 +84,6 @@ fn sat_u8(v: usize) -> u8 {
 }
 /// Sub-second resolution of the timestamp: 2^16 fractions per second.
 pub const TIME_FRACTIONS_PER_SECOND: u64 = 1 << 16;
-/// Milliseconds per second.
-const MS_PER_S: u64 = 1000;
-/// Microseconds per millisecond.
-const US_PER_MS: u64 = 1000;
 
 /// The TM timestamp: CCSDS unsegmented time code (CUC) with implicit P-field, 4 bytes of
 /// seconds and 2 bytes of 1/65536 s, big-endian, counted from controller boot (the
@@ -104,13 +101,13 @@ pub struct TmTime {
 impl TmTime {
     /// From milliseconds since boot (seconds wrap after 2^32 s).
     pub const fn from_millis(ms: u64) -> TmTime {
-        TmTime::from_micros(ms * US_PER_MS)
+        TmTime::from_micros(ms * US_PER_MS as u64)
     }
 
     /// From microseconds since boot (seconds wrap after 2^32 s; the fraction is
     /// truncated to 1/65536 s).
     pub const fn from_micros(us: u64) -> TmTime {
-        let us_per_s = US_PER_MS * MS_PER_S;
+        let us_per_s = US_PER_S as u64;
         TmTime {
             seconds: (us / us_per_s) as u32,
             fraction: ((us % us_per_s) * TIME_FRACTIONS_PER_SECOND / us_per_s) as u16,

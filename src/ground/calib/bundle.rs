@@ -56,11 +56,10 @@ use super::{from_vec, param_name, stroke_gradient, to_vec, ParamVec, N_PARAMS, P
 use crate::kinematics::fk::strokes_and_jacobian;
 use crate::kinematics::ik::leg_state;
 use crate::kinematics::pose::RotationDelta;
-use crate::kinematics::{fk, FkConfig, Geometry, GeometryParams, Pose, ARCSEC_PER_RAD, LEGS};
+use crate::kinematics::{fk, FkConfig, Geometry, GeometryParams, Pose, LEGS};
 use crate::sim::tracker::rotation_matrix;
+use crate::units::{ARCSEC_PER_RAD, UM_PER_MM};
 
-/// um per mm.
-const UM_PER_MM: f64 = 1.0e3;
 /// Parameters of the registration correction (3 angles, 3 translations).
 pub const REGISTRATION_PARAMS: usize = 6;
 /// Whitened residual given to the balls of a pose whose forward kinematics fails with the

@@ -25,7 +25,8 @@ use crate::ground::files::{parse_csv, FileError, CSV_COLUMNS};
 use crate::kinematics::geometry::Leg;
 use crate::kinematics::ik::leg_state;
 use crate::kinematics::pose::RotationDelta;
-use crate::kinematics::{Geometry, GeometryParams, LegParams, Pose, ARCSEC_PER_RAD, LEGS};
+use crate::kinematics::{Geometry, GeometryParams, LegParams, Pose, LEGS};
+use crate::units::ARCSEC_PER_RAD;
 
 /// Parameters per leg: `a` (3) then `b` (3).
 pub const PARAMS_PER_LEG: usize = 6;

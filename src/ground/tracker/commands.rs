@@ -22,11 +22,10 @@ use crate::ground::eval::{
 };
 use crate::ground::files::{format_geometry, read_geometry, GeometryFile};
 use crate::ground::report::DEFAULT_EVAL_SEED;
-use crate::kinematics::{fk, FkConfig, Geometry, GeometryParams, Pose, ARCSEC_PER_RAD};
+use crate::kinematics::{fk, FkConfig, Geometry, GeometryParams, Pose};
 use crate::sim::tracker::TrackerNoise;
+use crate::units::{ARCSEC_PER_RAD, UM_PER_MM};
 
-/// um per mm.
-const UM_PER_MM: f64 = 1.0e3;
 /// Weakest directions listed in the report.
 pub const REPORTED_DIRECTIONS: usize = 6;
 /// Quantiles of the noise-floor band: where a pure-noise per-pose maximum lands 90 % of
