@@ -9,7 +9,7 @@ use super::calib::{
     calibrate, parse_measurements, CalibConfig, CalibError, CalibResult, Measurement,
 };
 use super::campaign::{perturbed, reached, simulate};
-use super::eval::{accuracy, max_param_error_mm, random_poses, Accuracy, AXES};
+use super::eval::{accuracy, max_param_error_mm, random_poses, Accuracy};
 use super::eval::{DEFAULT_EVAL_POSES, DEFAULT_EVAL_ROTATION_ARCSEC, DEFAULT_EVAL_TRANSLATION_MM};
 use super::files::{format_geometry, read_geometry, GeometryFile};
 use super::plan::{format_plan, plan_poses, PlanConfig};
@@ -39,16 +39,7 @@ pub fn measured_pose_errors(
 }
 
 fn accuracy_lines(out: &mut String, label: &str, a: &Accuracy) {
-    let cells: Vec<String> = AXES
-        .iter()
-        .zip(a.max_abs.iter().zip(a.rms.iter()))
-        .enumerate()
-        .map(|(k, (n, (m, r)))| {
-            let unit = if k < 3 { "um" } else { "\"" };
-            format!("{n} {m:.4}/{r:.4}{unit}")
-        })
-        .collect();
-    let _ = writeln!(out, "  {label:<10} max/RMS: {}", cells.join("  "));
+    let _ = writeln!(out, "  {label:<10} max/RMS: {}", a.max_rms_cells(4));
 }
 
 /// Options of `m2ground calibrate`.

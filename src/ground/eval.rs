@@ -60,6 +60,21 @@ impl Accuracy {
         self.max_abs[3..].iter().fold(0.0, |m, v| m.max(*v))
     }
 
+    /// The per-axis `max/RMS` cells of a report line, `decimals` after the point:
+    /// `x 0.123/0.045um  ...  gamma 0.100/0.050"`.
+    pub fn max_rms_cells(&self, decimals: usize) -> String {
+        let cells: Vec<String> = AXES
+            .iter()
+            .zip(self.max_abs.iter().zip(self.rms.iter()))
+            .enumerate()
+            .map(|(k, (n, (m, r)))| {
+                let unit = if k < 3 { "um" } else { "\"" };
+                format!("{n} {m:.decimals$}/{r:.decimals$}{unit}")
+            })
+            .collect();
+        cells.join("  ")
+    }
+
     /// Per target: the largest translation error (um) and rotation error (arcsec).
     pub fn per_pose_max(&self) -> Vec<(f64, f64)> {
         self.errors

@@ -42,7 +42,7 @@
 
 use std::time::{Duration, Instant};
 
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use levenberg_marquardt::LeastSquaresProblem;
 use nalgebra::{
     storage::Owned, DMatrix, DVector, Dyn, Isometry3, Matrix3, Matrix6, Point3, Translation3,
     UnitQuaternion, Vector3,
@@ -791,12 +791,7 @@ pub fn fit(data: &BundleData, cfg: &BundleConfig) -> Result<BundleFit, BundleErr
     let nd = bundle.n_data_rows();
     let r0 = bundle.evaluate(&x0, None);
     let start_rms = (r0[..nd].iter().map(|v| v * v).sum::<f64>() / nd as f64).sqrt();
-    let tol = cfg.tol_eps * f64::EPSILON;
-    let lm = LevenbergMarquardt::new()
-        .with_ftol(tol)
-        .with_xtol(tol)
-        .with_gtol(tol)
-        .with_patience(cfg.patience);
+    let lm = super::lm::solver(cfg.tol_eps, cfg.patience);
     let (p, report) = lm.minimize(LmAdapter {
         bundle: &bundle,
         x: x0,

@@ -126,6 +126,17 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for LmProblem<'_> {
     }
 }
 
+/// The LM solver both fits use: f-, x- and g-tolerance `tol_eps` machine epsilons, at most
+/// `patience` residual evaluations per parameter + 1.
+pub(crate) fn solver(tol_eps: f64, patience: usize) -> LevenbergMarquardt<f64> {
+    let tol = tol_eps * f64::EPSILON;
+    LevenbergMarquardt::new()
+        .with_ftol(tol)
+        .with_xtol(tol)
+        .with_gtol(tol)
+        .with_patience(patience)
+}
+
 fn run(
     problem: &Problem,
     start: &ParamVec,
@@ -133,12 +144,7 @@ fn run(
     weight: f64,
     cfg: &LmConfig,
 ) -> Result<(ParamVec, usize, String), CalibError> {
-    let tol = cfg.tol_eps * f64::EPSILON;
-    let lm = LevenbergMarquardt::new()
-        .with_ftol(tol)
-        .with_xtol(tol)
-        .with_gtol(tol)
-        .with_patience(cfg.patience);
+    let lm = solver(cfg.tol_eps, cfg.patience);
     let (p, report) = lm.minimize(LmProblem {
         problem,
         nominal: *nominal,

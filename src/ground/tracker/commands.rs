@@ -95,16 +95,7 @@ pub fn pose_noise(fit: &BundleFit, p0_mm: &[f64; 3], noise: &TrackerNoise) -> Op
 }
 
 fn line(out: &mut String, label: &str, a: &Accuracy) {
-    let cells: Vec<String> = AXES
-        .iter()
-        .zip(a.max_abs.iter().zip(a.rms.iter()))
-        .enumerate()
-        .map(|(k, (n, (m, r)))| {
-            let unit = if k < 3 { "um" } else { "\"" };
-            format!("{n} {m:.3}/{r:.3}{unit}")
-        })
-        .collect();
-    let _ = writeln!(out, "  {label:<26} max/RMS: {}", cells.join("  "));
+    let _ = writeln!(out, "  {label:<26} max/RMS: {}", a.max_rms_cells(3));
 }
 
 /// Runs `calibrate` on tracker points: the geometry file text and the printed report.
