@@ -8,7 +8,7 @@ mod common;
 
 use std::time::{Duration, Instant};
 
-use common::qemu::Qemu;
+use common::qemu::{Link, Qemu};
 use m2ctl::controller::{event, State};
 use m2ctl::ground::station::{Station, Tm};
 use m2ctl::link::command::WirePose;
@@ -17,29 +17,11 @@ use m2ctl::link::{Command, RequestId, TableChunk};
 use m2ctl::table::Table;
 use m2ctl::units::{NM_PER_UM, UAS_PER_ARCSEC_I32};
 
-struct Link {
-    q: Qemu,
-    st: Station,
-}
-
 impl Link {
     fn send(&mut self, cmd: &Command) -> RequestId {
         let (frame, rid) = self.st.frame(cmd).unwrap();
         self.q.send(&frame);
         rid
-    }
-
-    /// Reads telemetry until `done` holds or `timeout` passes.
-    fn until(&mut self, timeout: Duration, mut done: impl FnMut(&Station) -> bool) -> bool {
-        let t0 = Instant::now();
-        while t0.elapsed() < timeout {
-            let bytes = self.q.read_for(Duration::from_millis(50));
-            self.st.receive(&bytes);
-            if done(&self.st) {
-                return true;
-            }
-        }
-        false
     }
 
     fn complete(&mut self, rid: RequestId, timeout: Duration) -> Vec<Verification> {
