@@ -27,12 +27,9 @@ use super::tc::{RequestId, APID_MASK, REQUEST_ID_LEN, SEQ_COUNT_MASK};
 use super::time::{parse_time_report, time_report_bytes, TimeReportRate, TIME_REPORT_LEN};
 use super::wire::{Order, Reader, Writer};
 use super::{
-    service, subtype, CCSDS_PRIMARY_HEADER_LEN, CRC16_LEN, M2_APID, MAX_TM_PACKET_LEN,
-    PUS_TM_SEC_HEADER_LEN_NO_TIME, TM_TIMESTAMP_LEN,
+    service, subtype, CCSDS_PRIMARY_HEADER_LEN, CRC16_LEN, DATA_LEN_FIELD_OFFSET, M2_APID,
+    MAX_TM_PACKET_LEN, PUS_TM_SEC_HEADER_LEN_NO_TIME, TM_TIMESTAMP_LEN,
 };
-
-/// Offset of the CCSDS data length field in the primary header (bytes).
-const DATA_LEN_FIELD_OFFSET: usize = 4;
 
 /// Largest source data of any TM packet the controller emits (bytes): the schedule
 /// summary of a full schedule (161), the housekeeping report, a dump chunk,
