@@ -80,7 +80,7 @@ pub const DEFAULT_TARGET_TRANSLATION_MM: f64 = 1.0;
 /// Default target range in rotation (arcsec): the paper's +-1 arcmin.
 pub const DEFAULT_TARGET_ROTATION_ARCSEC: f64 = 60.0;
 /// Default manufacturing error (mm).
-pub const DEFAULT_MANUFACTURING_SIGMA_MM: f64 = 0.1;
+pub const DEFAULT_MANUFACTURING_SIGMA_MM: f64 = crate::sim::manufacturing::DEFAULT_JOINT_SIGMA_MM;
 
 impl Default for MissionConfig {
     fn default() -> Self {

@@ -67,10 +67,8 @@ pub const REGISTRATION_PARAMS: usize = 6;
 pub const FAILED_POSE_RESIDUAL: f64 = 1.0e6;
 /// Most Newton steps of a pose's FK inside the fit (warm-started at the nominal FK).
 pub const BUNDLE_FK_ITERATIONS: u8 = 20;
-/// Default LM budget: residual evaluations per (parameter + 1).
-pub const DEFAULT_PATIENCE: usize = 100;
-/// Default LM tolerances (ftol = xtol = gtol) in machine epsilons.
-pub const DEFAULT_TOL_EPS: f64 = 30.0;
+// The LM budget and tolerances: the same defaults as calib::lm's fit.
+pub use super::lm::{DEFAULT_PATIENCE, DEFAULT_TOL_EPS};
 /// Largest Mahalanobis distance of a measured point from the fit (its 3 whitened
 /// residual components): a chi distribution with 3 degrees of freedom exceeds 8 with
 /// probability 1e-13, so a larger one is a mis-measured, swapped or moved point.
