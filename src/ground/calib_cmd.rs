@@ -16,6 +16,7 @@ use super::plan::{format_plan, plan_poses, PlanConfig};
 use super::report::{plot_per_pose, DEFAULT_EVAL_SEED};
 use crate::kinematics::{Geometry, GeometryParams};
 use crate::sim::tracker::PoseTracker;
+use crate::units::{NM_PER_MM, UM_PER_MM};
 
 /// Reads and parses a measurement file; errors are prefixed with the path.
 pub fn read_measurements(path: &Path) -> Result<Vec<Measurement>, String> {
@@ -84,7 +85,7 @@ pub fn run_calibrate(a: &CalibrateArgs) -> Result<(String, String), String> {
         a.cfg.solver,
         a.cfg.seed,
         meas.len(),
-        r.rms_after_mm * 1e6
+        r.rms_after_mm * NM_PER_MM
     );
     let mut provenance = vec![
         ("calibration_id".to_string(), id),
@@ -94,7 +95,7 @@ pub fn run_calibrate(a: &CalibrateArgs) -> Result<(String, String), String> {
         ("poses".to_string(), meas.len().to_string()),
         (
             "residual_rms_um".to_string(),
-            format!("{:.6}", r.rms_after_mm * 1e3),
+            format!("{:.6}", r.rms_after_mm * UM_PER_MM),
         ),
         ("condition".to_string(), format!("{:.6e}", r.condition())),
         (

@@ -16,6 +16,7 @@ use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{storage::Owned, DMatrix, DVector, Dyn};
 
 use super::{CalibError, ParamBox, ParamVec, Problem, N_PARAMS};
+use crate::units::UM_PER_MM;
 
 /// Default assumed standard deviation of the true joint centres about nominal (mm): half
 /// the default Omega half-width, so Omega is a +-2 sigma box.
@@ -218,7 +219,7 @@ pub fn solve(
         prior_weight: weight,
         note: format!(
             "lm bounded: noise {:.3} um (estimated: {}), prior sigma {} mm, weight {:.3e}, {note}, {} parameters clamped",
-            noise_mm * 1e3,
+            noise_mm * UM_PER_MM,
             cfg.noise_mm.is_none(),
             cfg.prior_sigma_mm,
             weight,

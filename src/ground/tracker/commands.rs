@@ -24,7 +24,7 @@ use crate::ground::files::{format_geometry, read_geometry, GeometryFile};
 use crate::ground::report::DEFAULT_EVAL_SEED;
 use crate::kinematics::{fk, FkConfig, Geometry, GeometryParams, Pose};
 use crate::sim::tracker::TrackerNoise;
-use crate::units::{ARCSEC_PER_RAD, UM_PER_MM};
+use crate::units::{ARCSEC_PER_RAD, MM_PER_M, UM_PER_MM};
 
 /// Weakest directions listed in the report.
 pub const REPORTED_DIRECTIONS: usize = 6;
@@ -468,7 +468,7 @@ pub fn run_simulate(a: &SimulateArgs) -> Result<[String; 4], String> {
         "Simulated tracker campaign {} (m2ground simulate-tracker-campaign): {} poses, tracker {:.2} m away, {}; true joints {}",
         a.campaign,
         a.plan.len(),
-        a.setup.placement.distance_mm / 1e3,
+        a.setup.placement.distance_mm / MM_PER_M,
         a.setup.noise.describe(),
         a.truth.describe()
     );
