@@ -13,6 +13,7 @@ use m2ctl::ground::plan::{plan_poses, PlanConfig};
 use m2ctl::kinematics::GeometryParams;
 use m2ctl::nominal::PROTOTYPE;
 use m2ctl::sim::tracker::PoseTracker;
+use m2ctl::units::UM_PER_MM;
 
 /// Manufacturing error sigma of the test campaigns (mm).
 const SIGMA_MM: f64 = 0.1;
@@ -177,17 +178,17 @@ fn whitened_coordinates_reach_the_lm_fit() {
     let original = run(Coordinates::Original);
     eprintln!(
         "fit RMS um: lm {:.4}, whitened {:.4}, original {:.4}",
-        lm.rms_after_mm * 1e3,
-        whitened.rms_after_mm * 1e3,
-        original.rms_after_mm * 1e3
+        lm.rms_after_mm * UM_PER_MM,
+        whitened.rms_after_mm * UM_PER_MM,
+        original.rms_after_mm * UM_PER_MM
     );
     assert!(whitened.inside_omega && original.inside_omega);
     assert!(whitened.rms_after_mm < original.rms_after_mm);
     assert!(
         whitened.rms_after_mm <= lm.rms_after_mm * WHITENED_FIT_TOLERANCE,
         "whitened {} um vs LM {} um",
-        whitened.rms_after_mm * 1e3,
-        lm.rms_after_mm * 1e3
+        whitened.rms_after_mm * UM_PER_MM,
+        lm.rms_after_mm * UM_PER_MM
     );
     // And it is at the noise floor on held-out poses, like LM.
     let targets = random_poses(EVAL_POSES, 1.0, 60.0, 4);

@@ -17,9 +17,7 @@ use m2ctl::nominal::PROTOTYPE;
 use m2ctl::sim::{Bench, InjectedFault, Plant, PlantConfig};
 use m2ctl::supervision::FaultFlags;
 use m2ctl::table::{Table, TABLE_LEN};
-
-/// mm per nm.
-const MM_PER_NM: f64 = 1e-6;
+use m2ctl::units::{MM_PER_NM, UM_PER_MM};
 
 fn plant_at(strokes_mm: [f64; 6]) -> Plant {
     let mut p = Plant::new(
@@ -133,7 +131,7 @@ fn zero_length_recovery_after_a_read_failure_during_a_move_moves_no_leg() {
             (after[i] - before[i]).abs() < 1e-9,
             "leg {} moved {} um",
             i + 1,
-            (after[i] - before[i]) * 1e3
+            (after[i] - before[i]) * UM_PER_MM
         );
     }
 }
@@ -306,8 +304,8 @@ fn moves_after_an_intermittent_encoder_fault_start_where_the_drives_hold() {
     assert!(
         worst <= step_limit_mm,
         "a commanded step of {:.3} um in one cycle (limit {:.3} um)",
-        worst * 1e3,
-        step_limit_mm * 1e3
+        worst * UM_PER_MM,
+        step_limit_mm * UM_PER_MM
     );
     // The direct-stroke speed limit holds too.
     let held = drive_setpoints(&r);
@@ -321,8 +319,8 @@ fn moves_after_an_intermittent_encoder_fault_start_where_the_drives_hold() {
     assert!(
         worst_ds <= ds_limit_mm,
         "direct stroke: {:.4} um in a cycle (limit {:.4})",
-        worst_ds * 1e3,
-        ds_limit_mm * 1e3
+        worst_ds * UM_PER_MM,
+        ds_limit_mm * UM_PER_MM
     );
     assert!((drive_setpoints(&r)[3] - held[3] - 0.03).abs() < 1e-6);
 }

@@ -9,13 +9,14 @@ use common::{activate, all_ok, calibrated_table, install, tick_packet, upload, w
 
 use m2ctl::controller::{event, State};
 use m2ctl::ground::station::Tm;
-use m2ctl::kinematics::{Pose, ARCSEC_PER_RAD};
+use m2ctl::kinematics::Pose;
 use m2ctl::link::command::{WirePose, TABLE_CHUNK_MAX_LEN};
 use m2ctl::link::tm::Verification;
 use m2ctl::link::{Command, MemoryId, TableChunk};
 use m2ctl::motion::CYCLE_S;
 use m2ctl::sim::Bench;
 use m2ctl::table::{Table, TABLE_LEN};
+use m2ctl::units::ARCSEC_PER_RAD;
 
 #[test]
 fn boots_on_nominal_from_blank_flash_and_answers_ping() {

@@ -14,6 +14,7 @@ use m2ctl::nominal::PROTOTYPE;
 use m2ctl::sim::Bench;
 use m2ctl::sim::{InjectedFault, Plant, PlantConfig};
 use m2ctl::supervision::FaultFlags;
+use m2ctl::units::{MM_PER_NM, NM_PER_MM};
 
 /// Cycles into the move at which the fault is injected (cruising by then).
 const INJECT_AFTER_CYCLES: u32 = 1500;
@@ -81,7 +82,7 @@ fn move_and_inject(fault: InjectedFault, expect: FaultFlags, max_latency: u32) -
             let pos = r.plant.with(|p| p.drive_positions_mm());
             for i in 0..6 {
                 assert!(
-                    (f64::from(now[i]) * 1e-6 - pos[i]).abs() < 1e-6,
+                    (f64::from(now[i]) * MM_PER_NM - pos[i]).abs() < 1e-6,
                     "{fault:?}: leg {i} not held where it is"
                 );
             }
@@ -89,7 +90,7 @@ fn move_and_inject(fault: InjectedFault, expect: FaultFlags, max_latency: u32) -
             break;
         }
         for i in 0..6 {
-            let v_mm_s = (now[i] - prev[i]) as f64 * 1e-6 / f64::from(CYCLE_S);
+            let v_mm_s = (now[i] - prev[i]) as f64 * MM_PER_NM / f64::from(CYCLE_S);
             assert!(
                 v_mm_s.abs() <= vmax * 1.001 + 1e-3,
                 "{fault:?}: leg {i} at {v_mm_s} mm/s while stopping"
@@ -371,7 +372,7 @@ fn walk_home(r: &mut Bench, leg: u8) {
         let step_mm = s.clamp(-0.45, 0.45);
         let rid = r.send(&Command::DirectStroke {
             leg,
-            delta_nm: (-step_mm * 1e6).round() as i32,
+            delta_nm: (-step_mm * NM_PER_MM).round() as i32,
         });
         r.settle(50_000);
         assert!(

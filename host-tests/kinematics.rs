@@ -10,6 +10,7 @@ use m2ctl::kinematics::fk::strokes_and_jacobian;
 use m2ctl::kinematics::linalg::UnitZJacobian;
 use m2ctl::kinematics::*;
 use m2ctl::nominal::{prototype_with_flight_limits, PROTOTYPE};
+use m2ctl::units::{ARCSEC_PER_RAD, NM_PER_MM};
 use nalgebra::{Matrix6, Vector6};
 
 fn g64() -> Geometry<f64> {
@@ -107,9 +108,9 @@ fn f32_strokes_agree_with_f64_within_1nm_over_workspace() {
     println!(
         "f32 vs f64 over {} poses (64 corners): max {:.3} nm",
         poses.len(),
-        worst * 1e6
+        worst * NM_PER_MM
     );
-    assert!(worst <= 1e-6, "{} nm", worst * 1e6);
+    assert!(worst <= 1e-6, "{} nm", worst * NM_PER_MM);
 }
 
 #[test]
@@ -149,7 +150,7 @@ fn naive_f32_evaluation_is_what_the_reformulation_avoids() {
             worst = worst.max((f64::from(s) - exact[i]).abs());
         }
     }
-    println!("naive f32: max {:.1} nm", worst * 1e6);
+    println!("naive f32: max {:.1} nm", worst * NM_PER_MM);
     assert!(worst > 5e-6, "naive f32 unexpectedly accurate: {worst:e}");
 }
 
@@ -172,7 +173,7 @@ fn fk_of_ik_returns_the_pose_f32_within_5nm_and_1marcsec() {
     println!(
         "FK(IK) f32 from home over {} poses: {:.3} nm, {:.5} arcsec, <= {} iterations",
         poses.len(),
-        e_mm * 1e6,
+        e_mm * NM_PER_MM,
         e_as,
         max_it
     );
@@ -256,7 +257,7 @@ fn fk_warm_start_needs_no_confirming_jacobian_and_keeps_its_accuracy() {
     }
     println!(
         "FK warm 10 um / 1\": f32 {:.3} nm, {:.5} arcsec, <= {} Newton steps; f64 {:.1e} mm, <= {} steps",
-        e32_mm * 1e6,
+        e32_mm * NM_PER_MM,
         e32_as,
         it32,
         e64,

@@ -36,6 +36,7 @@ use m2ctl::sim::{Bench, InjectedFault, SwitchEnd};
 use m2ctl::supervision::{CycleInputs, FaultFlags, SupervisionConfig, Supervisor};
 use m2ctl::table::mock_flash::MockFlash;
 use m2ctl::table::{TableStore, ValidationConfig};
+use m2ctl::units::UM_PER_MM;
 
 /// Failure code of a direct stroke toward an end-of-travel switch.
 const TOWARD_END_OF_TRAVEL: u16 = 0x070E;
@@ -308,7 +309,7 @@ fn a_limit_switch_stops_its_leg_in_the_cycle_it_is_seen() {
     println!(
         "upper switch of leg 3 seen {} cycles into the move, slider {:.3} um beyond it when seen, not a nanometre further after",
         t.seen_after,
-        t.overshoot_mm * 1e3
+        t.overshoot_mm * UM_PER_MM
     );
     // Within one cycle of the slowest path speed (0.2 mm/s = 0.2 um per cycle).
     assert!(
@@ -331,7 +332,7 @@ fn the_lower_switch_is_symmetric() {
     println!(
         "lower switch of leg 5 seen {} cycles into the move, slider {:.3} um beyond it",
         t.seen_after,
-        t.overshoot_mm * 1e3
+        t.overshoot_mm * UM_PER_MM
     );
     assert!((0.0..=2.0e-4 + 1e-9).contains(&t.overshoot_mm));
     recover(t.r, 4, SwitchEnd::Lower);

@@ -17,10 +17,9 @@ use m2ctl::link::{Command, RequestId};
 use m2ctl::nominal::PROTOTYPE;
 use m2ctl::sim::{Bench, InjectedFault};
 use m2ctl::table::mock_flash::TearMode;
+use m2ctl::units::{ARCSEC_PER_RAD, NM_PER_MM, UM_PER_MM};
 use nalgebra::{Matrix3, Vector3};
 
-/// Nanometres per millimetre.
-const NM_PER_MM: f64 = 1.0e6;
 /// Parameter IDs used here.
 const PIVOT_X: u16 = 0x0001;
 const PIVOT_Z: u16 = 0x0003;
@@ -264,7 +263,7 @@ fn a_pure_rotation_about_the_pivot_keeps_the_pivot_fixed_within_1nm_at_every_set
     println!(
         "pure rotation 500/-300/200 arcsec about a pivot 250 mm out: pivot moved at most {:.3} nm over {cycles} setpoints (about M's origin instead: {:.1} um)",
         worst * NM_PER_MM,
-        swing * 1e3
+        swing * UM_PER_MM
     );
     assert!(worst <= 1e-6, "{} nm", worst * NM_PER_MM);
     assert!(swing > 0.5, "negative control: {swing} mm");

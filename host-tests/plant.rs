@@ -3,10 +3,11 @@
 #![allow(clippy::needless_range_loop)] // index loops over six legs/axes read clearer here
 
 use m2ctl::hw::{counts_to_mm, SliderDrives, StrokeEncoders, ENCODER_MM_PER_COUNT};
-use m2ctl::kinematics::{fk, ik, FkConfig, Geometry, Pose, ARCSEC_PER_RAD};
+use m2ctl::kinematics::{fk, ik, FkConfig, Geometry, Pose};
 use m2ctl::nominal::PROTOTYPE;
 use m2ctl::sim::manufacturing::perturbed;
 use m2ctl::sim::{Plant, PlantConfig};
+use m2ctl::units::{ARCSEC_PER_RAD, UM_PER_MM};
 
 const DT_S: f64 = 1e-3;
 
@@ -106,13 +107,15 @@ fn nominal_controller_on_a_true_mechanism_shows_the_calibration_problem() {
         let real = plant.true_pose().unwrap();
         let t = target.cast::<f64>();
         let err_um = (0..3)
-            .map(|k| (real.translation_mm[k] - t.translation_mm[k]).abs() * 1e3)
+            .map(|k| (real.translation_mm[k] - t.translation_mm[k]).abs() * UM_PER_MM)
             .fold(0.0, f64::max);
         let err_as = (0..3)
             .map(|k| (real.rotation_rad[k] - t.rotation_rad[k]).abs() * ARCSEC_PER_RAD)
             .fold(0.0, f64::max);
         let est_um = (0..3)
-            .map(|k| f64::from((est.translation_mm[k] - target.translation_mm[k]).abs()) * 1e3)
+            .map(|k| {
+                f64::from((est.translation_mm[k] - target.translation_mm[k]).abs()) * UM_PER_MM
+            })
             .fold(0.0, f64::max);
         println!("truth perturbed={expect_large}: {steps} steps, true error {err_um:.3} um {err_as:.3} arcsec, FK estimate error {est_um:.3} um");
         assert!(est_um < 0.5, "encoder FK estimate {est_um} um");

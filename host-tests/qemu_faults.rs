@@ -14,7 +14,7 @@ mod common;
 
 use std::time::{Duration, Instant};
 
-use common::qemu::{elf_at, Qemu};
+use common::qemu::{elf_at, Link, Qemu};
 use m2ctl::controller::{event, ResetCause};
 use m2ctl::ground::station::Station;
 use m2ctl::link::tm::Verification;
@@ -26,24 +26,7 @@ const FAULT_TEST_ELF: &str = "target/m2fw-fault-test";
 /// Overrunning cycles the fault-test build injects after power-on (main.rs).
 const INJECTED_OVERRUNS: u16 = 5;
 
-struct Link {
-    q: Qemu,
-    st: Station,
-}
-
 impl Link {
-    fn until(&mut self, timeout: Duration, mut done: impl FnMut(&Station) -> bool) -> bool {
-        let t0 = Instant::now();
-        while t0.elapsed() < timeout {
-            let bytes = self.q.read_for(Duration::from_millis(50));
-            self.st.receive(&bytes);
-            if done(&self.st) {
-                return true;
-            }
-        }
-        false
-    }
-
     /// Boot-detail events so far: (reset cause code, boot count).
     fn boots(&self) -> Vec<(u32, u32)> {
         self.st

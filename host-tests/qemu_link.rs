@@ -8,37 +8,20 @@ mod common;
 
 use std::time::{Duration, Instant};
 
-use common::qemu::Qemu;
+use common::qemu::{Link, Qemu};
 use m2ctl::controller::{event, State};
 use m2ctl::ground::station::{Station, Tm};
 use m2ctl::link::command::WirePose;
 use m2ctl::link::tm::{dump_chunks, Verification};
 use m2ctl::link::{Command, RequestId, TableChunk};
 use m2ctl::table::Table;
-
-struct Link {
-    q: Qemu,
-    st: Station,
-}
+use m2ctl::units::{NM_PER_UM, UAS_PER_ARCSEC_I32};
 
 impl Link {
     fn send(&mut self, cmd: &Command) -> RequestId {
         let (frame, rid) = self.st.frame(cmd).unwrap();
         self.q.send(&frame);
         rid
-    }
-
-    /// Reads telemetry until `done` holds or `timeout` passes.
-    fn until(&mut self, timeout: Duration, mut done: impl FnMut(&Station) -> bool) -> bool {
-        let t0 = Instant::now();
-        while t0.elapsed() < timeout {
-            let bytes = self.q.read_for(Duration::from_millis(50));
-            self.st.receive(&bytes);
-            if done(&self.st) {
-                return true;
-            }
-        }
-        false
     }
 
     fn complete(&mut self, rid: RequestId, timeout: Duration) -> Vec<Verification> {
@@ -318,7 +301,7 @@ fn operations_in_qemu_pivot_check_schedule_parameters() {
         assert_eq!(check.code, want, "{check:?}");
         println!(
             "OPS            check move rx = {}\": code {:#06x}, target refusal bits {:#010x}",
-            target.rotation_uas[0] / 1_000_000,
+            target.rotation_uas[0] / UAS_PER_ARCSEC_I32,
             check.code,
             check.target_refusals
         );
@@ -383,8 +366,8 @@ fn operations_in_qemu_pivot_check_schedule_parameters() {
         let hk = l.st.last_hk().unwrap();
         let op = hk.pose_fk_operator.to_array();
         let origin = hk.pose_fk.to_array();
-        let pivot_um = op[..3].iter().map(|v| v.abs()).max().unwrap() as f64 / 1e3;
-        let origin_um = origin[..3].iter().map(|v| v.abs()).max().unwrap() as f64 / 1e3;
+        let pivot_um = op[..3].iter().map(|v| v.abs()).max().unwrap() as f64 / NM_PER_UM;
+        let origin_um = origin[..3].iter().map(|v| v.abs()).max().unwrap() as f64 / NM_PER_UM;
         // At rest the commanded pose is FK of the held strokes: the target to 1 mas.
         let cmd = hk.pose_commanded_operator.to_array();
         for (got, want) in cmd[3..].iter().zip(&poses[k][3..]) {
@@ -401,9 +384,9 @@ fn operations_in_qemu_pivot_check_schedule_parameters() {
         println!(
             "OPS t={released:7.3} s  move {} released (due {due:.3} s), arrived {arrived:.3} s: rx/ry/rz = {}/{}/{}\", pivot moved {pivot_um:.3} um (FK of the encoders, 0.1 um counts), M's origin {origin_um:.1} um",
             k + 1,
-            poses[k][3] / 1_000_000,
-            poses[k][4] / 1_000_000,
-            poses[k][5] / 1_000_000,
+            poses[k][3] / UAS_PER_ARCSEC_I32,
+            poses[k][4] / UAS_PER_ARCSEC_I32,
+            poses[k][5] / UAS_PER_ARCSEC_I32,
         );
     }
     assert_eq!(l.st.events(event::ACTIVITY_RELEASED).len(), 3);

@@ -9,7 +9,7 @@ use common::{all_ok, wire};
 use m2ctl::controller::schedule::{obt_of_cycle, request_id_word, MAX_OBT};
 use m2ctl::controller::{event, State};
 use m2ctl::ground::station::Tm;
-use m2ctl::kinematics::{Pose, ARCSEC_PER_RAD};
+use m2ctl::kinematics::Pose;
 use m2ctl::link::command::WirePose;
 use m2ctl::link::schedule::{
     ActivityBlock, ObtOffset, RequestIdList, ScheduleCommand, SummaryEntry, MAX_SCHEDULED_TC_LEN,
@@ -22,9 +22,9 @@ use m2ctl::link::{
     encode_telecommand, service, subtype, Command, RequestId, TableChunk, MAX_TC_PACKET_LEN,
 };
 use m2ctl::sim::{Bench, InjectedFault};
+use m2ctl::timing::CYCLE_S_F64;
+use m2ctl::units::ARCSEC_PER_RAD;
 
-/// One control cycle of on-board time (s).
-const CYCLE_S: f64 = 1e-3;
 /// One CUC fraction (s).
 const TICK_S: f64 = 1.0 / TIME_FRACTIONS_PER_SECOND as f64;
 
@@ -221,7 +221,7 @@ fn three_moves_are_released_at_their_times_and_the_mirror_is_where_the_schedule_
                 .unwrap_or_else(|| panic!("activity {i} not released: {:?}", r.st.log));
         let late = secs(t_acc) - secs(times[i]);
         assert!(
-            (0.0..CYCLE_S).contains(&late),
+            (0.0..CYCLE_S_F64).contains(&late),
             "activity {i}: {late} s late"
         );
         assert_eq!(released(&r).last(), Some(&request_id_word(ids[i])));
@@ -806,7 +806,7 @@ fn releases_share_the_four_telecommands_of_a_cycle_and_go_first() {
     let last =
         r.st.report_time(ids[5], Verification::AcceptanceSuccess)
             .unwrap();
-    assert!((secs(last) - secs(first) - CYCLE_S).abs() < 2.0 * TICK_S);
+    assert!((secs(last) - secs(first) - CYCLE_S_F64).abs() < 2.0 * TICK_S);
     assert!(all_ok(&r.st.reports(ping)), "then the uplink's");
     assert_eq!(
         r.ctl.housekeeping().tc_accepted,

@@ -18,6 +18,7 @@ use m2ctl::sim::manufacturing::perturbed;
 use m2ctl::sim::{Plant, PlantConfig};
 use m2ctl::supervision::{CycleInputs, FaultFlags, SupervisionConfig, Supervisor, Verdict};
 use m2ctl::table::{Table, DEFAULT_SUPERVISION};
+use m2ctl::units::UM_PER_MM;
 
 /// Cycle at which every injected condition starts.
 const C0: u32 = 10;
@@ -667,7 +668,7 @@ fn no_false_alarm_over_realistic_moves_with_encoder_noise() {
         println!(
             "seed {seed}: {} cycles, no warning, no fault; largest |measured - commanded| {:.3} um",
             l.cycle,
-            l.max_following_mm * 1e3
+            l.max_following_mm * UM_PER_MM
         );
         total += l.cycle;
     }

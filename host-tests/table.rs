@@ -4,12 +4,13 @@
 //! `cargo test --features host --test table -- --nocapture` prints the counts.
 
 use embedded_storage::nor_flash::NorFlash;
-use m2ctl::kinematics::{GeometryParams, ARCSEC_PER_RAD};
+use m2ctl::kinematics::GeometryParams;
 use m2ctl::nominal;
 use m2ctl::table::layout::{stored_crc, CRC32, TABLE_CRC_OFFSET, TABLE_FORMAT_VERSION};
 use m2ctl::table::mock_flash::{MockFlash, TearMode};
 use m2ctl::table::store::{seq_newer, CommitHeader, HEADER_SLOT_LEN, RECORD_LEN};
 use m2ctl::table::*;
+use m2ctl::units::ARCSEC_PER_RAD;
 use proptest::prelude::*;
 
 /// Mock flash: 4-byte words, 4 KiB sectors, room for two 64 KiB banks.

@@ -8,6 +8,7 @@ use m2ctl::ground::tracker::campaign::{simulate, CampaignSeeds, TrackerSetup};
 use m2ctl::kinematics::Pose;
 use m2ctl::nominal::PROTOTYPE;
 use m2ctl::sim::tracker::{rotation_matrix, TrackerNoise, TrackerPlacement};
+use m2ctl::units::UM_PER_MM;
 use nalgebra::{Point3, Vector3};
 
 #[test]
@@ -190,9 +191,9 @@ fn simulated_tracker_noise_matches_its_anisotropic_model() {
     let (sr, st) = TrackerNoise::CLASS_15_6.sigmas_mm(y0.norm());
     eprintln!(
         "range {:.2} um (model {:.2}), transverse model {:.2} um at {:.0} mm",
-        range_var.sqrt() * 1e3,
-        sr * 1e3,
-        st * 1e3,
+        range_var.sqrt() * UM_PER_MM,
+        sr * UM_PER_MM,
+        st * UM_PER_MM,
         y0.norm()
     );
     // Range error distinct from the transverse one, which grows with distance.

@@ -8,6 +8,7 @@
 //! * [`kinematics`]: geometry, IK, FK, workspace check, generic over `f32`/`f64`.
 //! * [`nominal`]: the compiled-in nominal geometry of the prototype.
 //! * [`selftest`]: the golden-vector self-test the firmware runs at boot.
+//! * [`units`]: the unit conversion factors, each defined once.
 //! * [`drivers`]: BiSS-C encoders, step/direction drives, limit switches on
 //!   embedded-hal 1.0 traits (no board imports).
 //! * `sim` (host): the simulated plant (true geometry, sliders, encoders).
@@ -29,6 +30,7 @@ pub mod selftest;
 pub mod supervision;
 pub mod table;
 pub mod timing;
+pub mod units;
 
 #[cfg(feature = "firmware")]
 pub mod board;

@@ -48,7 +48,7 @@ pub const fn prototype_with_flight_limits() -> GeometryParams {
     });
     g.workspace = Some(WorkspaceLimits {
         translation_mm: [WORKSPACE_TRANSLATION_MM; 3],
-        rotation_rad: [WORKSPACE_ROTATION_ARCSEC / crate::kinematics::ARCSEC_PER_RAD; 3],
+        rotation_rad: [WORKSPACE_ROTATION_ARCSEC / crate::units::ARCSEC_PER_RAD; 3],
     });
     g
 }

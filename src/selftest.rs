@@ -3,7 +3,8 @@
 //! checked against the reference. The same function runs on the host, so a host test
 //! can compare the target's `f32` bits with the host's.
 
-use crate::kinematics::{fk, ik, FkConfig, Geometry, Pose, ARCSEC_PER_RAD, LEGS};
+use crate::kinematics::{fk, ik, FkConfig, Geometry, Pose, LEGS};
+use crate::units::ARCSEC_PER_RAD;
 
 /// IK acceptance: every stroke within this of the reference (mm; 1 nm).
 pub const IK_TOL_MM: f64 = 1.0e-6;

@@ -2,14 +2,17 @@
 //! it: the control rate, the motion time step, the housekeeping and scrub periods, the
 //! telemetry clock. The board derives its timer reload from [`CONTROL_RATE_HZ`].
 
+use crate::units::US_PER_S;
+
 /// Control period (microseconds): one control cycle.
 pub const CYCLE_US: u32 = 1_000;
-/// Microseconds per second.
-pub const US_PER_S: u32 = 1_000_000;
 /// Control rate (Hz): control cycles per second.
 pub const CONTROL_RATE_HZ: u32 = US_PER_S / CYCLE_US;
 /// Control period (s), for the motion profiles.
 pub const CYCLE_S: f32 = CYCLE_US as f32 / US_PER_S as f32;
+/// Control period (s) in f64 (exact to the f64 rounding of the microsecond count, unlike
+/// `f64::from(CYCLE_S)`), for the ground tools and the tests.
+pub const CYCLE_S_F64: f64 = CYCLE_US as f64 / US_PER_S as f64;
 /// Periodic housekeeping TM[3,25]: one report per second (cycles).
 pub const HK_PERIOD_CYCLES: u32 = CONTROL_RATE_HZ;
 /// RAM scrub of the running table and the supervision thresholds: one check per

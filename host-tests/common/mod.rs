@@ -3,7 +3,8 @@
 
 pub mod qemu;
 
-use m2ctl::kinematics::{Pose, ARCSEC_PER_RAD};
+use m2ctl::kinematics::Pose;
+use m2ctl::units::{ARCSEC_PER_RAD, NM_PER_UM, UAS_PER_ARCSEC};
 
 /// Deterministic xorshift64* generator: the tests' own, independent of the crate's RNGs.
 pub struct TestRng(pub u64);
@@ -98,8 +99,8 @@ use m2ctl::table::{Table, TABLE_LEN};
 /// A wire pose from micrometres and arcseconds.
 pub fn wire(x_um: f64, y_um: f64, z_um: f64, a_as: f64, b_as: f64, c_as: f64) -> WirePose {
     WirePose {
-        translation_nm: [x_um, y_um, z_um].map(|v| (v * 1e3).round() as i32),
-        rotation_uas: [a_as, b_as, c_as].map(|v| (v * 1e6).round() as i32),
+        translation_nm: [x_um, y_um, z_um].map(|v| (v * NM_PER_UM).round() as i32),
+        rotation_uas: [a_as, b_as, c_as].map(|v| (v * UAS_PER_ARCSEC).round() as i32),
     }
 }
 

@@ -8,6 +8,8 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+use m2ctl::ground::station::Station;
+
 /// The flight image built by `cargo build --profile flight --target thumbv7em-none-eabihf
 /// --features firmware --bin m2fw` (scripts/qemu-link-test.sh builds it).
 pub fn firmware_elf() -> PathBuf {
@@ -236,5 +238,28 @@ impl Drop for Qemu {
         let _ = self.child.wait();
         let _ = std::fs::remove_file(&self.sock);
         let _ = std::fs::remove_file(&self.monitor);
+    }
+}
+
+/// A ground station on the emulator's UART: QEMU and the station that decodes its bytes.
+pub struct Link {
+    /// The emulator.
+    pub q: Qemu,
+    /// The ground station.
+    pub st: Station,
+}
+
+impl Link {
+    /// Reads telemetry until `done` holds or `timeout` passes.
+    pub fn until(&mut self, timeout: Duration, mut done: impl FnMut(&Station) -> bool) -> bool {
+        let t0 = Instant::now();
+        while t0.elapsed() < timeout {
+            let bytes = self.q.read_for(Duration::from_millis(50));
+            self.st.receive(&bytes);
+            if done(&self.st) {
+                return true;
+            }
+        }
+        false
     }
 }

@@ -371,7 +371,7 @@ struct TrackerCli {
     #[arg(long, default_value_t = 1.0)]
     tracker_scale: f64,
     /// Tracker distance from the mechanism (m; simulation only).
-    #[arg(long, default_value_t = m2ctl::sim::tracker::DEFAULT_TRACKER_DISTANCE_MM / m2ctl::sim::tracker::MM_PER_M)]
+    #[arg(long, default_value_t = m2ctl::sim::tracker::DEFAULT_TRACKER_DISTANCE_MM / m2ctl::units::MM_PER_M)]
     distance_m: f64,
     /// Distance of the target balls from the platform axis (mm; simulation only).
     #[arg(long, default_value_t = m2ctl::ground::tracker::files::DEFAULT_BALL_RADIUS_MM)]
@@ -408,7 +408,7 @@ impl TrackerCli {
             ),
             ..Default::default()
         };
-        s.placement.distance_mm = self.distance_m * m2ctl::sim::tracker::MM_PER_M;
+        s.placement.distance_mm = self.distance_m * m2ctl::units::MM_PER_M;
         Ok(s)
     }
 }

@@ -17,11 +17,12 @@ use std::hint::black_box;
 use std::process::ExitCode;
 
 use m2ctl::kinematics::{
-    fk, ik, FkConfig, FkError, FkSolution, Geometry, IkError, Pose, Real, ARCSEC_PER_RAD, LEGS,
+    fk, ik, FkConfig, FkError, FkSolution, Geometry, IkError, Pose, Real, LEGS,
 };
 use m2ctl::nominal::{
     prototype_with_flight_limits, WORKSPACE_ROTATION_ARCSEC, WORKSPACE_TRANSLATION_MM,
 };
+use m2ctl::units::ARCSEC_PER_RAD;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 

@@ -5,14 +5,12 @@ use super::jobs::{JobKind, JobRequest};
 use super::verification::{Outcome, PendingKind, PendingTc};
 use super::{event, Controller, TmRecord};
 use crate::hw::MechanismIo;
-use crate::link::command::{NM_PER_MM, TABLE_CHUNK_MAX_LEN};
+use crate::link::command::TABLE_CHUNK_MAX_LEN;
 use crate::link::tc::{decode_telecommand, Telecommand};
 use crate::link::tm::{EventSeverity, Verification};
 use crate::link::{Command, MemoryId};
 use crate::table::TABLE_LEN;
-
-/// Nanometres per millimetre, in the f32 the flight code converts with.
-const NM_PER_MM_F32: f32 = NM_PER_MM as f32;
+use crate::units::NM_PER_MM_F32;
 
 impl<M: MechanismIo> Controller<M> {
     /// One telecommand packet (the bytes of one deframed frame): decode, report,

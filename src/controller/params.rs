@@ -11,8 +11,7 @@
 //! worker and applied when it is written (the telecommand completes then). Report
 //! (TC[20,1]) answers TM[20,2] with the effective values.
 
-use crate::kinematics::{Frames, ARCSEC_PER_RAD, LEGS};
-use crate::link::command::NM_PER_MM;
+use crate::kinematics::{Frames, LEGS};
 use crate::motion::{
     MotionLimits, DEFAULT_DIRECT_ACCEL_MM_PER_S2, DEFAULT_DIRECT_MAX_DELTA_MM,
     DEFAULT_DIRECT_SPEED_MM_PER_S, DEFAULT_MAX_ACCEL_MM_PER_S2, DEFAULT_MAX_SPEED_MM_PER_S,
@@ -21,9 +20,7 @@ use crate::supervision::SupervisionConfig;
 use crate::table::store::PARAMETERS_LEN;
 use crate::table::Table;
 use crate::timing::HK_PERIOD_CYCLES;
-
-/// Milli-arcseconds per arcsecond.
-const MAS_PER_ARCSEC: f64 = 1_000.0;
+use crate::units::{ARCSEC_PER_RAD, MAS_PER_ARCSEC, NM_PER_MM, NM_PER_MM_F32};
 
 /// What a parameter's default is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -70,7 +67,7 @@ const fn p(
 }
 
 const fn nm(mm: f32) -> i32 {
-    (mm * 1.0e6) as i32
+    (mm * NM_PER_MM_F32) as i32
 }
 
 /// Pivot / user-frame range: +-1 m (nm), +-180 deg (mas).

@@ -67,6 +67,7 @@
 //! frame and is then caught by the CRCs (and the trailing-zero check) only with high
 //! probability. `host-tests/drivers.rs` shows both.
 
+use crate::units::PM_PER_MM;
 use embedded_hal::spi::{ErrorType, Operation, SpiBus, SpiDevice};
 
 use crate::hw::{EncoderError, EncoderWarnings, StrokeEncoders, ENCODER_MM_PER_COUNT, EVERY_LEG};
@@ -103,7 +104,7 @@ pub const BISS_CRC6: crc::Algorithm<u8> = crc::Algorithm {
 const CRC6: crc::Crc<u8> = crc::Crc::<u8>::new(&BISS_CRC6);
 
 /// Controller counts (of [`ENCODER_MM_PER_COUNT`]) in picometres: 100,000 pm = 0.1 um.
-const PM_PER_COUNT: i64 = (ENCODER_MM_PER_COUNT * 1.0e9 + 0.5) as i64;
+const PM_PER_COUNT: i64 = (ENCODER_MM_PER_COUNT * PM_PER_MM + 0.5) as i64;
 
 /// Frame layout shared by every slave on a link.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -38,16 +38,13 @@
 //!   [`StepperConfig::travel_limit_nm`] is clamped to it; at most
 //!   [`StepperConfig::max_microsteps_per_cycle`] pulses per leg and cycle.
 
+use crate::units::{NM_PER_MM, NM_PER_MM_F32, NM_PER_MM_I64};
 use embedded_hal::digital::{InputPin, OutputPin};
 
 use crate::drivers::biss::round_div;
 use crate::hw::{DriveError, IssuedStrokes, SliderDrives, EVERY_LEG};
 use crate::kinematics::LEGS;
 
-/// Nanometres per millimetre.
-pub const NM_PER_MM: i64 = 1_000_000;
-/// [`NM_PER_MM`] as f32 (exact).
-const NM_PER_MM_F32: f32 = NM_PER_MM as f32;
 /// Finest drive accepted: microsteps per mm of stroke (1 pm per microstep).
 pub const MAX_MICROSTEPS_PER_MM: i64 = 1_000_000_000;
 /// Stored mantissa bits of an f32.
@@ -139,7 +136,7 @@ impl StepperConfig {
         if n == 0 || d == 0 || self.max_microsteps_per_cycle == 0 || self.travel_limit_nm == 0 {
             return Err(StepperConfigError::Zero);
         }
-        if n.checked_mul(NM_PER_MM)
+        if n.checked_mul(NM_PER_MM_I64)
             .is_none_or(|v| v / d > MAX_MICROSTEPS_PER_MM)
         {
             return Err(StepperConfigError::Range);
@@ -160,7 +157,7 @@ impl StepperConfig {
     /// Microsteps per millimetre of stroke (f64, for display and tests).
     pub fn microsteps_per_mm(&self) -> f64 {
         let (n, d) = self.ratio();
-        n as f64 * NM_PER_MM as f64 / d as f64
+        n as f64 * NM_PER_MM / d as f64
     }
 }
 
@@ -315,7 +312,7 @@ where
         if stroke_mm < 0.0 {
             m = -m;
         }
-        let mut num = m * i128::from(NM_PER_MM) * i128::from(self.n);
+        let mut num = m * i128::from(NM_PER_MM_I64) * i128::from(self.n);
         let mut den = i128::from(self.d);
         if exp >= 0 {
             num <<= exp; // not reached: |stroke| < travel limit < 2^23 mm

@@ -9,13 +9,14 @@ use super::calib::{
     calibrate, parse_measurements, CalibConfig, CalibError, CalibResult, Measurement,
 };
 use super::campaign::{perturbed, reached, simulate};
-use super::eval::{accuracy, max_param_error_mm, random_poses, Accuracy, AXES};
+use super::eval::{accuracy, max_param_error_mm, random_poses, Accuracy};
 use super::eval::{DEFAULT_EVAL_POSES, DEFAULT_EVAL_ROTATION_ARCSEC, DEFAULT_EVAL_TRANSLATION_MM};
 use super::files::{format_geometry, read_geometry, GeometryFile};
 use super::plan::{format_plan, plan_poses, PlanConfig};
 use super::report::{plot_per_pose, DEFAULT_EVAL_SEED};
 use crate::kinematics::{Geometry, GeometryParams};
 use crate::sim::tracker::PoseTracker;
+use crate::units::{NM_PER_MM, UM_PER_MM};
 
 /// Reads and parses a measurement file; errors are prefixed with the path.
 pub fn read_measurements(path: &Path) -> Result<Vec<Measurement>, String> {
@@ -39,16 +40,7 @@ pub fn measured_pose_errors(
 }
 
 fn accuracy_lines(out: &mut String, label: &str, a: &Accuracy) {
-    let cells: Vec<String> = AXES
-        .iter()
-        .zip(a.max_abs.iter().zip(a.rms.iter()))
-        .enumerate()
-        .map(|(k, (n, (m, r)))| {
-            let unit = if k < 3 { "um" } else { "\"" };
-            format!("{n} {m:.4}/{r:.4}{unit}")
-        })
-        .collect();
-    let _ = writeln!(out, "  {label:<10} max/RMS: {}", cells.join("  "));
+    let _ = writeln!(out, "  {label:<10} max/RMS: {}", a.max_rms_cells(4));
 }
 
 /// Options of `m2ground calibrate`.
@@ -93,7 +85,7 @@ pub fn run_calibrate(a: &CalibrateArgs) -> Result<(String, String), String> {
         a.cfg.solver,
         a.cfg.seed,
         meas.len(),
-        r.rms_after_mm * 1e6
+        r.rms_after_mm * NM_PER_MM
     );
     let mut provenance = vec![
         ("calibration_id".to_string(), id),
@@ -103,7 +95,7 @@ pub fn run_calibrate(a: &CalibrateArgs) -> Result<(String, String), String> {
         ("poses".to_string(), meas.len().to_string()),
         (
             "residual_rms_um".to_string(),
-            format!("{:.6}", r.rms_after_mm * 1e3),
+            format!("{:.6}", r.rms_after_mm * UM_PER_MM),
         ),
         ("condition".to_string(), format!("{:.6e}", r.condition())),
         (

@@ -8,10 +8,9 @@ use rand_pcg::Pcg64;
 
 use super::campaign::{reached, CampaignError};
 use super::plan::DEFAULT_AXIS_MM;
-use crate::kinematics::{ik, Geometry, GeometryParams, Pose, ARCSEC_PER_RAD};
+use crate::kinematics::{ik, Geometry, GeometryParams, Pose};
+use crate::units::{ARCSEC_PER_RAD, UM_PER_MM};
 
-/// um per mm.
-pub const UM_PER_MM: f64 = 1.0e3;
 /// Default number of held-out evaluation poses.
 pub const DEFAULT_EVAL_POSES: usize = 200;
 /// Default translation half-range of held-out poses (mm): the paper's stroke, 1 mm.
@@ -59,6 +58,21 @@ impl Accuracy {
     /// Largest rotation error over alpha, beta, gamma (arcsec).
     pub fn max_arcsec(&self) -> f64 {
         self.max_abs[3..].iter().fold(0.0, |m, v| m.max(*v))
+    }
+
+    /// The per-axis `max/RMS` cells of a report line, `decimals` after the point:
+    /// `x 0.123/0.045um  ...  gamma 0.100/0.050"`.
+    pub fn max_rms_cells(&self, decimals: usize) -> String {
+        let cells: Vec<String> = AXES
+            .iter()
+            .zip(self.max_abs.iter().zip(self.rms.iter()))
+            .enumerate()
+            .map(|(k, (n, (m, r)))| {
+                let unit = if k < 3 { "um" } else { "\"" };
+                format!("{n} {m:.decimals$}/{r:.decimals$}{unit}")
+            })
+            .collect();
+        cells.join("  ")
     }
 
     /// Per target: the largest translation error (um) and rotation error (arcsec).

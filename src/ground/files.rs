@@ -29,9 +29,10 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use crate::kinematics::{
-    GeometryError, GeometryParams, LegParams, StrokeLimits, WorkspaceLimits, ARCSEC_PER_RAD, LEGS,
+    GeometryError, GeometryParams, LegParams, StrokeLimits, WorkspaceLimits, LEGS,
 };
 use crate::table::{ValidationConfig, ValidationError};
+use crate::units::ARCSEC_PER_RAD;
 
 /// Smallest distance between the lower joints (or between the upper joints) of two legs
 /// (mm). Real spherical joints are tens of mm apart; closer than this is a duplicated leg.

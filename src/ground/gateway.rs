@@ -37,6 +37,7 @@ use crate::link::{
     CCSDS_PRIMARY_HEADER_LEN, MAX_TC_PACKET_LEN, MAX_TM_PACKET_LEN, PUS_TM_SEC_HEADER_LEN_NO_TIME,
     TM_TIMESTAMP_LEN,
 };
+use crate::units::US_PER_S;
 
 /// Deframer buffer for telemetry: the COBS encoding of the largest TM packet.
 pub const TM_DEFRAMER_LEN: usize = max_cobs_len(MAX_TM_PACKET_LEN);
@@ -321,10 +322,9 @@ impl Correlator {
 /// `2026-12-01T10:20:22.123456Z` for UNIX seconds (proleptic Gregorian, UTC).
 pub fn rfc3339(unix_s: f64) -> String {
     const S_PER_DAY: i64 = 86_400;
-    const US_PER_S: f64 = 1.0e6;
-    let total_us = (unix_s * US_PER_S).round() as i64;
-    let secs = total_us.div_euclid(1_000_000);
-    let us = total_us.rem_euclid(1_000_000);
+    let total_us = (unix_s * f64::from(US_PER_S)).round() as i64;
+    let secs = total_us.div_euclid(i64::from(US_PER_S));
+    let us = total_us.rem_euclid(i64::from(US_PER_S));
     let days = secs.div_euclid(S_PER_DAY);
     let tod = secs.rem_euclid(S_PER_DAY);
     // Civil from days (H. Hinnant's algorithm).

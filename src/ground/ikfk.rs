@@ -1,6 +1,7 @@
 //! The `m2ground ik` and `m2ground fk` commands, as functions of text in, text out
 //! (the binary only does the file handling).
 
+use super::eval::AXES;
 use super::files::{
     csv_header, csv_line, parse_csv, read_geometry, FileError, POSE_COLUMNS, STROKE_COLUMNS,
 };
@@ -18,7 +19,6 @@ pub fn describe_ik_error(e: &IkError) -> String {
             .join(", ")
     }
     const LEG_NAMES: [&str; 6] = ["1", "2", "3", "4", "5", "6"];
-    const AXES: [&str; 6] = ["x", "y", "z", "alpha", "beta", "gamma"];
     match e {
         IkError::NonFinite => "pose has a non-finite component".into(),
         IkError::OutsideWorkspace { axes } => {

@@ -48,15 +48,12 @@ use crate::link::{
     CCSDS_PRIMARY_HEADER_LEN, M2_APID, MAX_TC_PACKET_LEN, PUS_C_VERSION, PUS_TC_SEC_HEADER_LEN,
     PUS_TM_SEC_HEADER_LEN_NO_TIME, TM_TIMESTAMP_LEN,
 };
-use crate::motion::{MotionError, StrokeMoveError, CYCLE_S};
+use crate::motion::{MotionError, StrokeMoveError};
 use crate::supervision::FaultFlags;
 use crate::table::{BootSource, StoreError, TableError, ValidationError, TABLE_LEN};
-use crate::timing::HK_PERIOD_CYCLES;
+use crate::timing::{CYCLE_S_F64, HK_PERIOD_CYCLES};
+use crate::units::{ARCSEC_PER_UAS, UM_PER_NM};
 
-/// Micrometres per nanometre (engineering unit of translations and strokes).
-pub const UM_PER_NM: f64 = 1.0e-3;
-/// Arcseconds per micro-arcsecond (engineering unit of rotations).
-pub const ARCSEC_PER_UAS: f64 = 1.0e-6;
 /// Engineering unit of translations and strokes.
 pub const UNIT_UM: &str = "um";
 /// Engineering unit of rotations.
@@ -2420,14 +2417,6 @@ fn leg_mask_bits() -> Vec<(u32, String, String)> {
         .collect()
 }
 
-/// Microseconds per second (the f32 cycle period is rounded to whole microseconds).
-const US_PER_S: f64 = 1.0e6;
-
-/// The control cycle (s), from the f32 [`CYCLE_S`] rounded to the microsecond.
-fn cycle_s() -> f64 {
-    (f64::from(CYCLE_S) * US_PER_S).round() / US_PER_S
-}
-
 /// The mission database.
 pub fn mdb() -> Mdb {
     let event_ids = events()
@@ -2447,8 +2436,8 @@ pub fn mdb() -> Mdb {
             cuc_coarse_bytes: CUC_COARSE_BYTES,
             cuc_fine_bytes: CUC_FINE_BYTES,
             cuc_fractions_per_second: TIME_FRACTIONS_PER_SECOND,
-            control_cycle_s: cycle_s(),
-            housekeeping_period_s: f64::from(HK_PERIOD_CYCLES) * cycle_s(),
+            control_cycle_s: CYCLE_S_F64,
+            housekeeping_period_s: f64::from(HK_PERIOD_CYCLES) * CYCLE_S_F64,
         },
         enums: vec![
             Enumeration {

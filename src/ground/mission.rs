@@ -36,9 +36,8 @@ use crate::motion::CYCLE_S;
 use crate::sim::manufacturing::perturbed;
 use crate::sim::{Bench, Plant, PlantConfig};
 use crate::table::{Provenance, Table, DEFAULT_SUPERVISION};
+use crate::units::NM_PER_MM;
 
-/// Nanometres per millimetre.
-const NM_PER_MM: f64 = 1.0e6;
 /// Most cycles one telecommand may take to complete (a move across the workspace at
 /// the default 0.2 mm/s is well under this).
 const MAX_CYCLES_PER_COMMAND: u32 = 200_000;
@@ -81,7 +80,7 @@ pub const DEFAULT_TARGET_TRANSLATION_MM: f64 = 1.0;
 /// Default target range in rotation (arcsec): the paper's +-1 arcmin.
 pub const DEFAULT_TARGET_ROTATION_ARCSEC: f64 = 60.0;
 /// Default manufacturing error (mm).
-pub const DEFAULT_MANUFACTURING_SIGMA_MM: f64 = 0.1;
+pub const DEFAULT_MANUFACTURING_SIGMA_MM: f64 = crate::sim::manufacturing::DEFAULT_JOINT_SIGMA_MM;
 
 impl Default for MissionConfig {
     fn default() -> Self {

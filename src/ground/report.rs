@@ -20,6 +20,7 @@ use super::plan::{plan_poses, PlanConfig};
 use crate::kinematics::{GeometryParams, Pose};
 use crate::nominal::PROTOTYPE;
 use crate::sim::tracker::PoseTracker;
+use crate::units::UM_PER_MM;
 
 /// Default seed of the true geometry of the table campaign.
 pub const DEFAULT_GEOMETRY_SEED: u64 = 2018;
@@ -145,7 +146,7 @@ pub fn format_rows(rows: &[Row]) -> String {
         let rms_r = (r.acc.rms[3..].iter().map(|v| v * v).sum::<f64>() / 3.0).sqrt();
         let (fit, time) = match &r.calib {
             Some(c) => (
-                format!("{:.4}", c.rms_after_mm * 1e3),
+                format!("{:.4}", c.rms_after_mm * UM_PER_MM),
                 format!("{:.1}", c.elapsed.as_secs_f64() * 1e3),
             ),
             None => ("-".into(), "-".into()),
@@ -406,7 +407,7 @@ pub fn compare_cuckoo(cfg: &TableConfig, seeds: u64) -> Result<String, String> {
                 let (fit, ms) = row
                     .calib
                     .as_ref()
-                    .map(|r| (r.rms_after_mm * 1e3, r.elapsed.as_secs_f64() * 1e3))
+                    .map(|r| (r.rms_after_mm * UM_PER_MM, r.elapsed.as_secs_f64() * 1e3))
                     .unwrap_or((0.0, 0.0));
                 cells.extend([row.acc.max_um(), row.acc.max_arcsec(), fit]);
                 if solver == SolverKind::Improved {

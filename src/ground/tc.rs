@@ -4,7 +4,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::link::command::{TABLE_CHUNK_MAX_LEN, UAS_PER_ARCSEC};
+use crate::link::command::TABLE_CHUNK_MAX_LEN;
 use crate::link::schedule::{ActivityBlock, ObtOffset, ScheduleCommand};
 use crate::link::tc::{EncodeError, RequestId, TcHeader, APID_MASK, SEQ_COUNT_MASK};
 use crate::link::tm::{TmTime, TIME_FRACTIONS_PER_SECOND};
@@ -14,9 +14,8 @@ use crate::link::{
 };
 use crate::table::layout::{CRC32, PROVENANCE_TAG_LEN};
 use crate::table::{Provenance, Table, DEFAULT_SUPERVISION};
+use crate::units::{NM_PER_UM, UAS_PER_ARCSEC};
 
-/// Nanometres per micrometre.
-pub const NM_PER_UM: f64 = 1.0e3;
 /// Provenance key whose value becomes the table's calibration ID and tag.
 pub const CALIBRATION_ID_KEY: &str = "calibration_id";
 

@@ -34,6 +34,6 @@ pub use geometry::{
     Geometry, GeometryError, GeometryParams, LegParams, StrokeLimits, WorkspaceLimits, LEGS,
 };
 pub use ik::{ik, IkError};
-pub use pose::{Pose, ARCSEC_PER_RAD};
+pub use pose::Pose;
 pub use real::Real;
 pub use workspace::{check, Refusals};

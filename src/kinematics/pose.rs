@@ -8,9 +8,7 @@
 use nalgebra::{Matrix3, Vector3};
 
 use super::real::Real;
-
-/// Arcseconds per radian (180 * 3600 / pi).
-pub const ARCSEC_PER_RAD: f64 = 180.0 * 3600.0 / core::f64::consts::PI;
+use crate::units::ARCSEC_PER_RAD;
 
 /// Mirror pose relative to home.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

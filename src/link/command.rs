@@ -6,13 +6,10 @@ use super::schedule::{ScheduleCommand, MAX_INSERT_APP_DATA_LEN};
 use super::time::TimeReportRate;
 use super::wire::{Order, Reader, Writer};
 use super::{service, subtype};
-use crate::kinematics::{Pose, Real, ARCSEC_PER_RAD, LEGS};
+use crate::kinematics::{Pose, Real, LEGS};
 use crate::table::TABLE_LEN;
+use crate::units::{ARCSEC_PER_RAD, NM_PER_MM, UAS_PER_ARCSEC};
 
-/// Nanometres per millimetre.
-pub const NM_PER_MM: f64 = 1.0e6;
-/// Micro-arcseconds per arcsecond.
-pub const UAS_PER_ARCSEC: f64 = 1.0e6;
 /// Largest table chunk in one TC[6,2] or TM[6,6] (bytes).
 pub const TABLE_CHUNK_MAX_LEN: usize = 128;
 /// Bytes of a pose on the wire: six i32.
@@ -209,15 +206,7 @@ impl ParameterIds {
     }
 
     fn parse(app_data: &[u8]) -> Result<Self, LinkError> {
-        let mut r = Reader::new(app_data, Order::Big);
-        let n = usize::from(r.u8().ok_or(LinkError::AppDataLength {
-            got: sat_u16(app_data.len()),
-            expected: 1,
-        })?);
-        if n == 0 || n > MAX_PARAMETERS_PER_TC {
-            return Err(LinkError::InvalidArgument { index: 0 });
-        }
-        expect_len(app_data, PARAMETER_COUNT_LEN + PARAMETER_ID_LEN * n)?;
+        let (mut r, n) = parameter_count(app_data, PARAMETER_ID_LEN)?;
         let mut ids = [0u16; MAX_PARAMETERS_PER_TC];
         for id in ids.iter_mut().take(n) {
             *id = r.u16().ok_or(LinkError::InvalidArgument { index: 1 })?;
@@ -257,15 +246,7 @@ impl ParameterValues {
     }
 
     fn parse(app_data: &[u8]) -> Result<Self, LinkError> {
-        let mut r = Reader::new(app_data, Order::Big);
-        let n = usize::from(r.u8().ok_or(LinkError::AppDataLength {
-            got: sat_u16(app_data.len()),
-            expected: 1,
-        })?);
-        if n == 0 || n > MAX_PARAMETERS_PER_TC {
-            return Err(LinkError::InvalidArgument { index: 0 });
-        }
-        expect_len(app_data, PARAMETER_COUNT_LEN + PARAMETER_PAIR_LEN * n)?;
+        let (mut r, n) = parameter_count(app_data, PARAMETER_PAIR_LEN)?;
         let mut entries = [(0u16, 0i32); MAX_PARAMETERS_PER_TC];
         for e in entries.iter_mut().take(n) {
             let (Some(id), Some(v)) = (r.u16(), r.i32()) else {
@@ -275,6 +256,22 @@ impl ParameterValues {
         }
         Self::new(entries.get(..n).unwrap_or(&[]))
     }
+}
+
+/// The count u8 (1..=16) that opens a TC[20,1] or TC[20,3], checked against the
+/// application data length for `entry_len` bytes an entry: the reader past the count and
+/// the count.
+fn parameter_count(app_data: &[u8], entry_len: usize) -> Result<(Reader<'_>, usize), LinkError> {
+    let mut r = Reader::new(app_data, Order::Big);
+    let n = usize::from(r.u8().ok_or(LinkError::AppDataLength {
+        got: sat_u16(app_data.len()),
+        expected: 1,
+    })?);
+    if n == 0 || n > MAX_PARAMETERS_PER_TC {
+        return Err(LinkError::InvalidArgument { index: 0 });
+    }
+    expect_len(app_data, PARAMETER_COUNT_LEN + entry_len * n)?;
+    Ok((r, n))
 }
 
 /// Function IDs of TC[8,1] (u16, big-endian, first two bytes of the application data).

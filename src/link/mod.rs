@@ -60,6 +60,11 @@ pub const MAX_TM_FRAME_LEN: usize = framing::max_frame_len(MAX_TM_PACKET_LEN);
 
 /// Length of the CCSDS primary header (bytes).
 pub const CCSDS_PRIMARY_HEADER_LEN: usize = 6;
+/// Offset of the packet data length field in the CCSDS primary header (bytes).
+pub const DATA_LEN_FIELD_OFFSET: usize = 4;
+/// The data length field holds the packet length minus the primary header minus one:
+/// packet length = field + this (bytes).
+pub const DATA_LEN_OFFSET: usize = CCSDS_PRIMARY_HEADER_LEN + 1;
 /// Length of the PUS-C telecommand secondary header (bytes): version/ack, service,
 /// subtype, source ID (u16).
 pub const PUS_TC_SEC_HEADER_LEN: usize = 5;

@@ -26,7 +26,10 @@ use super::error::{sat_u16, LinkError};
 use super::tc::{RequestId, TcPacket, REQUEST_ID_LEN};
 use super::tm::TmTime;
 use super::wire::{Order, Reader, Writer};
-use super::{service, subtype, CCSDS_PRIMARY_HEADER_LEN, TM_TIMESTAMP_LEN};
+use super::{
+    service, subtype, CCSDS_PRIMARY_HEADER_LEN, DATA_LEN_FIELD_OFFSET, DATA_LEN_OFFSET,
+    TM_TIMESTAMP_LEN,
+};
 
 /// Activities the on-board schedule holds.
 pub const SCHEDULE_CAPACITY: usize = 16;
@@ -45,10 +48,6 @@ pub const RELEASE_TIME_LEN: usize = TM_TIMESTAMP_LEN;
 pub const SUMMARY_ENTRY_LEN: usize = RELEASE_TIME_LEN + REQUEST_ID_LEN;
 /// Largest TM[11,13] source data (bytes): a full schedule.
 pub const MAX_SUMMARY_LEN: usize = ACTIVITY_COUNT_LEN + SCHEDULE_CAPACITY * SUMMARY_ENTRY_LEN;
-/// Offset of the CCSDS packet data length field in a packet (bytes).
-const DATA_LEN_FIELD_OFFSET: usize = 4;
-/// Packet length = data length field + this.
-const DATA_LEN_OFFSET: usize = CCSDS_PRIMARY_HEADER_LEN + 1;
 
 /// A signed time offset of TC[11,15], in 1/65536 s (48-bit range on the wire).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

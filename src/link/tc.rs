@@ -22,8 +22,8 @@ use super::command::{Command, MAX_TC_APP_DATA_LEN};
 use super::error::{sat_u16, LinkError};
 use super::wire::{Order, Reader};
 use super::{
-    CCSDS_PRIMARY_HEADER_LEN, CRC16_LEN, M2_APID, MAX_TC_PACKET_LEN, PUS_C_VERSION,
-    PUS_TC_SEC_HEADER_LEN,
+    CCSDS_PRIMARY_HEADER_LEN, CRC16_LEN, DATA_LEN_OFFSET, M2_APID, MAX_TC_PACKET_LEN,
+    PUS_C_VERSION, PUS_TC_SEC_HEADER_LEN,
 };
 
 /// Smallest telecommand: primary header, secondary header, CRC (bytes).
@@ -144,8 +144,6 @@ const TYPE_TC_BIT: u16 = 0x1000;
 const SEC_HEADER_BIT: u16 = 0x0800;
 const SEQ_FLAGS_MASK: u16 = 0xc000;
 const SEQ_FLAGS_UNSEGMENTED: u16 = 0xc000;
-/// The data length field holds the packet length minus the primary header minus one.
-const DATA_LEN_OFFSET: usize = CCSDS_PRIMARY_HEADER_LEN + 1;
 /// Shift of the PUS version in the first secondary-header byte.
 const PUS_VERSION_SHIFT: u8 = 4;
 /// Mask of the ack flags in the first secondary-header byte.

@@ -10,6 +10,7 @@
 //! message type counter per service (u16, wrapping), destination ID 0, timestamp
 //! [`TmTime`]), source data, CRC-16/CCITT-FALSE.
 
+use crate::units::{US_PER_MS, US_PER_S};
 use arbitrary_int::{u11, u14};
 use spacepackets::ecss::tm::{
     GenericPusTmSecondaryHeader, PusTmCreator, PusTmReader, PusTmSecondaryHeader,
@@ -26,12 +27,9 @@ use super::tc::{RequestId, APID_MASK, REQUEST_ID_LEN, SEQ_COUNT_MASK};
 use super::time::{parse_time_report, time_report_bytes, TimeReportRate, TIME_REPORT_LEN};
 use super::wire::{Order, Reader, Writer};
 use super::{
-    service, subtype, CCSDS_PRIMARY_HEADER_LEN, CRC16_LEN, M2_APID, MAX_TM_PACKET_LEN,
-    PUS_TM_SEC_HEADER_LEN_NO_TIME, TM_TIMESTAMP_LEN,
+    service, subtype, CCSDS_PRIMARY_HEADER_LEN, CRC16_LEN, DATA_LEN_FIELD_OFFSET, M2_APID,
+    MAX_TM_PACKET_LEN, PUS_TM_SEC_HEADER_LEN_NO_TIME, TM_TIMESTAMP_LEN,
 };
-
-/// Offset of the CCSDS data length field in the primary header (bytes).
-const DATA_LEN_FIELD_OFFSET: usize = 4;
 
 /// Largest source data of any TM packet the controller emits (bytes): the schedule
 /// summary of a full schedule (161), the housekeeping report, a dump chunk,
@@ -83,10 +81,6 @@ fn sat_u8(v: usize) -> u8 {
 }
 /// Sub-second resolution of the timestamp: 2^16 fractions per second.
 pub const TIME_FRACTIONS_PER_SECOND: u64 = 1 << 16;
-/// Milliseconds per second.
-const MS_PER_S: u64 = 1000;
-/// Microseconds per millisecond.
-const US_PER_MS: u64 = 1000;
 
 /// The TM timestamp: CCSDS unsegmented time code (CUC) with implicit P-field, 4 bytes of
 /// seconds and 2 bytes of 1/65536 s, big-endian, counted from controller boot (the
@@ -104,13 +98,13 @@ pub struct TmTime {
 impl TmTime {
     /// From milliseconds since boot (seconds wrap after 2^32 s).
     pub const fn from_millis(ms: u64) -> TmTime {
-        TmTime::from_micros(ms * US_PER_MS)
+        TmTime::from_micros(ms * US_PER_MS as u64)
     }
 
     /// From microseconds since boot (seconds wrap after 2^32 s; the fraction is
     /// truncated to 1/65536 s).
     pub const fn from_micros(us: u64) -> TmTime {
-        let us_per_s = US_PER_MS * MS_PER_S;
+        let us_per_s = US_PER_S as u64;
         TmTime {
             seconds: (us / us_per_s) as u32,
             fraction: ((us % us_per_s) * TIME_FRACTIONS_PER_SECOND / us_per_s) as u16,

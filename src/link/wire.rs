@@ -7,8 +7,9 @@
 //!   or little-endian (the parameter table), checked: a read past the end is `None`, a
 //!   write past the end is `None`, nothing panics.
 
-use super::command::{WirePose, NM_PER_MM, UAS_PER_ARCSEC};
-use crate::kinematics::{Pose, ARCSEC_PER_RAD, LEGS};
+use super::command::WirePose;
+use crate::kinematics::{Pose, LEGS};
+use crate::units::{NM_PER_MM, NM_PER_MM_F32, UAS_PER_RAD};
 
 /// Rounds half away from zero to the nearest i32, saturating; NaN gives 0.
 pub fn round_sat_i32(v: f64) -> i32 {
@@ -27,10 +28,6 @@ pub fn round_sat_i32(v: f64) -> i32 {
 /// Below this magnitude every f32 multiple of 0.5 is exact, so rounding in f32 is
 /// exact too (2^22).
 const F32_EXACT_HALF_LIMIT: f32 = 4_194_304.0;
-/// Nanometres per millimetre in f32.
-const NM_PER_MM_F32: f32 = NM_PER_MM as f32;
-/// Micro-arcseconds per radian.
-const UAS_PER_RAD: f64 = ARCSEC_PER_RAD * UAS_PER_ARCSEC;
 
 /// Rounds an f32 half away from zero to i32 (saturating, NaN gives 0).
 fn round_f32(v: f32) -> i32 {

@@ -41,6 +41,7 @@ use crate::sim::bench::UART_115200_BYTES_PER_CYCLE;
 use crate::sim::{Bench, BenchConfig, InjectedFault, Plant, PlantConfig, SwitchEnd};
 use crate::table::mock_flash::{MockFlash, TearMode};
 use crate::table::Table;
+use crate::units::UM_PER_MM;
 
 /// Stroke tolerance beyond a soft limit (mm): the supervision's own tolerance.
 const LIMIT_TOL_MM: f64 = 1e-3;
@@ -708,7 +709,7 @@ impl<C: Choices> Soak<C> {
                 self.violation(format!(
                     "leg {} drive setpoint stepped {:.3} um in one cycle ({:?} -> {state:?})",
                     i + 1,
-                    d * 1e3,
+                    d * UM_PER_MM,
                     self.prev_state
                 ));
             }
@@ -728,7 +729,7 @@ impl<C: Choices> Soak<C> {
                 self.violation(format!(
                     "leg {} commanded step {:.3} um ({:?} -> {state:?})",
                     i + 1,
-                    d * 1e3,
+                    d * UM_PER_MM,
                     self.prev_state
                 ));
             }
@@ -746,7 +747,7 @@ impl<C: Choices> Soak<C> {
                     self.violation(format!(
                         "leg {} moved {:.6} um while faulted at rest",
                         i + 1,
-                        (truth[i] - self.prev_truth[i]) * 1e3
+                        (truth[i] - self.prev_truth[i]) * UM_PER_MM
                     ));
                 }
             }
@@ -793,7 +794,7 @@ impl<C: Choices> Soak<C> {
                 self.violation(format!(
                     "leg {} commanded {:+.6} um toward an active end-of-travel switch ({sw:?}, {:?} -> {state:?})",
                     i + 1,
-                    d * 1e3,
+                    d * UM_PER_MM,
                     self.prev_state
                 ));
             }

@@ -21,12 +21,8 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use rand_pcg::Pcg64;
 
-use crate::kinematics::{fk, FkConfig, FkError, Geometry, Pose, ARCSEC_PER_RAD};
-
-/// mm per um.
-pub const MM_PER_UM: f64 = 1.0e-3;
-/// mm per m.
-pub const MM_PER_M: f64 = 1.0e3;
+use crate::kinematics::{fk, FkConfig, FkError, Geometry, Pose};
+use crate::units::{ARCSEC_PER_RAD, MM_PER_M, MM_PER_UM};
 
 /// Moves the true mechanism: the pose it reaches for `strokes_mm` (FK with the true
 /// parameters, warm-started at `near`).

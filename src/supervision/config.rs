@@ -22,8 +22,9 @@
 //! Following error is supervised in **stroke** (mm per slider), not in pose: the table
 //! stores it so, it needs no kinematics, and it names the slider.
 
-use crate::kinematics::{StrokeLimits, WorkspaceLimits, ARCSEC_PER_RAD, LEGS};
+use crate::kinematics::{StrokeLimits, WorkspaceLimits, LEGS};
 use crate::table::{SupervisionThresholds, Table};
+use crate::units::ARCSEC_PER_RAD;
 
 /// Least commanded stroke change over the stuck window for a slider to count as
 /// "commanded to move" (mm): 3 um, three times the table's default least progress, so a

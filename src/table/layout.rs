@@ -219,8 +219,8 @@ impl Table {
             Some(w) => w,
             None => WorkspaceLimits {
                 translation_mm: [nominal::WORKSPACE_TRANSLATION_MM; 3],
-                rotation_rad: [nominal::WORKSPACE_ROTATION_ARCSEC
-                    / crate::kinematics::ARCSEC_PER_RAD; 3],
+                rotation_rad: [nominal::WORKSPACE_ROTATION_ARCSEC / crate::units::ARCSEC_PER_RAD;
+                    3],
             },
         };
         Table {

@@ -42,7 +42,7 @@
 
 use std::time::{Duration, Instant};
 
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use levenberg_marquardt::LeastSquaresProblem;
 use nalgebra::{
     storage::Owned, DMatrix, DVector, Dyn, Isometry3, Matrix3, Matrix6, Point3, Translation3,
     UnitQuaternion, Vector3,
@@ -56,11 +56,10 @@ use super::{from_vec, param_name, stroke_gradient, to_vec, ParamVec, N_PARAMS, P
 use crate::kinematics::fk::strokes_and_jacobian;
 use crate::kinematics::ik::leg_state;
 use crate::kinematics::pose::RotationDelta;
-use crate::kinematics::{fk, FkConfig, Geometry, GeometryParams, Pose, ARCSEC_PER_RAD, LEGS};
+use crate::kinematics::{fk, FkConfig, Geometry, GeometryParams, Pose, LEGS};
 use crate::sim::tracker::rotation_matrix;
+use crate::units::{ARCSEC_PER_RAD, UM_PER_MM};
 
-/// um per mm.
-const UM_PER_MM: f64 = 1.0e3;
 /// Parameters of the registration correction (3 angles, 3 translations).
 pub const REGISTRATION_PARAMS: usize = 6;
 /// Whitened residual given to the balls of a pose whose forward kinematics fails with the
@@ -68,10 +67,8 @@ pub const REGISTRATION_PARAMS: usize = 6;
 pub const FAILED_POSE_RESIDUAL: f64 = 1.0e6;
 /// Most Newton steps of a pose's FK inside the fit (warm-started at the nominal FK).
 pub const BUNDLE_FK_ITERATIONS: u8 = 20;
-/// Default LM budget: residual evaluations per (parameter + 1).
-pub const DEFAULT_PATIENCE: usize = 100;
-/// Default LM tolerances (ftol = xtol = gtol) in machine epsilons.
-pub const DEFAULT_TOL_EPS: f64 = 30.0;
+// The LM budget and tolerances: the same defaults as calib::lm's fit.
+pub use super::lm::{DEFAULT_PATIENCE, DEFAULT_TOL_EPS};
 /// Largest Mahalanobis distance of a measured point from the fit (its 3 whitened
 /// residual components): a chi distribution with 3 degrees of freedom exceeds 8 with
 /// probability 1e-13, so a larger one is a mis-measured, swapped or moved point.
@@ -792,12 +789,7 @@ pub fn fit(data: &BundleData, cfg: &BundleConfig) -> Result<BundleFit, BundleErr
     let nd = bundle.n_data_rows();
     let r0 = bundle.evaluate(&x0, None);
     let start_rms = (r0[..nd].iter().map(|v| v * v).sum::<f64>() / nd as f64).sqrt();
-    let tol = cfg.tol_eps * f64::EPSILON;
-    let lm = LevenbergMarquardt::new()
-        .with_ftol(tol)
-        .with_xtol(tol)
-        .with_gtol(tol)
-        .with_patience(cfg.patience);
+    let lm = super::lm::solver(cfg.tol_eps, cfg.patience);
     let (p, report) = lm.minimize(LmAdapter {
         bundle: &bundle,
         x: x0,

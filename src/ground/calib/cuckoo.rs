@@ -33,6 +33,7 @@ use rand_distr::{Distribution, Normal, StandardNormal};
 use rand_pcg::Pcg64;
 
 use super::{CalibError, ParamBox, ParamVec, Problem, N_PARAMS};
+use crate::units::UM_PER_MM;
 
 /// Default number of nests (Yang & Deb).
 pub const DEFAULT_NESTS: usize = 25;
@@ -604,7 +605,7 @@ pub fn solve(
         best = best_of(&nests);
         history.push(rms(best.1));
         bar.set_position(generations as u64);
-        bar.set_message(format!("RMS {:.4} um", rms(best.1) * 1e3));
+        bar.set_message(format!("RMS {:.4} um", rms(best.1) * UM_PER_MM));
     }
     bar.finish_and_clear();
     let best_x = f.point(&best.0);
@@ -626,7 +627,7 @@ pub fn solve(
                 Coordinates::Original => "original",
                 Coordinates::Whitened => "whitened",
             },
-            rms(best.1) * 1e3
+            rms(best.1) * UM_PER_MM
         ),
     })
 }

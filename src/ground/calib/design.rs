@@ -22,10 +22,9 @@ use nalgebra::DMatrix;
 
 use super::bundle::{pose_sensitivity, Bundle, BundleData, BundleError, Priors};
 use super::N_PARAMS;
-use crate::kinematics::{Geometry, GeometryParams, Pose, ARCSEC_PER_RAD};
+use crate::kinematics::{Geometry, GeometryParams, Pose};
+use crate::units::{ARCSEC_PER_RAD, UM_PER_MM};
 
-/// um per mm (the I-criterion weights translation errors in um).
-const UM_PER_MM: f64 = 1.0e3;
 /// Most exchange passes after the greedy selection.
 pub const MAX_EXCHANGE_PASSES: usize = 3;
 

@@ -16,6 +16,7 @@ use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{storage::Owned, DMatrix, DVector, Dyn};
 
 use super::{CalibError, ParamBox, ParamVec, Problem, N_PARAMS};
+use crate::units::UM_PER_MM;
 
 /// Default assumed standard deviation of the true joint centres about nominal (mm): half
 /// the default Omega half-width, so Omega is a +-2 sigma box.
@@ -126,6 +127,17 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for LmProblem<'_> {
     }
 }
 
+/// The LM solver both fits use: f-, x- and g-tolerance `tol_eps` machine epsilons, at most
+/// `patience` residual evaluations per parameter + 1.
+pub(crate) fn solver(tol_eps: f64, patience: usize) -> LevenbergMarquardt<f64> {
+    let tol = tol_eps * f64::EPSILON;
+    LevenbergMarquardt::new()
+        .with_ftol(tol)
+        .with_xtol(tol)
+        .with_gtol(tol)
+        .with_patience(patience)
+}
+
 fn run(
     problem: &Problem,
     start: &ParamVec,
@@ -133,12 +145,7 @@ fn run(
     weight: f64,
     cfg: &LmConfig,
 ) -> Result<(ParamVec, usize, String), CalibError> {
-    let tol = cfg.tol_eps * f64::EPSILON;
-    let lm = LevenbergMarquardt::new()
-        .with_ftol(tol)
-        .with_xtol(tol)
-        .with_gtol(tol)
-        .with_patience(cfg.patience);
+    let lm = solver(cfg.tol_eps, cfg.patience);
     let (p, report) = lm.minimize(LmProblem {
         problem,
         nominal: *nominal,
@@ -212,7 +219,7 @@ pub fn solve(
         prior_weight: weight,
         note: format!(
             "lm bounded: noise {:.3} um (estimated: {}), prior sigma {} mm, weight {:.3e}, {note}, {} parameters clamped",
-            noise_mm * 1e3,
+            noise_mm * UM_PER_MM,
             cfg.noise_mm.is_none(),
             cfg.prior_sigma_mm,
             weight,

@@ -25,7 +25,8 @@ use crate::ground::files::{parse_csv, FileError, CSV_COLUMNS};
 use crate::kinematics::geometry::Leg;
 use crate::kinematics::ik::leg_state;
 use crate::kinematics::pose::RotationDelta;
-use crate::kinematics::{Geometry, GeometryParams, LegParams, Pose, ARCSEC_PER_RAD, LEGS};
+use crate::kinematics::{Geometry, GeometryParams, LegParams, Pose, LEGS};
+use crate::units::{ARCSEC_PER_RAD, UM_PER_MM};
 
 /// Parameters per leg: `a` (3) then `b` (3).
 pub const PARAMS_PER_LEG: usize = 6;
@@ -583,9 +584,9 @@ impl CalibResult {
              iterations {}, objective evaluations {}, time {:.1} ms\n\
              parameters on or outside a bound of Omega: {}, inside Omega: {}\n\
              solver: {}",
-            self.rms_before_mm * 1e3,
-            self.rms_after_mm * 1e3,
-            self.max_residual_mm * 1e3,
+            self.rms_before_mm * UM_PER_MM,
+            self.rms_after_mm * UM_PER_MM,
+            self.max_residual_mm * UM_PER_MM,
             sv.first().copied().unwrap_or(0.0),
             sv.last().copied().unwrap_or(0.0),
             self.condition(),

@@ -22,11 +22,10 @@ use crate::ground::eval::{
 };
 use crate::ground::files::{format_geometry, read_geometry, GeometryFile};
 use crate::ground::report::DEFAULT_EVAL_SEED;
-use crate::kinematics::{fk, FkConfig, Geometry, GeometryParams, Pose, ARCSEC_PER_RAD};
+use crate::kinematics::{fk, FkConfig, Geometry, GeometryParams, Pose};
 use crate::sim::tracker::TrackerNoise;
+use crate::units::{ARCSEC_PER_RAD, MM_PER_M, UM_PER_MM};
 
-/// um per mm.
-const UM_PER_MM: f64 = 1.0e3;
 /// Weakest directions listed in the report.
 pub const REPORTED_DIRECTIONS: usize = 6;
 /// Quantiles of the noise-floor band: where a pure-noise per-pose maximum lands 90 % of
@@ -96,16 +95,7 @@ pub fn pose_noise(fit: &BundleFit, p0_mm: &[f64; 3], noise: &TrackerNoise) -> Op
 }
 
 fn line(out: &mut String, label: &str, a: &Accuracy) {
-    let cells: Vec<String> = AXES
-        .iter()
-        .zip(a.max_abs.iter().zip(a.rms.iter()))
-        .enumerate()
-        .map(|(k, (n, (m, r)))| {
-            let unit = if k < 3 { "um" } else { "\"" };
-            format!("{n} {m:.3}/{r:.3}{unit}")
-        })
-        .collect();
-    let _ = writeln!(out, "  {label:<26} max/RMS: {}", cells.join("  "));
+    let _ = writeln!(out, "  {label:<26} max/RMS: {}", a.max_rms_cells(3));
 }
 
 /// Runs `calibrate` on tracker points: the geometry file text and the printed report.
@@ -478,7 +468,7 @@ pub fn run_simulate(a: &SimulateArgs) -> Result<[String; 4], String> {
         "Simulated tracker campaign {} (m2ground simulate-tracker-campaign): {} poses, tracker {:.2} m away, {}; true joints {}",
         a.campaign,
         a.plan.len(),
-        a.setup.placement.distance_mm / 1e3,
+        a.setup.placement.distance_mm / MM_PER_M,
         a.setup.noise.describe(),
         a.truth.describe()
     );

@@ -33,6 +33,7 @@ use crate::kinematics::{fk, FkConfig, Geometry, GeometryParams, Pose};
 use crate::nominal::PROTOTYPE;
 use crate::sim::manufacturing::{perturbed, DEFAULT_JOINT_SIGMA_MM};
 use crate::sim::tracker::{true_motion, TrackerNoise};
+use crate::units::MM_PER_M;
 
 /// How the true joints scatter about nominal.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -177,7 +178,7 @@ impl StudyConfig {
             self.setup.targets.ball_sigma_mm,
             self.setup.targets.fiducials.len(),
             self.setup.targets.fiducial_sigma_mm,
-            self.setup.placement.distance_mm / 1e3,
+            self.setup.placement.distance_mm / MM_PER_M,
             self.setup.noise.describe(),
             self.prior_mm(),
             self.setup.targets.ball_sigma_mm,
