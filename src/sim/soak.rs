@@ -423,9 +423,7 @@ impl<C: Choices> Soak<C> {
             8 => {
                 // The operator repairs what the fault report points at, then clears.
                 if self.below(2) == 0 && matches!(self.r.ctl.state(), State::Faulted) {
-                    self.r.plant.with(|p| p.clear_faults());
-                    self.note("plant repaired".into());
-                    self.repaired = true;
+                    self.repair();
                 }
                 self.send(&Command::ClearFault);
             }
@@ -513,13 +511,24 @@ impl<C: Choices> Soak<C> {
             // a drive does not re-reference itself in the middle of a motion.
             21 => {
                 if matches!(self.r.ctl.state(), State::Idle | State::Faulted) {
-                    self.r.plant.with(|p| p.clear_faults());
-                    self.note("plant repaired".into());
-                    self.repaired = true;
+                    self.repair();
                 }
             }
             _ => self.power_cut(),
         }
+    }
+
+    /// Maintenance at rest: the plant's faults repaired, a drive that missed steps
+    /// re-referenced (its count and setpoint shifted to where its slider is). What the
+    /// drives hold changed without a command, so the continuity checks of the next cycle
+    /// start from what they hold now (the 10-minute run flagged the first setpoint of a
+    /// recovery move, correctly taken from the re-referenced drive, as a 74.7 um step
+    /// from the count before the repair).
+    fn repair(&mut self) {
+        self.r.plant.with(|p| p.clear_faults());
+        self.note("plant repaired".into());
+        self.repaired = true;
+        self.prev_drives = self.r.plant.with(|p| p.drive_setpoints_mm());
     }
 
     fn inject_fault(&mut self) {
