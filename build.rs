@@ -3,8 +3,8 @@
 //!   cortex-m-rt's `link.x` includes) and, for a board with its own interrupt table, its
 //!   `device.x` (cortex-m-rt's `device` feature), for the firmware, thumb targets only:
 //!   `memory/mps2-an386.x` + `memory/mps2-an386-device.x` (the default board) or
-//!   `memory/netduinoplus2.x` + `memory/netduinoplus2-device.x` (feature
-//!   `board-netduinoplus2`). No `memory.x` or
+//!   `memory/netduinoplus2.x` (feature `board-netduinoplus2`; its `device.x` is the
+//!   stm32f4 PAC's). No `memory.x` or
 //!   `device.x` may sit in the package root: the linker searches its working directory
 //!   first and would take that one for every board;
 //! * reads the TABLE and STACK regions of the board's memory map into Rust constants
@@ -21,8 +21,6 @@ const MEMORY_MPS2: &str = "memory/mps2-an386.x";
 const MEMORY_NETDUINOPLUS2: &str = "memory/netduinoplus2.x";
 /// Interrupt handler names of the default board (its RTIC device description).
 const DEVICE_MPS2: &str = "memory/mps2-an386-device.x";
-/// Interrupt handler names of the Netduino Plus 2.
-const DEVICE_NETDUINOPLUS2: &str = "memory/netduinoplus2-device.x";
 const GOLDEN_COLUMNS: usize = 12;
 /// The flight image's boot self-test takes every this-many-th golden row (flash).
 const BOOT_ROW_STRIDE: usize = 5;
@@ -31,7 +29,6 @@ fn main() {
     println!("cargo:rerun-if-changed={MEMORY_MPS2}");
     println!("cargo:rerun-if-changed={DEVICE_MPS2}");
     println!("cargo:rerun-if-changed={MEMORY_NETDUINOPLUS2}");
-    println!("cargo:rerun-if-changed={DEVICE_NETDUINOPLUS2}");
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-changed={GOLDEN_CSV}");
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
@@ -44,11 +41,9 @@ fn main() {
                 include_bytes!("memory/netduinoplus2.x"),
             )
             .expect("write memory.x");
-            fs::write(
-                out.join("device.x"),
-                include_bytes!("memory/netduinoplus2-device.x"),
-            )
-            .expect("write device.x");
+            // The PAC's device.x is the one: none of ours may shadow it (OUT_DIR outlives a
+            // change of board features).
+            let _ = fs::remove_file(out.join("device.x"));
         } else {
             fs::write(out.join("memory.x"), include_bytes!("memory/mps2-an386.x"))
                 .expect("write memory.x");

@@ -1,14 +1,14 @@
-//! Netduino Plus 2: STM32F405RG (Cortex-M4F, 168 MHz, 1 MiB flash, 128 KiB SRAM, 64 KiB
-//! CCM RAM), also QEMU's `netduinoplus2` machine. Feature `board-netduinoplus2`; memory
-//! map in `memory/netduinoplus2.x`, handler names in `memory/netduinoplus2-device.x`
-//! (both selected by build.rs).
+//! Netduino Plus 2: STM32F405RG (Cortex-M4F, 168 MHz, 1 MiB flash, 128 KiB SRAM; its
+//! 64 KiB CCM RAM is unused, QEMU 7.2 lacks it), also QEMU's `netduinoplus2` machine. Feature `board-netduinoplus2`; memory
+//! map in `memory/netduinoplus2.x` (selected by build.rs).
 //!
 //! The same glue items as the mps2-an386 board, so every image builds for either:
 //!
 //! * [`device`]: what RTIC's `#[app(device = ...)]` needs, from the stm32f4 PAC (its
-//!   `Interrupt` lines and `NVIC_PRIO_BITS`), the flight image's board-independent
-//!   interrupt names ([`device::interrupt`]) mapped onto this board's lines, and the
-//!   vector table (the PAC's `rt` table is not used: it cannot name those handlers);
+//!   `Interrupt` lines, `NVIC_PRIO_BITS`, its vector table and `device.x`), and the
+//!   flight image's board-independent interrupt names ([`device::interrupt`]) mapped
+//!   onto this board's lines (`memory/netduinoplus2.x` aliases the PAC's handler
+//!   names to them);
 //! * [`Board::take`]: the take-once hardware: the telecommand UART ([`Uart0`], USART1),
 //!   the control timer ([`ControlTimer`], TIM3), the independent watchdog
 //!   ([`Watchdog`]), the table flash ([`TableFlash`], sectors 8 to 11) and the
@@ -72,7 +72,7 @@ use embedded_storage::nor_flash::{
 };
 use heapless::spsc::{Consumer, Producer};
 use stm32f4xx_hal::gpio::{AnyPin, Input, Output, PushPull};
-use stm32f4xx_hal::pac;
+use stm32f4xx_hal::pac::{self, interrupt};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::{Config as RccConfig, Enable, Rcc, Reset};
 use stm32f4xx_hal::serial::{self as hal_serial, Serial};
@@ -119,38 +119,6 @@ pub mod device {
         /// Software-pended by the control task: one worker step.
         pub const WORKER: Interrupt = Interrupt::CAN2_RX1;
     }
-
-    /// External interrupt lines of the STM32F405 (0..=81, FPU last).
-    const LINES: usize = Interrupt::FPU as usize + 1;
-
-    type Handler = unsafe extern "C" fn();
-
-    extern "C" {
-        fn DefaultHandler();
-        // Bound by the flight image's RTIC tasks; `netduinoplus2-device.x` makes each
-        // `DefaultHandler` in images without them.
-        fn UART_RX();
-        fn UART_TX();
-        fn CONTROL_TIMER();
-        fn LINK_SERVICE();
-        fn WORKER();
-    }
-
-    /// The device part of the vector table: every line `DefaultHandler` (a defect:
-    /// record and reset) except the flight image's five and the step timer's.
-    #[link_section = ".vector_table.interrupts"]
-    #[no_mangle]
-    #[used]
-    pub static __INTERRUPTS: [Handler; LINES] = {
-        let mut t: [Handler; LINES] = [DefaultHandler; LINES];
-        t[interrupt::UART_RX as usize] = UART_RX;
-        t[interrupt::UART_TX as usize] = UART_TX;
-        t[interrupt::CONTROL_TIMER as usize] = CONTROL_TIMER;
-        t[interrupt::LINK_SERVICE as usize] = LINK_SERVICE;
-        t[interrupt::WORKER as usize] = WORKER;
-        t[Interrupt::TIM2 as usize] = super::step_timer_interrupt;
-        t
-    };
 }
 
 // ---------------------------------------------------------------------------------
@@ -713,9 +681,9 @@ unsafe fn DefaultHandler(_irqn: i16) {
 }
 
 // ---------------------------------------------------------------------------------
-// Stack: the single stack (RTIC's one shared stack), `memory.x`'s STACK region in the
-// CCM RAM; below it (reserved address space) an MPU region with no access, so an
-// overflow faults (MemManage) at once.
+// Stack: the single stack (RTIC's one shared stack), `memory.x`'s STACK region at the
+// bottom of SRAM; below it an MPU region with no access (reserved space and the system
+// memory, which the firmware never reads), so an overflow faults (MemManage) at once.
 
 extern "C" {
     static _stack_start: u32;
@@ -747,7 +715,7 @@ pub fn enable_stack_guard(
 ) {
     let base = memory_x::STACK_ORIGIN - STACK_GUARD_BYTES;
     let size_field = STACK_GUARD_BYTES.trailing_zeros() - 1;
-    // SAFETY: region 0 covers only reserved address space below the CCM RAM; the
+    // SAFETY: region 0 covers only the reserved space and system memory below SRAM; the
     // default map stays in force everywhere else (PRIVDEFENA).
     unsafe {
         mpu.rnr.write(0);
@@ -1115,8 +1083,9 @@ pub struct StepEngine {
 /// The step engine, owned by TIM2's interrupt once installed.
 static STEP_ENGINE: Mutex<RefCell<Option<StepEngine>>> = Mutex::new(RefCell::new(None));
 
-/// TIM2's interrupt (the board's vector table names it): one step-engine tick.
-unsafe extern "C" fn step_timer_interrupt() {
+/// TIM2's interrupt: one step-engine tick.
+#[interrupt]
+fn TIM2() {
     irq::free(|cs| {
         if let Ok(mut e) = STEP_ENGINE.borrow(cs).try_borrow_mut() {
             if let Some(e) = e.as_mut() {
