@@ -168,16 +168,17 @@ fn configure_clocks(rcc: pac::RCC) -> ClockTree {
     }
     rcc.cr().modify(|_, w| w.hseon().set_bit());
     let hse_ready = (0..HSE_STARTUP_POLLS).any(|_| rcc.cr().read().hserdy().bit_is_set());
-    let (cfg, source) = if hse_ready {
+    let (rcc, source) = if hse_ready {
+        // One constant configuration: the HAL's checks of it fold away.
         (
-            RccConfig::hse(HSE_HZ.Hz()).sysclk(SYSCLK_HZ.Hz()),
+            rcc.freeze(RccConfig::hse(HSE_HZ.Hz()).sysclk(SYSCLK_HZ.Hz())),
             ClockSource::CrystalPll,
         )
     } else {
+        // The reset state: HSI, no prescalers, what the HAL's default clocks say.
         rcc.cr().modify(|_, w| w.hseon().clear_bit());
-        (RccConfig::hsi(), ClockSource::InternalFallback)
+        (rcc.constrain(), ClockSource::InternalFallback)
     };
-    let rcc = rcc.freeze(cfg);
     let timer_clock_hz = rcc.clocks.timclk1().raw();
     ClockTree {
         rcc,
@@ -1122,7 +1123,11 @@ impl StepEngine {
             seen: [0; LEGS],
             acc: [0; LEGS],
         };
-        irq::free(|cs| STEP_ENGINE.borrow(cs).replace(Some(engine)));
+        irq::free(|cs| {
+            if let Ok(mut slot) = STEP_ENGINE.borrow(cs).try_borrow_mut() {
+                *slot = Some(engine);
+            }
+        });
         if run {
             // SAFETY: the engine is installed; its handler touches only the engine and
             // the atomics, so unmasking it breaks no RTIC critical section.
