@@ -468,15 +468,21 @@ impl UartTx {
         let u = usart1();
         for _ in 0..TX_BYTES_PER_DRAIN {
             if u.sr().read().txe().bit_is_clear() {
-                break;
+                // The transmitter is busy: its TXE interrupt brings the next drain.
+                if queue.ready() {
+                    set_txeie(true);
+                }
+                return;
             }
             let Some(byte) = queue.dequeue() else {
                 return;
             };
             u.dr().write(|w| unsafe { w.bits(u16::from(byte)) });
         }
+        // Budget spent with the transmitter still free (QEMU's always is): drain again
+        // after the tasks above have had their turn.
         if queue.ready() {
-            set_txeie(true);
+            cortex_m::peripheral::NVIC::pend(device::interrupt::UART_TX);
         }
     }
 }
