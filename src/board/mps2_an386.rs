@@ -143,38 +143,11 @@ pub mod device {
         };
     }
     // Lines 0, 1, 8, 30 and 31 under the flight image's names (`interrupt`).
+    #[rustfmt::skip]
     vectors!(
-        UART_RX,
-        UART_TX,
-        UARTRX1,
-        UARTTX1,
-        UARTRX2,
-        UARTTX2,
-        IRQ6,
-        IRQ7,
-        CONTROL_TIMER,
-        TIMER1,
-        DUALTIMER,
-        SPI,
-        UARTOVF,
-        ETHERNET,
-        IRQ14,
-        IRQ15,
-        IRQ16,
-        IRQ17,
-        UARTRX3,
-        UARTTX3,
-        UARTRX4,
-        UARTTX4,
-        ADCSPI,
-        IRQ23,
-        SHIELDSPI,
-        IRQ25,
-        IRQ26,
-        IRQ27,
-        IRQ28,
-        IRQ29,
-        LINK_SERVICE,
+        UART_RX, UART_TX, UARTRX1, UARTTX1, UARTRX2, UARTTX2, IRQ6, IRQ7, CONTROL_TIMER, TIMER1,
+        DUALTIMER, SPI, UARTOVF, ETHERNET, IRQ14, IRQ15, IRQ16, IRQ17, UARTRX3, UARTTX3, UARTRX4,
+        UARTTX4, ADCSPI, IRQ23, SHIELDSPI, IRQ25, IRQ26, IRQ27, IRQ28, IRQ29, LINK_SERVICE,
         WORKER,
     );
 }
