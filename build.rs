@@ -3,7 +3,8 @@
 //!   cortex-m-rt's `link.x` includes) and, for a board with its own interrupt table, its
 //!   `device.x` (cortex-m-rt's `device` feature), for the firmware, thumb targets only:
 //!   `memory/mps2-an386.x` + `memory/mps2-an386-device.x` (the default board) or
-//!   `memory/netduinoplus2.x` (feature `board-netduinoplus2`). No `memory.x` or
+//!   `memory/netduinoplus2.x` (feature `board-netduinoplus2`; its `device.x` is the
+//!   stm32f4 PAC's). No `memory.x` or
 //!   `device.x` may sit in the package root: the linker searches its working directory
 //!   first and would take that one for every board;
 //! * reads the TABLE and STACK regions of the board's memory map into Rust constants
@@ -40,6 +41,9 @@ fn main() {
                 include_bytes!("memory/netduinoplus2.x"),
             )
             .expect("write memory.x");
+            // The PAC's device.x is the one: none of ours may shadow it (OUT_DIR outlives a
+            // change of board features).
+            let _ = fs::remove_file(out.join("device.x"));
         } else {
             fs::write(out.join("memory.x"), include_bytes!("memory/mps2-an386.x"))
                 .expect("write memory.x");

@@ -61,6 +61,6 @@ while read -r name first periods; do
 done
 # Static worst-case stack of each m2fw task (frames along the deepest direct-call chain);
 # the measured peak of the flight image is printed by scripts/qemu-link-test.sh.
-python3 scripts/stack-depth.py "$F/m2fw" main TIMER0 IRQ30 IRQ31 UARTRX0 UARTTX0 | grep STATIC
+python3 scripts/stack-depth.py "$F/m2fw" main CONTROL_TIMER LINK_SERVICE WORKER UART_RX UART_TX | grep STATIC
 read -r ftext fdata fbss _ < <(sizes "$F/m2fw")
 echo "flight image m2fw flash (text + data):           $((ftext + fdata)) bytes (goal <= 65536); RAM data + bss $((fdata + fbss)) bytes"

@@ -8,7 +8,9 @@
 #  3. the flight firmware on the emulated Cortex-M4F: kinematics self-test (target bits
 #     == host bits), then the flight image driven over its UART, then its fault handling (overruns, a
 #     hang reset by the watchdog, a stack overflow caught by the MPU guard);
-#  4. the firmware figures (instruction counts, sizes, stack).
+#  4. the second board (STM32F405, QEMU netduinoplus2): its self-test and its flight
+#     image over USART1;
+#  5. the firmware figures (instruction counts, sizes, stack).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
@@ -18,6 +20,8 @@ target/release/m2ground mission --plot target/mission/errors.svg "$@"
 scripts/qemu-selftest.sh
 scripts/qemu-link-test.sh
 scripts/qemu-fault-test.sh
+scripts/qemu-selftest-netduinoplus2.sh
+scripts/qemu-link-test-netduinoplus2.sh
 scripts/bench.sh
 echo
 echo "main: mission plot target/mission/errors.svg; all steps passed"

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Static worst-case stack depth of the tasks of a Cortex-M (Thumb-2) ELF.
 
-usage: stack-depth.py <elf> <root symbol>...   (e.g. TIMER0 IRQ30 IRQ31 UARTRX0 main)
+usage: stack-depth.py <elf> <root symbol>...   (e.g. CONTROL_TIMER LINK_SERVICE WORKER UART_RX main)
 
 From `arm-none-eabi-objdump -d`: each function's frame is what its push/stmdb, vpush
 and `sub sp` reserve; its callees are the direct calls and tail branches (bl, b.w, b)

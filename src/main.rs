@@ -1,15 +1,20 @@
 //! Flight image (target only, `--features firmware`): the M2 mechanism controller as an
-//! RTIC 2 application on QEMU's mps2-an386.
+//! RTIC 2 application on the board the features select (`m2ctl::board::active`: QEMU's
+//! mps2-an386 by default, the STM32F405 Netduino Plus 2 with `board-netduinoplus2`).
 //!
 //! # Tasks, by priority (the order `sim::Bench` calls the same code on the host)
-//! | priority | task | bound to | does | at most |
+//! | priority | task | bound to (mps2-an386) | does | at most |
 //! |---|---|---|---|---|
-//! | 4 | `uart_rx` | UART0 RX (IRQ 0) | one received byte into the RX queue, overrun bit | ~40 instructions per byte |
-//! | 3 | `control` | TIMER0 (IRQ 8), 1 kHz | `Controller::control_cycle`, deadline check, watchdog feed, pends the two below | one control cycle |
-//! | 2 | `uart_tx` | UART0 TX (IRQ 1, also pended by the link service) | one byte from the TX queue to the UART | ~30 instructions per byte |
-//! | 1 | `link_service` | IRQ 30 (pended by `control`) | `LinkService`: telecommands in (at most `MAX_TC_PER_PASS`), job messages, telemetry frames out | one pass |
-//! | 1 | `worker` | IRQ 31 (pended by `control`, runs after the link pass) | one `Worker::step`: a validation, a flash operation, a scrub check | one step |
+//! | 4 | `uart_rx` | `UART_RX`: UART0 RX (IRQ 0) | one received byte into the RX queue, overrun bit | ~40 instructions per byte |
+//! | 3 | `control` | `CONTROL_TIMER`: TIMER0 (IRQ 8), 1 kHz | `Controller::control_cycle`, deadline check, watchdog feed, pends the two below | one control cycle |
+//! | 2 | `uart_tx` | `UART_TX`: UART0 TX (IRQ 1, also pended by the link service) | one byte from the TX queue to the UART | ~30 instructions per byte |
+//! | 1 | `link_service` | `LINK_SERVICE`: IRQ 30 (pended by `control`) | `LinkService`: telecommands in (at most `MAX_TC_PER_PASS`), job messages, telemetry frames out | one pass |
+//! | 1 | `worker` | `WORKER`: IRQ 31 (pended by `control`, runs after the link pass) | one `Worker::step`: a validation, a flash operation, a scrub check | one step |
 //! | 0 | `idle` | - | sleeps (WFI) | - |
+//!
+//! The tasks bind the board-independent names of `board::device::interrupt`; each
+//! board maps them onto its lines (the Netduino Plus 2: USART1, TIM3, and three unused
+//! CAN2 lines for the software-pended ones; its one USART1 line hands TXE to `UART_TX`).
 //!
 //! The link service and the worker share priority 1: neither preempts the other, so
 //! the worst-case stack is the larger of the two plus the tasks above (RTIC's single
@@ -35,16 +40,16 @@
 //! * A failed boot self-test halts the board before anything is commanded and before
 //!   the watchdog runs (the mechanism stays where it is; safe mode is outside this image).
 //!
-//! No semihosting and no log: telemetry is the only output. QEMU has no sliders: the
-//! board's slider model (`m2ctl::board::qemu_sliders`) stands behind the hardware
-//! traits.
+//! No semihosting and no log: telemetry is the only output. The controller drives the
+//! board's `Sliders`: on mps2-an386 (QEMU has no sliders) the slider model
+//! `m2ctl::board::qemu_sliders` behind the hardware traits, on the Netduino Plus 2 the
+//! drivers of `m2ctl::drivers`.
 #![no_std]
 #![no_main]
 #![deny(unsafe_code)]
 
 use core::mem::MaybeUninit;
 use m2ctl::board::active as board;
-use m2ctl::board::qemu_sliders::QemuSliders;
 use m2ctl::controller::comms::{Exclusive, JobPort, RxBytes, TxBytes};
 use m2ctl::controller::{Controller, JobRequest, JobResult, ResetCause, ResetInfo, Worker};
 use m2ctl::hw::SliderDrives;
@@ -158,12 +163,12 @@ fn boot_selftest_passes() -> bool {
 #[inline(never)]
 fn build_core(
     flash: board::TableFlash,
-    sliders: QemuSliders,
+    sliders: board::Sliders,
     reset: ResetInfo,
-    ctl_slot: &'static mut MaybeUninit<Controller<QemuSliders>>,
+    ctl_slot: &'static mut MaybeUninit<Controller<board::Sliders>>,
     worker_slot: &'static mut MaybeUninit<Worker<board::TableFlash>>,
 ) -> Option<(
-    &'static mut Controller<QemuSliders>,
+    &'static mut Controller<board::Sliders>,
     &'static mut Worker<board::TableFlash>,
 )> {
     let validation = ValidationConfig::flight();
@@ -197,18 +202,18 @@ fn boot_selection(
 
 #[inline(never)]
 fn build_controller(
-    slot: &'static mut MaybeUninit<Controller<QemuSliders>>,
-    mut sliders: QemuSliders,
+    slot: &'static mut MaybeUninit<Controller<board::Sliders>>,
+    mut sliders: board::Sliders,
     table: Table,
     boot: BootReport,
     reset: ResetInfo,
-) -> &'static mut Controller<QemuSliders> {
+) -> &'static mut Controller<board::Sliders> {
     sliders.hold();
     let ctl = Controller::unstarted_in(slot, sliders, table, boot);
     // Called out of line (through a pointer the optimiser cannot see through), so that
     // its frame (FK of the held strokes) and the construction's are not on the stack
     // together.
-    let start: fn(&mut Controller<QemuSliders>) = Controller::start;
+    let start: fn(&mut Controller<board::Sliders>) = Controller::start;
     core::hint::black_box(start)(ctl);
     ctl.set_reset_info(reset);
     ctl
@@ -271,7 +276,7 @@ fn send_unsent(
 #[rtic::app(device = m2ctl::board::active::device, peripherals = false)]
 mod app {
     use super::*;
-    use board::device::Interrupt;
+    use board::device::interrupt;
     use board::{Board, ControlTimer, UartErrors, UartRx, UartTx, Watchdog};
     use heapless::spsc::{Consumer, Producer, Queue};
     use m2ctl::controller::comms::LinkService;
@@ -281,7 +286,7 @@ mod app {
     // the resources are references to them.
     #[shared]
     struct Shared {
-        ctl: &'static mut Controller<QemuSliders>,
+        ctl: &'static mut Controller<board::Sliders>,
     }
 
     #[local]
@@ -309,7 +314,7 @@ mod app {
         tx_q: Queue<u8, TX_QUEUE_LEN> = Queue::new(),
         req_q: Queue<JobRequest, JOB_QUEUE_LEN> = Queue::new(),
         res_q: Queue<JobResult, JOB_QUEUE_LEN> = Queue::new(),
-        ctl_slot: MaybeUninit<Controller<QemuSliders>> = MaybeUninit::uninit(),
+        ctl_slot: MaybeUninit<Controller<board::Sliders>> = MaybeUninit::uninit(),
         worker_slot: MaybeUninit<Worker<board::TableFlash>> = MaybeUninit::uninit(),
         link_slot: MaybeUninit<LinkService> = MaybeUninit::uninit(),
     ])]
@@ -366,13 +371,13 @@ mod app {
     }
 
     /// UART0 receive: one byte into the RX queue.
-    #[task(binds = UARTRX0, priority = 4, local = [uart_rx, rx_in])]
+    #[task(binds = UART_RX, priority = 4, local = [uart_rx, rx_in])]
     fn uart_rx(cx: uart_rx::Context) {
         cx.local.uart_rx.on_interrupt(cx.local.rx_in);
     }
 
     /// The 1 kHz control task.
-    #[task(binds = TIMER0, priority = 3, shared = [ctl], local = [timer, watchdog, fault_stage])]
+    #[task(binds = CONTROL_TIMER, priority = 3, shared = [ctl], local = [timer, watchdog, fault_stage])]
     fn control(mut cx: control::Context) {
         cx.local.timer.acknowledge();
         let timer = &*cx.local.timer;
@@ -387,12 +392,12 @@ mod app {
             }
         });
         cx.local.watchdog.feed();
-        rtic::pend(Interrupt::IRQ30);
-        rtic::pend(Interrupt::IRQ31);
+        rtic::pend(interrupt::LINK_SERVICE);
+        rtic::pend(interrupt::WORKER);
     }
 
     /// The link service: one pass after every control cycle.
-    #[task(binds = IRQ30, priority = 1, shared = [ctl],
+    #[task(binds = LINK_SERVICE, priority = 1, shared = [ctl],
            local = [link, rx_out, tx_in, uart_errors, requests_tx, results_rx])]
     fn link_service(cx: link_service::Context) {
         let link = cx.local.link;
@@ -416,19 +421,19 @@ mod app {
         };
         link.transmit(&mut ctl, &mut tx);
         if tx.pushed {
-            rtic::pend(Interrupt::UARTTX0);
+            rtic::pend(interrupt::UART_TX);
         }
     }
 
     /// UART0 transmit: the next byte of the TX queue.
-    #[task(binds = UARTTX0, priority = 2, local = [uart_tx, tx_out])]
+    #[task(binds = UART_TX, priority = 2, local = [uart_tx, tx_out])]
     fn uart_tx(cx: uart_tx::Context) {
         cx.local.uart_tx.on_interrupt(cx.local.tx_out);
     }
 
     /// The background worker: one step per control period, after the link pass (the
     /// same priority: neither preempts the other, so their stacks never add up).
-    #[task(binds = IRQ31, priority = 1, local = [
+    #[task(binds = WORKER, priority = 1, local = [
         worker, requests_rx, results_tx,
         refused: heapless::Vec<JobRequest, 1> = heapless::Vec::new(),
         unsent: heapless::Vec<JobResult, 1> = heapless::Vec::new(),

@@ -1,5 +1,6 @@
-//! Runs the firmware image in QEMU (mps2-an386) with UART0 on a Unix socket, so a host
-//! test can send telecommand bytes and read telemetry bytes like a ground station.
+//! Runs the firmware image in QEMU (mps2-an386, or another board's machine) with its
+//! first serial port on a Unix socket, so a host test can send telecommand bytes and
+//! read telemetry bytes like a ground station.
 #![allow(dead_code)]
 
 use std::io::{Read, Write};
@@ -39,6 +40,11 @@ pub fn elf_at(relative: &str) -> PathBuf {
 /// about 1 run of 5; README, "Firmware in QEMU").
 pub const ICOUNT_SHIFT: u32 = 3;
 
+/// QEMU arguments of the default board.
+pub const MPS2_AN386: &[&str] = &["-cpu", "cortex-m4", "-machine", "mps2-an386"];
+/// QEMU arguments of the second board (STM32F405, Cortex-M4F implied).
+pub const NETDUINOPLUS2: &[&str] = &["-machine", "netduinoplus2"];
+
 /// A running QEMU with the firmware; killed on drop.
 pub struct Qemu {
     child: Child,
@@ -54,8 +60,14 @@ impl Qemu {
         Self::start_elf(&firmware_elf())
     }
 
-    /// Starts QEMU with `elf` and connects to UART0.
+    /// Starts QEMU (mps2-an386) with `elf` and connects to UART0.
     pub fn start_elf(elf: &std::path::Path) -> Qemu {
+        Self::start_elf_on(elf, MPS2_AN386)
+    }
+
+    /// Starts QEMU's `machine` (its `-cpu`/`-machine` arguments) with `elf` and connects
+    /// to its first serial port.
+    pub fn start_elf_on(elf: &std::path::Path, machine: &[&str]) -> Qemu {
         let sock = std::env::temp_dir().join(format!(
             "m2fw-uart-{}-{}.sock",
             std::process::id(),
@@ -65,7 +77,8 @@ impl Qemu {
         let monitor = sock.with_extension("monitor");
         let _ = std::fs::remove_file(&monitor);
         let child = Command::new("qemu-system-arm")
-            .args(["-cpu", "cortex-m4", "-machine", "mps2-an386", "-nographic"])
+            .args(machine)
+            .arg("-nographic")
             .arg("-monitor")
             .arg(format!("unix:{},server=on,wait=off", monitor.display()))
             .arg("-icount")

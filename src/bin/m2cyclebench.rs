@@ -23,8 +23,7 @@ use cortex_m as _; // critical-section implementation (single core) for defmt
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
 use heapless::Deque;
-use m2ctl::board::active::{self as hw, Board, TableFlash};
-use m2ctl::board::qemu_sliders::QemuSliders;
+use m2ctl::board::active::{self as hw, Board, Sliders, TableFlash};
 use m2ctl::controller::comms::{JobPort, LinkService, RxBytes, TxBytes};
 use m2ctl::controller::{Controller, JobRequest, JobResult, ResetCause, State, Worker};
 use m2ctl::hw::SliderDrives;
@@ -108,7 +107,7 @@ impl JobPort for Port<'_> {
 }
 
 struct Rig {
-    ctl: &'static mut Controller<QemuSliders>,
+    ctl: &'static mut Controller<Sliders>,
     worker: &'static mut Worker<TableFlash>,
     link: LinkService,
     timer: hw::ControlTimer,
@@ -164,7 +163,7 @@ impl Rig {
     #[inline(never)]
     fn link_part(&mut self) {
         hw::bench_start();
-        let mut ctl: &mut Controller<QemuSliders> = self.ctl;
+        let mut ctl: &mut Controller<Sliders> = self.ctl;
         self.link.receive(&mut ctl, &mut self.up);
         let mut port = Port {
             worker: self.worker,
@@ -265,7 +264,7 @@ fn run() -> bool {
     };
     defmt::info!(
         "SIZES controller_bytes={=u32} worker_bytes={=u32}",
-        core::mem::size_of::<Controller<QemuSliders>>() as u32,
+        core::mem::size_of::<Controller<Sliders>>() as u32,
         core::mem::size_of::<Worker<TableFlash>>() as u32
     );
     // The bench's own state in a static, not on the measured stack.
@@ -305,13 +304,13 @@ fn run() -> bool {
 #[inline(never)]
 fn boot(
     flash: TableFlash,
-    sliders: QemuSliders,
+    sliders: Sliders,
 ) -> Option<(
-    &'static mut Controller<QemuSliders>,
+    &'static mut Controller<Sliders>,
     &'static mut Worker<TableFlash>,
 )> {
     let ctl_slot =
-        cortex_m::singleton!(: MaybeUninit<Controller<QemuSliders>> = MaybeUninit::uninit())?;
+        cortex_m::singleton!(: MaybeUninit<Controller<Sliders>> = MaybeUninit::uninit())?;
     let worker_slot =
         cortex_m::singleton!(: MaybeUninit<Worker<TableFlash>> = MaybeUninit::uninit())?;
     let base = hw::stack_depth_bytes();

@@ -6,14 +6,17 @@
 //! * `board-netduinoplus2`: the STM32F405 Netduino Plus 2 (also QEMU `netduinoplus2`),
 //!   `netduinoplus2`, which also wires the drivers of `crate::drivers` to the HAL.
 //!
-//! Every board implements the same items (device description, take-once `Board`, UART,
-//! control timer, watchdog, reset record, table flash, stack guard, markers), so every
-//! image builds for either. Exactly one board is compiled (each defines the panic
+//! Every board implements the same items (device description with the flight image's
+//! interrupt names, `device::interrupt`; take-once `Board` and its `Sliders`; UART,
+//! control timer, watchdog, reset record, fault handlers, table flash, stack guard,
+//! markers), so every image builds for either. Exactly one board is compiled (each
+//! defines the vector table and the fault handlers; the images define the panic
 //! handler).
 //!
-//! [`qemu_sliders`] is a board part, not a board: the slider/encoder model that an
-//! emulated board has instead of slider drivers.
+//! `qemu_sliders` is a board part, not a board: the slider/encoder model that the
+//! emulated mps2-an386 board has instead of slider drivers (compiled with it only).
 
+#[cfg(not(feature = "board-netduinoplus2"))]
 pub mod qemu_sliders;
 
 #[cfg(not(feature = "board-netduinoplus2"))]

@@ -111,8 +111,23 @@ pub mod device {
         }
     }
 
-    /// RTIC looks the lines up under this name (svd2rust convention).
-    pub use Interrupt as interrupt;
+    /// The flight image's interrupts by role (RTIC's `binds =` and `rtic::pend` use
+    /// these names; every board maps them onto its lines, and its vector table and
+    /// `device.x` name the handlers so).
+    #[allow(missing_docs)]
+    pub mod interrupt {
+        use super::Interrupt;
+        /// UART0 receive (IRQ 0).
+        pub const UART_RX: Interrupt = Interrupt::UARTRX0;
+        /// UART0 transmit (IRQ 1; also pended by the link service).
+        pub const UART_TX: Interrupt = Interrupt::UARTTX0;
+        /// TIMER0 (IRQ 8): the control rate.
+        pub const CONTROL_TIMER: Interrupt = Interrupt::TIMER0;
+        /// IRQ 30, not wired in QEMU: software-pended link service pass.
+        pub const LINK_SERVICE: Interrupt = Interrupt::IRQ30;
+        /// IRQ 31, not wired in QEMU: software-pended worker step.
+        pub const WORKER: Interrupt = Interrupt::IRQ31;
+    }
 
     macro_rules! vectors {
         ($($name:ident),* $(,)?) => {
@@ -127,15 +142,21 @@ pub mod device {
             pub static __INTERRUPTS: [unsafe extern "C" fn(); 32] = [$($name),*];
         };
     }
+    // Lines 0, 1, 8, 30 and 31 under the flight image's names (`interrupt`).
+    #[rustfmt::skip]
     vectors!(
-        UARTRX0, UARTTX0, UARTRX1, UARTTX1, UARTRX2, UARTTX2, IRQ6, IRQ7, TIMER0, TIMER1,
+        UART_RX, UART_TX, UARTRX1, UARTTX1, UARTRX2, UARTTX2, IRQ6, IRQ7, CONTROL_TIMER, TIMER1,
         DUALTIMER, SPI, UARTOVF, ETHERNET, IRQ14, IRQ15, IRQ16, IRQ17, UARTRX3, UARTTX3, UARTRX4,
-        UARTTX4, ADCSPI, IRQ23, SHIELDSPI, IRQ25, IRQ26, IRQ27, IRQ28, IRQ29, IRQ30, IRQ31,
+        UARTTX4, ADCSPI, IRQ23, SHIELDSPI, IRQ25, IRQ26, IRQ27, IRQ28, IRQ29, LINK_SERVICE,
+        WORKER,
     );
 }
 
 // ---------------------------------------------------------------------------------
 // Take-once hardware.
+
+/// What the controller drives on this board: the emulated sliders.
+pub type Sliders = QemuSliders;
 
 /// The board's hardware, handed out once ([`Board::take`]).
 pub struct Board {

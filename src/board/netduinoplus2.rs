@@ -1,16 +1,24 @@
-//! Netduino Plus 2: STM32F405RG (Cortex-M4F, 168 MHz, 1 MiB flash, 128 KiB SRAM), also
-//! QEMU's `netduinoplus2` machine. Feature `board-netduinoplus2`; memory map in
-//! `memory/netduinoplus2.x` (selected by build.rs).
+//! Netduino Plus 2: STM32F405RG (Cortex-M4F, 168 MHz, 1 MiB flash, 128 KiB SRAM; its
+//! 64 KiB CCM RAM is unused, QEMU 7.2 lacks it), also QEMU's `netduinoplus2` machine. Feature `board-netduinoplus2`; memory
+//! map in `memory/netduinoplus2.x` (selected by build.rs).
 //!
 //! The same glue items as the mps2-an386 board, so every image builds for either:
-//! semihosting exit and the panic handler, the telecommand UART ([`Uart`], USART1),
-//! the parameter-table flash ([`TableFlash`], two 128 KiB sectors behind the table
-//! store's offsets), 1 kHz cycle pacing ([`CycleTimer`], SysTick), stack-peak
-//! measurement and the instruction-count markers. And what mps2 lacks, the mechanism
-//! wired to the drivers of `crate::drivers` through `stm32f4xx-hal` (embedded-hal 1.0):
-//! [`Board::take`] hands out the UART, the six BiSS-C encoders in one daisy chain on
-//! SPI1, the six step/direction drives (step pulses from [`StepEngine`] on TIM2), and
-//! the end-of-travel/reference inputs, as one [`Mechanism`].
+//!
+//! * [`device`]: what RTIC's `#[app(device = ...)]` needs, from the stm32f4 PAC (its
+//!   `Interrupt` lines, `NVIC_PRIO_BITS`, its vector table and `device.x`), and the
+//!   flight image's board-independent interrupt names ([`device::interrupt`]) mapped
+//!   onto this board's lines (`memory/netduinoplus2.x` aliases the PAC's handler
+//!   names to them);
+//! * [`Board::take`]: the take-once hardware: the telecommand UART ([`Uart0`], USART1),
+//!   the control timer ([`ControlTimer`], TIM3), the independent watchdog
+//!   ([`Watchdog`]), the table flash ([`TableFlash`], sectors 8 to 11) and the
+//!   mechanism ([`Sliders`]: the drivers of `crate::drivers` wired through
+//!   `stm32f4xx-hal`, embedded-hal 1.0): six BiSS-C encoders in one daisy chain on
+//!   SPI1, six step/direction drives (step pulses from [`StepEngine`] on TIM2), and the
+//!   end-of-travel/reference inputs;
+//! * the reset record, the fault handlers (HardFault, MemManage, unexpected
+//!   interrupts) that record their cause and reset, the MPU stack guard, stack
+//!   painting/peak, instruction-count markers and the semihosting exit (test images).
 //!
 //! ## Harness (pin map)
 //!
@@ -29,113 +37,88 @@
 //! ## Clocks
 //!
 //! 25 MHz crystal (HSE) -> PLL -> 168 MHz. The crystal is waited for a bounded time
-//! ([`HSE_STARTUP_POLLS`]); if it does not start (a failed crystal, or QEMU, whose
-//! STM32F405 has no RCC model) the board runs on the internal 16 MHz oscillator and
-//! [`clock_source`] says so. QEMU's CPU runs at its own 168 MHz whatever the RCC says.
+//! ([`HSE_STARTUP_POLLS`]); if it does not start the board runs on the internal 16 MHz
+//! oscillator ([`ClockSource::InternalFallback`]).
 //!
-//! ## Not modelled by QEMU 7.2
+//! ## QEMU 7.2 `netduinoplus2`
 //!
-//! GPIO, RCC and the flash interface are unimplemented devices there (writes ignored,
-//! reads 0): the self-test image runs (it needs only the core, semihosting and defmt);
-//! the drivers build and are tested on the host (`host-tests/drivers.rs`), not in QEMU;
-//! table writes cannot succeed in QEMU (the "flash" is ROM).
-#![allow(unsafe_code)] // Board glue: linker symbols, painted RAM, stolen peripherals.
+//! QEMU models the core (its clock fixed at [`QEMU_SYSCLK_HZ`]), the USARTs, SPI, TIM2
+//! to TIM5 (input clock fixed at [`QEMU_TIMER_CLOCK_HZ`], whatever the RCC says) and
+//! the RAMs; the RCC, GPIO, IWDG and the flash interface are unimplemented devices
+//! (writes ignored, reads 0). The board recognises it by its RCC reading all zero
+//! (impossible on silicon, which runs on the HSI oscillator whose ready flag is set from
+//! reset) and then ([`ClockSource::Emulated`]) paces the control timer from QEMU's
+//! timer clock and does not start the step engine (there are no drives to step). What
+//! follows there: the link works; the encoders answer nothing (no start bit: the
+//! controller's encoder fault, safe state); the watchdog never bites; table writes fail
+//! their read-back (the flash is ROM there) with a clear error.
+//!
+//! ## Known limitation on the real board
+//!
+//! The STM32F405's flash is one bank: while a sector erase (128 KiB, 1 to 2 s, RM0090)
+//! runs, every instruction fetch from flash stalls, the control task too, and the
+//! watchdog ([`WATCHDOG_TIMEOUT_MS`]) resets the board. Table commits on this board
+//! need the erase started from RAM-resident code with the watchdog widened; not done.
+#![allow(unsafe_code)] // Board glue: MMIO registers, linker symbols, painted RAM.
 
-use core::cell::Cell;
-use core::ptr::read_volatile;
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::cell::RefCell;
+use core::mem::MaybeUninit;
+use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
+use core::sync::atomic::{AtomicBool, AtomicU16, AtomicU32, Ordering};
 
 use cortex_m::interrupt::{self as irq, Mutex};
 use embedded_storage::nor_flash::{
     ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
 };
-use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
+use heapless::spsc::{Consumer, Producer};
 use stm32f4xx_hal::gpio::{AnyPin, Input, Output, PushPull};
-use stm32f4xx_hal::pac;
+use stm32f4xx_hal::pac::{self, interrupt};
 use stm32f4xx_hal::prelude::*;
-use stm32f4xx_hal::rcc::{Clocks, Config as RccConfig, Rcc};
+use stm32f4xx_hal::rcc::{Config as RccConfig, Enable, Rcc, Reset};
 use stm32f4xx_hal::serial::{self as hal_serial, Serial};
 use stm32f4xx_hal::spi::{Mode as SpiMode, Phase, Polarity, Spi};
-use stm32f4xx_hal::timer::{CounterHz, Event as TimerEvent, Flag as TimerFlag};
-use stm32f4xx_hal::{ClearFlags, Listen};
 
-use crate::drivers::biss::{BissChain, BissConfig, BissConfigError, EncoderScale, MaLine};
+use crate::controller::{ResetCause, ResetInfo};
+use crate::drivers::biss::{BissChain, BissConfig, EncoderScale, MaLine};
 use crate::drivers::stepper::{
-    StepDirDrives, StepPulses, StepperConfig, StepperConfigError, StepperLeg, StepperPolarity,
+    StepDirDrives, StepPulses, StepperConfig, StepperLeg, StepperPolarity,
 };
 use crate::drivers::switches::{LegSwitches, SwitchPolarity, TravelSwitchInputs};
 use crate::drivers::Mechanism as DriverMechanism;
 use crate::kinematics::LEGS;
-use crate::motion::CYCLE_S;
-use crate::table::{BANK_A_OFFSET, BANK_B_OFFSET, BANK_SIZE};
+use crate::table::{BankLayout, FlashStatus};
+use crate::timing::{CYCLE_US, US_PER_S};
 
-/// Value cortex-m-rt's `paint-stack` writes over the stack before `main`.
-const STACK_PAINT: u32 = 0xCCCC_CCCC;
-
-extern "C" {
-    static _stack_start: u32;
-    static _stack_end: u32;
+/// The memory map of `memory.x`, as build.rs reads it.
+mod memory_x {
+    include!(concat!(env!("OUT_DIR"), "/memory_x.rs"));
 }
 
-/// Bytes of stack used so far: scans the painted region from its low end upwards for the
-/// first word that is no longer the paint value.
-pub fn stack_peak_bytes() -> u32 {
-    let lo = core::ptr::addr_of!(_stack_end) as usize;
-    let hi = core::ptr::addr_of!(_stack_start) as usize;
-    let mut p = lo;
-    // SAFETY: [lo, hi) is the stack region of cortex-m-rt's linker script, plain RAM;
-    // aligned volatile word reads inside it are sound.
-    while p < hi && unsafe { read_volatile(p as *const u32) } == STACK_PAINT {
-        p += 4;
+// ---------------------------------------------------------------------------------
+// Device description for RTIC.
+
+/// What RTIC's `#[app(device = ...)]` needs: the PAC's interrupt lines and priority
+/// bits, the flight image's interrupt names on this board, and the vector table.
+pub mod device {
+    pub use stm32f4xx_hal::pac::{Interrupt, NVIC_PRIO_BITS};
+
+    /// The flight image's interrupts by role (RTIC's `binds =` and `rtic::pend` use
+    /// these names), on this board's lines. The three software-pended ones are lines of
+    /// peripherals this board never enables (CAN2).
+    #[allow(missing_docs)]
+    pub mod interrupt {
+        use super::Interrupt;
+        /// USART1 (receive, and the transmitter's TXE, see [`super::super::UartRx`]).
+        pub const UART_RX: Interrupt = Interrupt::USART1;
+        /// Software-pended by the link service and by `UART_RX`: one TX drain.
+        pub const UART_TX: Interrupt = Interrupt::CAN2_TX;
+        /// TIM3 update: the control rate.
+        pub const CONTROL_TIMER: Interrupt = Interrupt::TIM3;
+        /// Software-pended by the control task: the link service pass.
+        pub const LINK_SERVICE: Interrupt = Interrupt::CAN2_RX0;
+        /// Software-pended by the control task: one worker step.
+        pub const WORKER: Interrupt = Interrupt::CAN2_RX1;
     }
-    (hi - p) as u32
-}
-
-/// Size of the stack region (bytes) between `_stack_end` and `_stack_start`.
-pub fn stack_region_bytes() -> u32 {
-    let lo = core::ptr::addr_of!(_stack_end) as usize;
-    let hi = core::ptr::addr_of!(_stack_start) as usize;
-    (hi - lo) as u32
-}
-
-/// Ends the run with an exit code (0 = pass) through semihosting (QEMU's exit code; on
-/// the real board only with a debugger attached).
-pub fn exit(code: i32) -> ! {
-    semihosting::process::exit(code)
-}
-
-/// Exit code of a panic: a defect, flight code must not panic.
-pub const EXIT_PANIC: i32 = 101;
-
-/// The panic handler of every firmware image of this board: log and end the run with
-/// [`EXIT_PANIC`] (on a flight board: the watchdog/safe-mode path of issue 9).
-#[panic_handler]
-fn panic(_info: &core::panic::PanicInfo) -> ! {
-    defmt::error!("PANIC");
-    exit(EXIT_PANIC)
-}
-
-/// Marker for `qemu-insncount`: start of a measured section.
-#[no_mangle]
-#[inline(never)]
-pub extern "C" fn bench_start() {
-    core::sync::atomic::compiler_fence(Ordering::SeqCst);
-}
-
-/// Marker for `qemu-insncount`: end of a measured section (a different body from
-/// `bench_start`, so the linker cannot merge the two).
-#[no_mangle]
-#[inline(never)]
-pub extern "C" fn bench_end() {
-    core::sync::atomic::compiler_fence(Ordering::Release);
-    core::hint::black_box(0u32);
-}
-
-/// A hardware part requested twice, or a configuration the board cannot use: a defect
-/// of the image, not a run-time condition.
-fn defect() -> ! {
-    defmt::error!("board: part taken twice or misconfigured");
-    exit(EXIT_PANIC)
 }
 
 // ---------------------------------------------------------------------------------
@@ -148,122 +131,760 @@ pub const SYSCLK_HZ: u32 = 168_000_000;
 /// Polls of HSERDY before giving up on the crystal (several ms at 16 MHz; crystals
 /// start in about 2 ms).
 pub const HSE_STARTUP_POLLS: u32 = 200_000;
+/// QEMU's netduinoplus2: the core clock (`hw/arm/netduinoplus2.c`, fixed).
+pub const QEMU_SYSCLK_HZ: u32 = 168_000_000;
+/// QEMU's stm32f405 SoC: the input clock of TIM2..TIM5 (`clock-frequency`, fixed).
+pub const QEMU_TIMER_CLOCK_HZ: u32 = 48_000_000;
+/// Timer tick of the control and step timers (Hz): 1 us.
+const TIMER_TICK_HZ: u32 = 1_000_000;
 
 /// Where the system clock comes from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ClockSource {
     /// Crystal and PLL, [`SYSCLK_HZ`].
     CrystalPll,
     /// The crystal did not start: internal 16 MHz RC oscillator.
     InternalFallback,
+    /// QEMU (the RCC reads all zero): its fixed clocks.
+    Emulated,
 }
 
-static CLOCKS: Mutex<Cell<Option<(Clocks, ClockSource)>>> = Mutex::new(Cell::new(None));
+/// The clock tree as configured, and the input clock of the APB1 timers (Hz).
+struct ClockTree {
+    rcc: Rcc,
+    source: ClockSource,
+    timer_clock_hz: u32,
+}
 
-/// Configures the clock tree once (later calls return the same) and returns it.
-pub fn clocks() -> (Clocks, ClockSource) {
-    irq::free(|cs| {
-        if let Some(c) = CLOCKS.borrow(cs).get() {
-            return c;
-        }
-        // SAFETY: the RCC is only configured here, once, inside a critical section; the
-        // peripheral constructors below only enable/reset their own clock bits.
-        let rcc = unsafe { pac::RCC::steal() };
-        rcc.cr().modify(|_, w| w.hseon().set_bit());
-        let hse_ready = (0..HSE_STARTUP_POLLS).any(|_| rcc.cr().read().hserdy().bit_is_set());
-        let (cfg, source) = if hse_ready {
-            (
-                RccConfig::hse(HSE_HZ.Hz()).sysclk(SYSCLK_HZ.Hz()),
-                ClockSource::CrystalPll,
-            )
-        } else {
-            rcc.cr().modify(|_, w| w.hseon().clear_bit());
-            (RccConfig::hsi(), ClockSource::InternalFallback)
+/// Configures the clock tree (once, from [`Board::take`]).
+fn configure_clocks(rcc: pac::RCC) -> ClockTree {
+    if rcc.cr().read().bits() == 0 {
+        // QEMU: nothing to configure, and nothing the HAL would compute would be true.
+        return ClockTree {
+            rcc: rcc.constrain(),
+            source: ClockSource::Emulated,
+            timer_clock_hz: QEMU_TIMER_CLOCK_HZ,
         };
-        let c = (rcc.freeze(cfg).clocks, source);
-        CLOCKS.borrow(cs).set(Some(c));
-        c
-    })
+    }
+    rcc.cr().modify(|_, w| w.hseon().set_bit());
+    let hse_ready = (0..HSE_STARTUP_POLLS).any(|_| rcc.cr().read().hserdy().bit_is_set());
+    let (rcc, source) = if hse_ready {
+        // One constant configuration: the HAL's checks of it fold away.
+        (
+            rcc.freeze(RccConfig::hse(HSE_HZ.Hz()).sysclk(SYSCLK_HZ.Hz())),
+            ClockSource::CrystalPll,
+        )
+    } else {
+        // The reset state: HSI, no prescalers, what the HAL's default clocks say.
+        rcc.cr().modify(|_, w| w.hseon().clear_bit());
+        (rcc.constrain(), ClockSource::InternalFallback)
+    };
+    let timer_clock_hz = rcc.clocks.timclk1().raw();
+    ClockTree {
+        rcc,
+        source,
+        timer_clock_hz,
+    }
 }
 
-/// Where the system clock came from ([`clocks`] is run if it has not been).
+/// Where the clock came from (set by [`Board::take`]; `InternalFallback` before).
+static CLOCK_SOURCE: Mutex<core::cell::Cell<ClockSource>> =
+    Mutex::new(core::cell::Cell::new(ClockSource::InternalFallback));
+
+/// Where the system clock comes from.
 pub fn clock_source() -> ClockSource {
-    clocks().1
+    irq::free(|cs| CLOCK_SOURCE.borrow(cs).get())
 }
 
-/// A constrained RCC carrying the frozen clocks, for the HAL's peripheral constructors.
-fn rcc() -> Rcc {
-    let (c, _) = clocks();
-    // SAFETY: see `clocks`; `constrain` writes nothing.
-    let mut r = unsafe { pac::RCC::steal() }.constrain();
-    r.clocks = c;
-    r
+/// Prescaler register value for a [`TIMER_TICK_HZ`] tick from `timer_clock_hz`.
+fn tick_prescaler(timer_clock_hz: u32) -> u16 {
+    u16::try_from((timer_clock_hz / TIMER_TICK_HZ).saturating_sub(1)).unwrap_or(u16::MAX)
 }
 
 // ---------------------------------------------------------------------------------
-// UART: USART1 (PA9 TX, PA10 RX), QEMU's first `-serial`.
+// Take-once hardware.
+
+/// The board's hardware, handed out once ([`Board::take`]).
+pub struct Board {
+    /// Why the board reset, and the boot count (from the no-init reset record).
+    pub reset: ResetInfo,
+    /// The telecommand UART (split it into RX, TX and its error counter).
+    pub uart0: Uart0,
+    /// The control-rate timer.
+    pub timer: ControlTimer,
+    /// The watchdog (not running until started).
+    pub watchdog: Watchdog,
+    /// The parameter-table flash.
+    pub flash: TableFlash,
+    /// The mechanism: encoders, drives, switches.
+    pub sliders: Sliders,
+}
+
+static BOARD_TAKEN: AtomicBool = AtomicBool::new(false);
+
+impl Board {
+    /// The hardware, the first time; `None` afterwards or if a part refused its
+    /// configuration. Reads the reset record (cause, boot count) and re-arms it;
+    /// configures the clocks, pins, UART, SPI and the step engine (its interrupt
+    /// unmasked above every task; not started on QEMU).
+    pub fn take() -> Option<Board> {
+        if BOARD_TAKEN.swap(true, Ordering::SeqCst) {
+            return None;
+        }
+        // SAFETY: the first and only take (BOARD_TAKEN); RTIC is built with
+        // `peripherals = false`, so nothing else owns the device peripherals.
+        let dp = unsafe { pac::Peripherals::steal() };
+        let clocks = configure_clocks(dp.RCC);
+        irq::free(|cs| CLOCK_SOURCE.borrow(cs).set(clocks.source));
+        let mut rcc = clocks.rcc;
+        let gpioa = dp.GPIOA.split(&mut rcc);
+        let gpiob = dp.GPIOB.split(&mut rcc);
+        let gpioc = dp.GPIOC.split(&mut rcc);
+        let gpiod = dp.GPIOD.split(&mut rcc);
+
+        // Pins, clock, baud rate and frame; from here on the USART is driven by its
+        // registers (the interrupt-driven halves of `Uart0::split`).
+        Serial::<pac::USART1, u8>::new(
+            dp.USART1,
+            (gpioa.pa9, gpioa.pa10),
+            hal_serial::Config::default().baudrate(UART_BAUD.bps()),
+            &mut rcc,
+        )
+        .ok()?;
+
+        let spi = Spi::new(
+            dp.SPI1,
+            (Some(gpioa.pa5), Some(gpioa.pa6), pac::SPI1::NoMosi),
+            SpiMode {
+                polarity: Polarity::IdleHigh,
+                phase: Phase::CaptureOnFirstTransition,
+            },
+            BISS_CLOCK_HZ.Hz(),
+            &mut rcc,
+        );
+        let scales = ENCODER_ZERO_LSB.map(|zero_lsb| EncoderScale {
+            lsb_pm: ENCODER_LSB_PM,
+            zero_lsb,
+            reversed: false,
+        });
+        let encoders = BissChain::new(MaLine(spi), BISS, scales).ok()?;
+
+        let step = [
+            gpioc.pc0.into_push_pull_output().erase(),
+            gpioc.pc4.into_push_pull_output().erase(),
+            gpioc.pc8.into_push_pull_output().erase(),
+            gpiob.pb0.into_push_pull_output().erase(),
+            gpiob.pb4.into_push_pull_output().erase(),
+            gpiob.pb8.into_push_pull_output().erase(),
+        ];
+        // One leg per line: its step channel, DIR, ENABLE, FAULT (the pin map above).
+        let leg = |leg: usize, dir: OutPin, enable: OutPin, fault: InPin| StepperLeg {
+            pulses: StepChannel { leg },
+            dir,
+            enable,
+            fault,
+        };
+        let legs = [
+            leg(
+                0,
+                gpioc.pc1.into_push_pull_output().erase(),
+                gpioc.pc2.into_push_pull_output().erase(),
+                gpioc.pc3.into_pull_up_input().erase(),
+            ),
+            leg(
+                1,
+                gpioc.pc5.into_push_pull_output().erase(),
+                gpioc.pc6.into_push_pull_output().erase(),
+                gpioc.pc7.into_pull_up_input().erase(),
+            ),
+            leg(
+                2,
+                gpioc.pc9.into_push_pull_output().erase(),
+                gpioc.pc10.into_push_pull_output().erase(),
+                gpioc.pc11.into_pull_up_input().erase(),
+            ),
+            leg(
+                3,
+                gpiob.pb1.into_push_pull_output().erase(),
+                gpiob.pb2.into_push_pull_output().erase(),
+                gpiob.pb3.into_pull_up_input().erase(),
+            ),
+            leg(
+                4,
+                gpiob.pb5.into_push_pull_output().erase(),
+                gpiob.pb6.into_push_pull_output().erase(),
+                gpiob.pb7.into_pull_up_input().erase(),
+            ),
+            leg(
+                5,
+                gpiob.pb9.into_push_pull_output().erase(),
+                gpiob.pb10.into_push_pull_output().erase(),
+                gpiob.pb11.into_pull_up_input().erase(),
+            ),
+        ];
+        let drives = StepDirDrives::new(legs, STEPPERS).ok()?;
+
+        // One leg per line: lower and upper end switch (pull-up), reference (pull-down).
+        let sw = |lower: InPin, upper: InPin, reference: InPin| LegSwitches {
+            lower,
+            upper,
+            reference,
+        };
+        let sw_legs = [
+            sw(
+                gpioa.pa0.into_pull_up_input().erase(),
+                gpioa.pa11.into_pull_up_input().erase(),
+                gpiob.pb15.into_pull_down_input().erase(),
+            ),
+            sw(
+                gpioa.pa1.into_pull_up_input().erase(),
+                gpioa.pa12.into_pull_up_input().erase(),
+                gpioc.pc12.into_pull_down_input().erase(),
+            ),
+            sw(
+                gpioa.pa2.into_pull_up_input().erase(),
+                gpioa.pa15.into_pull_up_input().erase(),
+                gpioc.pc13.into_pull_down_input().erase(),
+            ),
+            sw(
+                gpioa.pa3.into_pull_up_input().erase(),
+                gpiob.pb12.into_pull_up_input().erase(),
+                gpioc.pc14.into_pull_down_input().erase(),
+            ),
+            sw(
+                gpioa.pa4.into_pull_up_input().erase(),
+                gpiob.pb13.into_pull_up_input().erase(),
+                gpioc.pc15.into_pull_down_input().erase(),
+            ),
+            sw(
+                gpioa.pa8.into_pull_up_input().erase(),
+                gpiob.pb14.into_pull_up_input().erase(),
+                gpiod.pd2.into_pull_down_input().erase(),
+            ),
+        ];
+        let switches = TravelSwitchInputs::new(sw_legs, SWITCHES);
+
+        pac::TIM3::enable(&mut rcc);
+        pac::TIM3::reset(&mut rcc);
+        pac::TIM2::enable(&mut rcc);
+        pac::TIM2::reset(&mut rcc);
+        StepEngine::install(dp.TIM2, step, clocks.source, clocks.timer_clock_hz);
+
+        Some(Board {
+            reset: reset_record::on_boot(),
+            uart0: Uart0(()),
+            timer: ControlTimer {
+                tim: dp.TIM3,
+                prescaler: tick_prescaler(clocks.timer_clock_hz),
+            },
+            watchdog: Watchdog(dp.IWDG),
+            flash: TableFlash(dp.FLASH),
+            sliders: DriverMechanism {
+                encoders,
+                drives,
+                switches,
+            },
+        })
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// UART: USART1 (PA9 TX, PA10 RX), QEMU's first `-serial`. One interrupt line for both
+// directions: the receive task owns it (highest task priority); it hands the
+// transmitter's TXE to the lower-priority software line UART_TX, as the mps2 board's
+// separate TX interrupt would.
 
 /// Telecommand/telemetry line rate (bit/s).
 pub const UART_BAUD: u32 = 115_200;
+/// Bytes one TX drain writes at most while the transmitter is free (QEMU's is always
+/// free; on silicon one or two bytes go before TXE drops), then it pends itself again.
+const TX_BYTES_PER_DRAIN: usize = 64;
 
-/// The telecommand/telemetry UART (USART1), behind `embedded-hal-nb`'s serial traits.
-pub struct Uart(Serial<pac::USART1, u8>);
+fn usart1() -> &'static pac::usart1::RegisterBlock {
+    // SAFETY: USART1's register block, used only by the UART halves below (one owner
+    // per register: RX reads SR/DR, TX writes DR; CR1's TXEIE under a critical section).
+    unsafe { &*pac::USART1::ptr() }
+}
 
-impl Uart {
-    /// The telecommand UART, for images written against the mps2 shape: takes the whole
-    /// [`Board`] (the first call only; a second is a defect) and keeps the UART.
-    pub fn uart0() -> Self {
-        match Board::take() {
-            Ok(b) => b.uart,
-            Err(_) => defect(),
+/// The telecommand UART, before it is split.
+pub struct Uart0(());
+
+/// Receive side (owned by the RX interrupt task).
+pub struct UartRx(());
+/// Transmit side (owned by the TX interrupt task).
+pub struct UartTx(());
+/// Receive errors (owned by the link service).
+pub struct UartErrors(());
+
+/// Receive overruns plus bytes dropped because the RX queue was full.
+static UART_RX_ERRORS: AtomicU16 = AtomicU16::new(0);
+
+impl Uart0 {
+    /// Enables the receive interrupt (the NVIC lines are unmasked by RTIC) and splits
+    /// the UART (baud rate, frame and pins were set by [`Board::take`]).
+    pub fn split(self) -> (UartRx, UartTx, UartErrors) {
+        usart1().cr1().modify(|_, w| w.rxneie().set_bit());
+        (UartRx(()), UartTx(()), UartErrors(()))
+    }
+}
+
+fn set_txeie(on: bool) {
+    irq::free(|_| usart1().cr1().modify(|_, w| w.txeie().bit(on)));
+}
+
+impl UartRx {
+    /// The USART1 interrupt: counts an overrun, moves the received byte into `queue`
+    /// (counted and dropped if the queue is full); a TXE the transmitter asked for
+    /// (TXEIE) is masked again and handed to the TX task.
+    pub fn on_interrupt<const N: usize>(&mut self, queue: &mut Producer<'_, u8, N>) {
+        let u = usart1();
+        let sr = u.sr().read();
+        let mut errors: u16 = 0;
+        if sr.ore().bit_is_set() {
+            errors += 1;
+        }
+        if sr.rxne().bit_is_set() || sr.ore().bit_is_set() {
+            // Reading DR after SR clears RXNE and ORE.
+            let byte = (u.dr().read().bits() & 0xFF) as u8;
+            if sr.rxne().bit_is_set() && queue.enqueue(byte).is_err() {
+                errors += 1;
+            }
+        }
+        if errors > 0 {
+            UART_RX_ERRORS.fetch_add(errors, Ordering::Relaxed);
+        }
+        if sr.txe().bit_is_set() && u.cr1().read().txeie().bit_is_set() {
+            set_txeie(false);
+            cortex_m::peripheral::NVIC::pend(device::interrupt::UART_TX);
         }
     }
 }
 
-impl embedded_hal_nb::serial::ErrorType for Uart {
-    type Error = hal_serial::Error;
-}
-
-impl embedded_hal_nb::serial::Read<u8> for Uart {
-    fn read(&mut self) -> nb::Result<u8, Self::Error> {
-        embedded_hal_nb::serial::Read::read(&mut self.0)
+impl UartTx {
+    /// The TX task (pended by the link service after it queued a frame, and by the
+    /// receive interrupt on TXE): writes queued bytes while the transmitter is free,
+    /// then asks for TXE again if bytes remain.
+    pub fn on_interrupt<const N: usize>(&mut self, queue: &mut Consumer<'_, u8, N>) {
+        let u = usart1();
+        for _ in 0..TX_BYTES_PER_DRAIN {
+            if u.sr().read().txe().bit_is_clear() {
+                // The transmitter is busy: its TXE interrupt brings the next drain.
+                if queue.ready() {
+                    set_txeie(true);
+                }
+                return;
+            }
+            let Some(byte) = queue.dequeue() else {
+                return;
+            };
+            u.dr().write(|w| unsafe { w.bits(u16::from(byte)) });
+        }
+        // Budget spent with the transmitter still free (QEMU's always is): drain again
+        // after the tasks above have had their turn.
+        if queue.ready() {
+            cortex_m::peripheral::NVIC::pend(device::interrupt::UART_TX);
+        }
     }
 }
 
-impl embedded_hal_nb::serial::Write<u8> for Uart {
-    fn write(&mut self, byte: u8) -> nb::Result<(), Self::Error> {
-        embedded_hal_nb::serial::Write::write(&mut self.0, byte)
-    }
-    fn flush(&mut self) -> nb::Result<(), Self::Error> {
-        embedded_hal_nb::serial::Write::flush(&mut self.0)
+impl UartErrors {
+    /// Receive errors since the last call (overruns and RX queue overflows).
+    pub fn take_new(&mut self) -> u16 {
+        UART_RX_ERRORS.swap(0, Ordering::Relaxed)
     }
 }
 
 // ---------------------------------------------------------------------------------
-// Table flash: sectors 10 and 11 (128 KiB each, at 0x080C_0000 and 0x080E_0000),
-// reserved as TABLE in memory/netduinoplus2.x. The table store addresses its banks at
-// the flight layout's offsets (`BANK_A_OFFSET`, `BANK_B_OFFSET`, `BANK_SIZE` 64 KiB);
-// this maps bank A onto the first 64 KiB of sector 10 and bank B onto sector 11.
+// Control timer: TIM3 update at the control rate, 1 us ticks.
 
-/// Memory-mapped start of the STM32F405's flash.
-const FLASH_BASE: u32 = 0x0800_0000;
-/// Sector and address holding bank A.
-const BANK_A_SECTOR: u8 = 10;
-const BANK_A_ADDR: u32 = 0x080C_0000;
-/// Sector and address holding bank B.
-const BANK_B_SECTOR: u8 = 11;
-const BANK_B_ADDR: u32 = 0x080E_0000;
+/// Control-rate ticks since the timer started (the worker's time base).
+static TICKS: AtomicU32 = AtomicU32::new(0);
+
+/// Control-rate ticks counted so far.
+pub fn ticks() -> u32 {
+    TICKS.load(Ordering::Relaxed)
+}
+
+/// TIM3 at the control rate (owned by the control task).
+pub struct ControlTimer {
+    tim: pac::TIM3,
+    prescaler: u16,
+}
+
+/// Auto-reload value: one control period of 1 us ticks.
+const CONTROL_TIMER_ARR: u32 = CYCLE_US - 1;
+const _: () = assert!(US_PER_S == TIMER_TICK_HZ);
+
+impl ControlTimer {
+    /// Starts the timer: an update interrupt every control period.
+    pub fn start(&mut self) {
+        let t = &self.tim;
+        t.psc().write(|w| w.psc().set(self.prescaler));
+        t.arr().write(|w| unsafe { w.bits(CONTROL_TIMER_ARR) });
+        // Load the prescaler now (update event), then clear the flag it sets.
+        t.egr().write(|w| w.ug().set_bit());
+        t.sr().write(|w| unsafe { w.bits(0) });
+        t.dier().write(|w| w.uie().set_bit());
+        t.cr1().write(|w| w.cen().set_bit());
+    }
+
+    /// Acknowledges the tick (call first in the control task) and counts it.
+    pub fn acknowledge(&mut self) {
+        self.tim.sr().write(|w| unsafe { w.bits(0) });
+        TICKS.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// The next tick has already come: the running cycle overran its period.
+    pub fn tick_pending(&self) -> bool {
+        self.tim.sr().read().uif().bit_is_set()
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// Watchdog: the independent watchdog (LSI, ~32 kHz), fed only by a completed control
+// cycle. It has no early-warning interrupt: its reset is recognised at the next boot
+// (a valid reset record without an announced cause).
+
+/// Watchdog timeout (ms): ten control periods.
+pub const WATCHDOG_TIMEOUT_MS: u32 = 10;
+/// LSI frequency (Hz, nominal; 17 to 47 kHz over temperature, RM0090).
+const LSI_HZ: u32 = 32_000;
+/// Prescaler register value 0: LSI / 4.
+const IWDG_PR_DIV4: u8 = 0;
+const IWDG_DIV: u32 = 4;
+/// Reload value for [`WATCHDOG_TIMEOUT_MS`].
+const IWDG_RELOAD: u16 = (LSI_HZ / IWDG_DIV * WATCHDOG_TIMEOUT_MS / 1000) as u16;
+const _: () = assert!(IWDG_RELOAD > 0 && IWDG_RELOAD <= 0x0FFF);
+/// Key register values (RM0090 21.4.1).
+const IWDG_KEY_ACCESS: u16 = 0x5555;
+const IWDG_KEY_RELOAD: u16 = 0xAAAA;
+const IWDG_KEY_START: u16 = 0xCCCC;
+
+/// The watchdog (owned by the control task: only a completed cycle feeds it).
+pub struct Watchdog(pac::IWDG);
+
+impl Watchdog {
+    /// Starts it (it cannot be stopped again but by a reset).
+    pub fn start(&mut self) {
+        let w = &self.0;
+        w.kr().write(|k| unsafe { k.key().bits(IWDG_KEY_ACCESS) });
+        w.pr().write(|p| unsafe { p.pr().bits(IWDG_PR_DIV4) });
+        w.rlr().write(|r| unsafe { r.rl().bits(IWDG_RELOAD) });
+        w.kr().write(|k| unsafe { k.key().bits(IWDG_KEY_RELOAD) });
+        w.kr().write(|k| unsafe { k.key().bits(IWDG_KEY_START) });
+    }
+
+    /// Reloads the counter.
+    pub fn feed(&mut self) {
+        self.0
+            .kr()
+            .write(|k| unsafe { k.key().bits(IWDG_KEY_RELOAD) });
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// Reset record: four words in `.uninit` (cortex-m-rt's section that is not zeroed at
+// boot; SRAM keeps its content across a system or watchdog reset, and so does QEMU).
+
+mod reset_record {
+    use super::*;
+
+    /// Marks a record written by this firmware.
+    const MAGIC: u32 = 0x4D32_5253; // "M2RS"
+    /// Cause word while the firmware runs: no reset announced.
+    const CAUSE_NONE: u32 = 0xFF;
+
+    #[link_section = ".uninit.m2_reset_record"]
+    static mut RECORD: MaybeUninit<[u32; 4]> = MaybeUninit::uninit();
+
+    fn word(i: usize) -> *mut u32 {
+        // SAFETY: RECORD is four words; `i < 4` at every call site.
+        unsafe { addr_of_mut!(RECORD).cast::<u32>().add(i) }
+    }
+
+    fn check(cause: u32, count: u32) -> u32 {
+        !(MAGIC ^ cause ^ count.rotate_left(8))
+    }
+
+    fn read() -> Option<(u32, u32)> {
+        // SAFETY: plain RAM words of RECORD; any bit pattern is a valid u32.
+        let [m, c, n, k] = unsafe { [0, 1, 2, 3].map(|i| read_volatile(word(i))) };
+        (m == MAGIC && k == check(c, n)).then_some((c, n))
+    }
+
+    fn write(cause: u32, count: u32) {
+        // SAFETY: as in `read`.
+        unsafe {
+            write_volatile(word(0), MAGIC);
+            write_volatile(word(1), cause);
+            write_volatile(word(2), count);
+            write_volatile(word(3), check(cause, count));
+        }
+    }
+
+    /// At boot: the cause the last reset recorded (no valid record: power-on; a valid
+    /// record without an announced cause: the watchdog, the only reset software does
+    /// not announce), and the boot count; re-arms the record.
+    pub fn on_boot() -> ResetInfo {
+        let (cause, count) = match read() {
+            None => (ResetCause::PowerOn, 1),
+            Some((c, n)) => {
+                let cause = match u8::try_from(c).ok().and_then(ResetCause::from_code) {
+                    Some(cause) => cause,
+                    None => ResetCause::Watchdog,
+                };
+                (cause, n.wrapping_add(1))
+            }
+        };
+        write(CAUSE_NONE, count);
+        ResetInfo {
+            cause,
+            boot_count: (count & 0xFFFF) as u16,
+        }
+    }
+
+    /// Records the cause of the coming reset (keeps the boot count).
+    pub fn announce(cause: ResetCause) {
+        let count = read().map_or(0, |(_, n)| n);
+        write(u32::from(cause.code()), count);
+    }
+}
+
+/// Records `cause` in the reset record and resets the system.
+pub fn record_and_reset(cause: ResetCause) -> ! {
+    reset_record::announce(cause);
+    cortex_m::peripheral::SCB::sys_reset()
+}
+
+/// Entered from the fault trampoline with a fresh stack.
+extern "C" fn fault_reset() -> ! {
+    record_and_reset(ResetCause::HardFault)
+}
+
+// HardFault and MemManage: the stack pointer may be in the guard region (a stack
+// overflow), so the handler pushes nothing: it resets MSP to the top of the stack,
+// then records the cause and resets the system.
+core::arch::global_asm!(
+    ".section .text.m2_fault_entry,\"ax\",%progbits",
+    ".global HardFault",
+    ".type HardFault,%function",
+    ".thumb_func",
+    "HardFault:",
+    ".global MemoryManagement",
+    ".type MemoryManagement,%function",
+    ".thumb_func",
+    "MemoryManagement:",
+    "ldr r0, =_stack_start",
+    "msr msp, r0",
+    "b {reset}",
+    ".ltorg",
+    reset = sym fault_reset,
+);
+
+/// An interrupt or exception without a handler: a defect; record and reset.
+#[cortex_m_rt::exception]
+unsafe fn DefaultHandler(_irqn: i16) {
+    record_and_reset(ResetCause::HardFault)
+}
+
+// ---------------------------------------------------------------------------------
+// Stack: the single stack (RTIC's one shared stack), `memory.x`'s STACK region at the
+// bottom of SRAM; below it an MPU region with no access (reserved space and the system
+// memory, which the firmware never reads), so an overflow faults (MemManage) at once.
+
+extern "C" {
+    static _stack_start: u32;
+    static _stack_end: u32;
+}
+
+/// Size of the stack (bytes), from `memory.x`.
+pub const STACK_BYTES: u32 = memory_x::STACK_LENGTH;
+/// Size of the guard region below the stack (bytes; a power of two, the stack bottom
+/// aligned to it, as the MPU requires).
+pub const STACK_GUARD_BYTES: u32 = 1 << 20;
+const _: () = assert!(STACK_GUARD_BYTES.is_power_of_two() && STACK_GUARD_BYTES >= 32);
+const _: () = assert!(memory_x::STACK_ORIGIN % STACK_GUARD_BYTES == 0);
+const _: () = assert!(memory_x::STACK_ORIGIN >= STACK_GUARD_BYTES);
+
+/// MPU RASR: execute never, region enable; SIZE field is log2(size) - 1; AP 0 = no
+/// access.
+const RASR_XN: u32 = 1 << 28;
+const RASR_ENABLE: u32 = 1;
+/// MPU CTRL: enable, default memory map for privileged code elsewhere.
+const MPU_CTRL_ENABLE: u32 = 1 << 0;
+const MPU_CTRL_PRIVDEFENA: u32 = 1 << 2;
+
+/// Makes the region below the stack fault on any access, and MemManage faults taken
+/// at the highest configurable priority. Call once from init.
+pub fn enable_stack_guard(
+    mpu: &mut cortex_m::peripheral::MPU,
+    scb: &mut cortex_m::peripheral::SCB,
+) {
+    let base = memory_x::STACK_ORIGIN - STACK_GUARD_BYTES;
+    let size_field = STACK_GUARD_BYTES.trailing_zeros() - 1;
+    // SAFETY: region 0 covers only the reserved space and system memory below SRAM; the
+    // default map stays in force everywhere else (PRIVDEFENA).
+    unsafe {
+        mpu.rnr.write(0);
+        mpu.rbar.write(base);
+        mpu.rasr.write(RASR_XN | (size_field << 1) | RASR_ENABLE);
+        mpu.ctrl.write(MPU_CTRL_ENABLE | MPU_CTRL_PRIVDEFENA);
+        scb.set_priority(
+            cortex_m::peripheral::scb::SystemHandler::MemoryManagement,
+            0,
+        );
+    }
+    scb.enable(cortex_m::peripheral::scb::Exception::MemoryManagement);
+    cortex_m::asm::dsb();
+    cortex_m::asm::isb();
+}
+
+/// Value cortex-m-rt's `paint-stack` writes over the stack before `main`.
+const STACK_PAINT: u32 = 0xCCCC_CCCC;
+
+fn stack_bounds() -> (usize, usize) {
+    (
+        addr_of!(_stack_end) as usize,
+        addr_of!(_stack_start) as usize,
+    )
+}
+
+/// Lowest stack address found used so far (`u32::MAX`: not measured yet).
+static STACK_DEEPEST: AtomicU32 = AtomicU32::new(u32::MAX);
+/// Window below the deepest known use where the scan starts (bytes).
+const STACK_SCAN_WINDOW_BYTES: usize = 1024;
+
+fn scan_from() -> usize {
+    let (lo, _) = stack_bounds();
+    match STACK_DEEPEST.load(Ordering::Relaxed) {
+        u32::MAX => lo,
+        d => {
+            let start = (d as usize).saturating_sub(STACK_SCAN_WINDOW_BYTES).max(lo);
+            // SAFETY: inside the stack region (RAM), word aligned.
+            if unsafe { read_volatile(start as *const u32) } == STACK_PAINT {
+                start
+            } else {
+                lo
+            }
+        }
+    }
+}
+
+/// Bytes of stack used so far (since the last [`repaint_stack`]).
+pub fn stack_peak_bytes() -> u32 {
+    let (_, hi) = stack_bounds();
+    let mut p = scan_from();
+    // SAFETY: [lo, hi) is the stack region of the linker script, plain RAM.
+    while p < hi && unsafe { read_volatile(p as *const u32) } == STACK_PAINT {
+        p += 4;
+    }
+    STACK_DEEPEST.fetch_min(p as u32, Ordering::Relaxed);
+    (hi - p) as u32
+}
+
+/// Size of the stack region (bytes) between `_stack_end` and `_stack_start`.
+pub fn stack_region_bytes() -> u32 {
+    let (lo, hi) = stack_bounds();
+    (hi - lo) as u32
+}
+
+/// Bytes of stack in use at the caller (top of the stack minus the stack pointer).
+pub fn stack_depth_bytes() -> u32 {
+    let (_, hi) = stack_bounds();
+    (hi as u32).wrapping_sub(cortex_m::register::msp::read())
+}
+
+/// Margin left unpainted below the stack pointer by [`repaint_stack`] (bytes).
+const REPAINT_MARGIN_BYTES: usize = 64;
+
+/// Paints the unused stack again (benchmark images).
+#[inline(never)]
+pub fn repaint_stack() {
+    let sp = cortex_m::register::msp::read() as usize;
+    let mut p = scan_from();
+    while p + REPAINT_MARGIN_BYTES < sp {
+        // SAFETY: below the stack pointer (minus this frame's margin) the stack region
+        // is unused.
+        unsafe { write_volatile(p as *mut u32, STACK_PAINT) };
+        p += 4;
+    }
+}
+
+// ---------------------------------------------------------------------------------
+// Test images only: semihosting exit and instruction-count markers.
+
+/// Ends the run with an exit code (0 = pass) through semihosting (QEMU's exit code; on
+/// the real board only with a debugger attached). Test images only.
+pub fn exit(code: i32) -> ! {
+    semihosting::process::exit(code)
+}
+
+/// Exit code of a panic in a test image.
+pub const EXIT_PANIC: i32 = 101;
+
+/// Marker for the instruction counter: start of a measured section.
+#[no_mangle]
+#[inline(never)]
+pub extern "C" fn bench_start() {
+    core::sync::atomic::compiler_fence(Ordering::SeqCst);
+}
+
+/// Marker for the instruction counter: end of a measured section.
+#[no_mangle]
+#[inline(never)]
+pub extern "C" fn bench_end() {
+    core::sync::atomic::compiler_fence(Ordering::Release);
+    core::hint::black_box(0u32);
+}
+
+// ---------------------------------------------------------------------------------
+// Table flash: sectors 8 to 11 (128 KiB each, 0x0808_0000..0x0810_0000), the TABLE
+// region of memory/netduinoplus2.x. Four sectors because the store erases four ranges
+// separately (two records, two selection slots): bank A = sectors 8 (record) and 9
+// (selection slot), bank B = sectors 10 and 11. Offsets are from the flash start.
+// Driven by its registers (RM0090 3.6): an erase or program is started and
+// [`FlashStatus::busy`] reads BSY.
+
+/// Memory-mapped start of the flash.
+const FLASH_BASE: usize = 0x0800_0000;
+/// Flash size (bytes).
+const FLASH_SIZE: u32 = 0x10_0000;
+/// Sector size in the TABLE region (bytes).
+const TABLE_SECTOR_BYTES: u32 = 0x2_0000;
+/// First sector of the TABLE region, and its offset.
+const TABLE_FIRST_SECTOR: u32 = 8;
+const TABLE_REGION_START: u32 = 0x8_0000;
+/// The 128 KiB sectors 5..=11 start at `(n - SECTOR_NUMBER_OFFSET) * 128 KiB` (sectors
+/// 0..=4 fill the first 128 KiB).
+const SECTOR_NUMBER_OFFSET: u32 = 4;
+/// Bank size (bytes): a record sector and a selection sector.
+const TABLE_BANK_SIZE: u32 = 2 * TABLE_SECTOR_BYTES;
+/// The table banks of this board.
+pub const TABLE_LAYOUT: BankLayout = BankLayout::two_banks(TABLE_REGION_START, TABLE_BANK_SIZE);
+const _: () = assert!(memory_x::TABLE_ORIGIN as usize == FLASH_BASE + TABLE_REGION_START as usize);
+const _: () = assert!(memory_x::TABLE_LENGTH == 2 * TABLE_BANK_SIZE);
+const _: () = assert!(TABLE_REGION_START + 2 * TABLE_BANK_SIZE == FLASH_SIZE);
+const _: () =
+    assert!(TABLE_REGION_START == (TABLE_FIRST_SECTOR - SECTOR_NUMBER_OFFSET) * TABLE_SECTOR_BYTES);
+/// Erased byte value.
+const FLASH_ERASED: u8 = 0xFF;
+/// Unlock keys (RM0090 3.5.1).
+const FLASH_KEY1: u32 = 0x4567_0123;
+const FLASH_KEY2: u32 = 0xCDEF_89AB;
+/// SR error flags: programming sequence, parallelism, alignment, write protection,
+/// operation (RM0090 3.9.4); write 1 to clear.
+const FLASH_SR_ERRORS: u32 = (1 << 7) | (1 << 6) | (1 << 5) | (1 << 4) | (1 << 1);
 
 /// Why a flash operation was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FlashError {
-    /// Outside the two banks, or crossing a bank's end.
+    /// Outside the table region.
     OutOfBounds,
-    /// An erase not covering whole banks.
+    /// An erase not covering whole sectors.
     NotAligned,
     /// A write tried to set a bit that is 0 (NOR can only clear bits before an erase).
     NotErased,
-    /// The flash interface reported an error (programming, protection, sequence).
+    /// The flash interface reported an error (sequence, protection, alignment).
     Device,
 }
 
@@ -277,36 +898,45 @@ impl NorFlashError for FlashError {
     }
 }
 
-/// The table banks as NOR flash at the table store's offsets.
-pub struct TableFlash(());
+/// The TABLE region as NOR flash.
+pub struct TableFlash(pac::FLASH);
 
 impl TableFlash {
-    /// The board's table flash. Only one instance should exist.
-    pub fn take() -> Self {
-        TableFlash(())
-    }
-
-    /// The bank (physical address, sector) holding `[offset, offset + len)`.
-    fn map(offset: u32, len: usize) -> Result<(u32, u8), FlashError> {
-        let len = u32::try_from(len).map_err(|_| FlashError::OutOfBounds)?;
-        for (bank, addr, sector) in [
-            (BANK_A_OFFSET, BANK_A_ADDR, BANK_A_SECTOR),
-            (BANK_B_OFFSET, BANK_B_ADDR, BANK_B_SECTOR),
-        ] {
-            let inside = offset >= bank
-                && offset
-                    .checked_add(len)
-                    .is_some_and(|end| end <= bank + BANK_SIZE);
-            if inside {
-                return Ok((addr + (offset - bank), sector));
-            }
+    fn check(from: u32, len: usize) -> Result<(), FlashError> {
+        let end = (from as usize)
+            .checked_add(len)
+            .ok_or(FlashError::OutOfBounds)?;
+        if from < TABLE_REGION_START || end > FLASH_SIZE as usize {
+            return Err(FlashError::OutOfBounds);
         }
-        Err(FlashError::OutOfBounds)
+        Ok(())
     }
 
-    fn hal_flash() -> LockedFlash {
-        // SAFETY: the FLASH interface is used by this type only (one instance).
-        LockedFlash::new(unsafe { pac::FLASH::steal() })
+    fn bsy(&self) -> bool {
+        self.0.sr().read().bsy().bit_is_set()
+    }
+
+    /// Waits for the operation under way, unlocks, and reports (and clears) the error
+    /// flags of the last operation.
+    fn ready(&mut self) -> Result<(), FlashError> {
+        while self.bsy() {}
+        let f = &self.0;
+        if f.cr().read().lock().bit_is_set() {
+            f.keyr().write(|w| unsafe { w.key().bits(FLASH_KEY1) });
+            f.keyr().write(|w| unsafe { w.key().bits(FLASH_KEY2) });
+        }
+        let errors = f.sr().read().bits() & FLASH_SR_ERRORS;
+        if errors != 0 {
+            f.sr().write(|w| unsafe { w.bits(errors) });
+            return Err(FlashError::Device);
+        }
+        Ok(())
+    }
+}
+
+impl FlashStatus for TableFlash {
+    fn busy(&mut self) -> bool {
+        self.bsy()
     }
 }
 
@@ -317,85 +947,73 @@ impl ErrorType for TableFlash {
 impl ReadNorFlash for TableFlash {
     const READ_SIZE: usize = 1;
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
-        let (addr, _) = Self::map(offset, bytes.len())?;
+        Self::check(offset, bytes.len())?;
+        let base = FLASH_BASE + offset as usize;
         for (i, b) in bytes.iter_mut().enumerate() {
-            // SAFETY: inside a table bank (checked by `map`), memory-mapped flash.
-            *b = unsafe { read_volatile((addr as usize + i) as *const u8) };
+            // SAFETY: bounds checked above: inside the TABLE region, memory-mapped flash.
+            *b = unsafe { read_volatile((base + i) as *const u8) };
         }
         Ok(())
     }
     fn capacity(&self) -> usize {
-        // The offsets the table store uses run to the end of bank B.
-        (BANK_B_OFFSET.max(BANK_A_OFFSET) + BANK_SIZE) as usize
+        FLASH_SIZE as usize
     }
 }
 
 impl NorFlash for TableFlash {
     const WRITE_SIZE: usize = 1;
-    /// One bank: erasing it erases the whole sector behind it.
-    const ERASE_SIZE: usize = BANK_SIZE as usize;
+    const ERASE_SIZE: usize = TABLE_SECTOR_BYTES as usize;
+    /// Starts the erase of each sector in `[from, to)` (waiting for the previous one):
+    /// returns while the last one runs ([`FlashStatus::busy`]).
     fn erase(&mut self, from: u32, to: u32) -> Result<(), FlashError> {
-        if from > to || (to - from) % BANK_SIZE != 0 {
+        if from > to || from % TABLE_SECTOR_BYTES != 0 || to % TABLE_SECTOR_BYTES != 0 {
             return Err(FlashError::NotAligned);
         }
-        let mut flash = Self::hal_flash();
-        let mut unlocked = flash.unlocked();
-        let mut at = from;
-        while at < to {
-            let (addr, sector) = Self::map(at, BANK_SIZE as usize)?;
-            if addr != BANK_A_ADDR && addr != BANK_B_ADDR {
-                return Err(FlashError::NotAligned);
-            }
-            unlocked.erase(sector).map_err(|_| FlashError::Device)?;
-            at += BANK_SIZE;
+        Self::check(from, (to - from) as usize)?;
+        for index in (from / TABLE_SECTOR_BYTES)..(to / TABLE_SECTOR_BYTES) {
+            let sector = index + SECTOR_NUMBER_OFFSET;
+            self.ready()?;
+            // x32 parallelism (2.7 to 3.6 V supply), sector erase, sector number, start.
+            self.0.cr().write(|w| unsafe {
+                w.psize().bits(0b10);
+                w.ser().set_bit();
+                w.snb().bits(sector as u8);
+                w.strt().set_bit()
+            });
         }
         Ok(())
     }
+    /// Programs byte by byte (x8), waiting for each; bits can only be cleared.
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
-        let (addr, _) = Self::map(offset, bytes.len())?;
+        Self::check(offset, bytes.len())?;
+        let base = FLASH_BASE + offset as usize;
         for (i, b) in bytes.iter().enumerate() {
-            // SAFETY: as in `read`.
-            let old = unsafe { read_volatile((addr as usize + i) as *const u8) };
+            // SAFETY: bounds checked above.
+            let old = unsafe { read_volatile((base + i) as *const u8) };
             if b & !old != 0 {
                 return Err(FlashError::NotErased);
             }
         }
-        let mut flash = Self::hal_flash();
-        let mut unlocked = flash.unlocked();
-        unlocked
-            .program((addr - FLASH_BASE) as usize, bytes.iter())
-            .map_err(|_| FlashError::Device)
-    }
-}
-
-// ---------------------------------------------------------------------------------
-// Cycle pacing: SysTick at the control rate, from the actual core clock.
-
-/// Paces the control loop at the control rate (`motion::CYCLE_S`).
-pub struct CycleTimer {
-    syst: cortex_m::peripheral::SYST,
-}
-
-impl CycleTimer {
-    /// Starts SysTick (core clock, one control cycle per wrap, no interrupt); configures
-    /// the clocks first if nothing has.
-    pub fn start(mut syst: cortex_m::peripheral::SYST) -> Self {
-        use cortex_m::peripheral::syst::SystClkSource;
-        let hz = clocks().0.sysclk().raw();
-        let reload = (hz as f32 * CYCLE_S + 0.5) as u32;
-        syst.set_clock_source(SystClkSource::Core);
-        syst.set_reload(reload.saturating_sub(1));
-        syst.clear_current();
-        syst.enable_counter();
-        Self { syst }
-    }
-
-    /// Waits for the next cycle boundary. Returns `true` if the previous cycle overran
-    /// (more than one period elapsed since the last call).
-    pub fn wait(&mut self) -> bool {
-        let overran = self.syst.has_wrapped();
-        while !self.syst.has_wrapped() {}
-        overran
+        self.ready()?;
+        self.0.cr().write(|w| unsafe {
+            w.psize().bits(0b00);
+            w.pg().set_bit()
+        });
+        let mut result = Ok(());
+        for (i, b) in bytes.iter().enumerate() {
+            if *b == FLASH_ERASED {
+                continue;
+            }
+            // SAFETY: inside the TABLE region (checked), PG set: a program operation.
+            unsafe { write_volatile((base + i) as *mut u8, *b) };
+            while self.bsy() {}
+            if self.0.sr().read().bits() & FLASH_SR_ERRORS != 0 {
+                result = Err(FlashError::Device);
+                break;
+            }
+        }
+        self.0.cr().write(|w| w.pg().clear_bit());
+        result
     }
 }
 
@@ -405,7 +1023,8 @@ impl CycleTimer {
 /// Step engine tick (Hz): a pulse is high for one tick and low for at least one.
 pub const STEP_TICK_HZ: u32 = 100_000;
 /// Ticks per control cycle.
-const TICKS_PER_CYCLE: u32 = (STEP_TICK_HZ as f32 * CYCLE_S + 0.5) as u32;
+const TICKS_PER_CYCLE: u32 = STEP_TICK_HZ / (US_PER_S / CYCLE_US);
+const _: () = assert!(STEP_TICK_HZ % (US_PER_S / CYCLE_US) == 0);
 /// Most pulses per leg and cycle: two ticks each, after one direction set-up tick.
 pub const MAX_PULSES_PER_CYCLE: u32 = (TICKS_PER_CYCLE - 1) / 2;
 
@@ -456,22 +1075,80 @@ impl StepPulses for StepChannel {
     }
 }
 
-/// The interrupt side of the step pulses: owns TIM2 and the six STEP pins. The
-/// executive binds TIM2's interrupt to [`StepEngine::on_tick`] at a priority above the
-/// control task (nothing here runs until it does).
+/// The interrupt side of the step pulses: owns TIM2 and the six STEP pins. Installed
+/// by [`Board::take`] in [`STEP_ENGINE`]; TIM2's interrupt runs [`StepEngine::on_tick`]
+/// at the highest priority, above every RTIC task (it shares nothing with them but
+/// the atomics above), and outside RTIC.
 pub struct StepEngine {
-    tim: CounterHz<pac::TIM2>,
-    step: [AnyPin<Output<PushPull>>; LEGS],
+    tim: pac::TIM2,
+    step: [OutPin; LEGS],
     high: [bool; LEGS],
     seen: [u32; LEGS],
     acc: [u32; LEGS],
 }
 
+/// The step engine, owned by TIM2's interrupt once installed.
+static STEP_ENGINE: Mutex<RefCell<Option<StepEngine>>> = Mutex::new(RefCell::new(None));
+
+/// TIM2's interrupt: one step-engine tick.
+#[interrupt]
+fn TIM2() {
+    irq::free(|cs| {
+        if let Ok(mut e) = STEP_ENGINE.borrow(cs).try_borrow_mut() {
+            if let Some(e) = e.as_mut() {
+                e.on_tick();
+            }
+        }
+    });
+}
+
+/// NVIC priority of the step timer: 0, the highest (RTIC's tasks use 1..=4, mapped
+/// to lower urgencies; BASEPRI never masks priority 0).
+const STEP_TIMER_NVIC_PRIORITY: u8 = 0;
+
 impl StepEngine {
+    /// Sets TIM2 to [`STEP_TICK_HZ`], hands the engine to its interrupt and unmasks it
+    /// (on QEMU the timer is left stopped: no drives to step, and a 100 kHz interrupt
+    /// would only load the emulator).
+    fn install(tim: pac::TIM2, step: [OutPin; LEGS], source: ClockSource, timer_clock_hz: u32) {
+        tim.psc()
+            .write(|w| w.psc().set(tick_prescaler(timer_clock_hz)));
+        tim.arr()
+            .write(|w| unsafe { w.bits(TIMER_TICK_HZ / STEP_TICK_HZ - 1) });
+        tim.egr().write(|w| w.ug().set_bit());
+        tim.sr().write(|w| unsafe { w.bits(0) });
+        tim.dier().write(|w| w.uie().set_bit());
+        let run = source != ClockSource::Emulated;
+        if run {
+            tim.cr1().write(|w| w.cen().set_bit());
+        }
+        let engine = StepEngine {
+            tim,
+            step,
+            high: [false; LEGS],
+            seen: [0; LEGS],
+            acc: [0; LEGS],
+        };
+        irq::free(|cs| {
+            if let Ok(mut slot) = STEP_ENGINE.borrow(cs).try_borrow_mut() {
+                *slot = Some(engine);
+            }
+        });
+        if run {
+            // SAFETY: the engine is installed; its handler touches only the engine and
+            // the atomics, so unmasking it breaks no RTIC critical section.
+            unsafe {
+                let mut nvic = cortex_m::Peripherals::steal().NVIC;
+                nvic.set_priority(pac::Interrupt::TIM2, STEP_TIMER_NVIC_PRIORITY);
+                cortex_m::peripheral::NVIC::unmask(pac::Interrupt::TIM2);
+            }
+        }
+    }
+
     /// One tick: ends pulses that are high, then starts the pulses due (each leg's train
     /// spread evenly over [`MAX_PULSES_PER_CYCLE`] opportunities).
     pub fn on_tick(&mut self) {
-        self.tim.clear_flags(TimerFlag::Update);
+        self.tim.sr().write(|w| unsafe { w.bits(0) });
         for (i, pin) in self.step.iter_mut().enumerate() {
             let (Some(high), Some(seen), Some(acc)) = (
                 self.high.get_mut(i),
@@ -558,180 +1235,10 @@ pub type Drives =
     StepDirDrives<StepChannel, AnyPin<Output<PushPull>>, AnyPin<Output<PushPull>>, AnyPin<Input>>;
 /// The eighteen switch inputs.
 pub type Switches = TravelSwitchInputs<AnyPin<Input>>;
-/// Encoders, drives and switches behind the `hw` traits.
-pub type Mechanism = DriverMechanism<Encoders, Drives, Switches>;
-
-/// Why the board could not be taken.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum BoardError {
-    /// Already taken (the peripherals are take-once).
-    Taken,
-    /// The UART configuration was refused.
-    Uart,
-    /// The encoder configuration was refused.
-    Encoders(BissConfigError),
-    /// The drive configuration was refused.
-    Drives(StepperConfigError),
-    /// The step timer could not be started.
-    StepTimer,
-}
-
-/// Every part of the board, handed out once.
-pub struct Board {
-    /// Telecommand/telemetry UART.
-    pub uart: Uart,
-    /// Encoders, drives, switches.
-    pub mechanism: Mechanism,
-    /// The step-pulse interrupt's state ([`StepEngine::on_tick`]).
-    pub step_engine: StepEngine,
-    /// The parameter-table flash.
-    pub table_flash: TableFlash,
-    /// Where the clock came from.
-    pub clock_source: ClockSource,
-}
-
-impl Board {
-    /// Takes the device peripherals (once), configures the clocks, pins, UART, SPI and
-    /// the step timer, and returns every part.
-    pub fn take() -> Result<Board, BoardError> {
-        let dp = pac::Peripherals::take().ok_or(BoardError::Taken)?;
-        let (_, clock_source) = clocks();
-        let mut rcc = rcc();
-        let gpioa = dp.GPIOA.split(&mut rcc);
-        let gpiob = dp.GPIOB.split(&mut rcc);
-        let gpioc = dp.GPIOC.split(&mut rcc);
-        let gpiod = dp.GPIOD.split(&mut rcc);
-
-        let serial = Serial::new(
-            dp.USART1,
-            (gpioa.pa9, gpioa.pa10),
-            hal_serial::Config::default().baudrate(UART_BAUD.bps()),
-            &mut rcc,
-        )
-        .map_err(|_| BoardError::Uart)?;
-
-        let spi = Spi::new(
-            dp.SPI1,
-            (Some(gpioa.pa5), Some(gpioa.pa6), pac::SPI1::NoMosi),
-            SpiMode {
-                polarity: Polarity::IdleHigh,
-                phase: Phase::CaptureOnFirstTransition,
-            },
-            BISS_CLOCK_HZ.Hz(),
-            &mut rcc,
-        );
-        let scales = ENCODER_ZERO_LSB.map(|zero_lsb| EncoderScale {
-            lsb_pm: ENCODER_LSB_PM,
-            zero_lsb,
-            reversed: false,
-        });
-        let encoders = BissChain::new(MaLine(spi), BISS, scales).map_err(BoardError::Encoders)?;
-
-        let step = [
-            gpioc.pc0.into_push_pull_output().erase(),
-            gpioc.pc4.into_push_pull_output().erase(),
-            gpioc.pc8.into_push_pull_output().erase(),
-            gpiob.pb0.into_push_pull_output().erase(),
-            gpiob.pb4.into_push_pull_output().erase(),
-            gpiob.pb8.into_push_pull_output().erase(),
-        ];
-        let dir = [
-            gpioc.pc1.into_push_pull_output().erase(),
-            gpioc.pc5.into_push_pull_output().erase(),
-            gpioc.pc9.into_push_pull_output().erase(),
-            gpiob.pb1.into_push_pull_output().erase(),
-            gpiob.pb5.into_push_pull_output().erase(),
-            gpiob.pb9.into_push_pull_output().erase(),
-        ];
-        let enable = [
-            gpioc.pc2.into_push_pull_output().erase(),
-            gpioc.pc6.into_push_pull_output().erase(),
-            gpioc.pc10.into_push_pull_output().erase(),
-            gpiob.pb2.into_push_pull_output().erase(),
-            gpiob.pb6.into_push_pull_output().erase(),
-            gpiob.pb10.into_push_pull_output().erase(),
-        ];
-        let fault = [
-            gpioc.pc3.into_pull_up_input().erase(),
-            gpioc.pc7.into_pull_up_input().erase(),
-            gpioc.pc11.into_pull_up_input().erase(),
-            gpiob.pb3.into_pull_up_input().erase(),
-            gpiob.pb7.into_pull_up_input().erase(),
-            gpiob.pb11.into_pull_up_input().erase(),
-        ];
-        let mut legs_iter = dir.into_iter().zip(enable).zip(fault).enumerate();
-        let legs: [StepperLeg<_, _, _, _>; LEGS] = core::array::from_fn(|_| {
-            let Some((leg, ((dir, enable), fault))) = legs_iter.next() else {
-                defect() // six of each above
-            };
-            StepperLeg {
-                pulses: StepChannel { leg },
-                dir,
-                enable,
-                fault,
-            }
-        });
-        let drives = StepDirDrives::new(legs, STEPPERS).map_err(|(e, _)| BoardError::Drives(e))?;
-
-        let lower = [
-            gpioa.pa0.into_pull_up_input().erase(),
-            gpioa.pa1.into_pull_up_input().erase(),
-            gpioa.pa2.into_pull_up_input().erase(),
-            gpioa.pa3.into_pull_up_input().erase(),
-            gpioa.pa4.into_pull_up_input().erase(),
-            gpioa.pa8.into_pull_up_input().erase(),
-        ];
-        let upper = [
-            gpioa.pa11.into_pull_up_input().erase(),
-            gpioa.pa12.into_pull_up_input().erase(),
-            gpioa.pa15.into_pull_up_input().erase(),
-            gpiob.pb12.into_pull_up_input().erase(),
-            gpiob.pb13.into_pull_up_input().erase(),
-            gpiob.pb14.into_pull_up_input().erase(),
-        ];
-        let reference = [
-            gpiob.pb15.into_pull_down_input().erase(),
-            gpioc.pc12.into_pull_down_input().erase(),
-            gpioc.pc13.into_pull_down_input().erase(),
-            gpioc.pc14.into_pull_down_input().erase(),
-            gpioc.pc15.into_pull_down_input().erase(),
-            gpiod.pd2.into_pull_down_input().erase(),
-        ];
-        let mut sw_iter = lower.into_iter().zip(upper).zip(reference);
-        let sw_legs: [LegSwitches<_>; LEGS] = core::array::from_fn(|_| {
-            let Some(((lower, upper), reference)) = sw_iter.next() else {
-                defect()
-            };
-            LegSwitches {
-                lower,
-                upper,
-                reference,
-            }
-        });
-        let switches = TravelSwitchInputs::new(sw_legs, SWITCHES);
-
-        let mut tim = dp.TIM2.counter_hz(&mut rcc);
-        tim.start(STEP_TICK_HZ.Hz())
-            .map_err(|_| BoardError::StepTimer)?;
-        tim.listen(TimerEvent::Update);
-        let step_engine = StepEngine {
-            tim,
-            step,
-            high: [false; LEGS],
-            seen: [0; LEGS],
-            acc: [0; LEGS],
-        };
-
-        Ok(Board {
-            uart: Uart(serial),
-            mechanism: DriverMechanism {
-                encoders,
-                drives,
-                switches,
-            },
-            step_engine,
-            table_flash: TableFlash::take(),
-            clock_source,
-        })
-    }
-}
+/// Encoders, drives and switches behind the `hw` traits: what the controller drives on
+/// this board.
+pub type Sliders = DriverMechanism<Encoders, Drives, Switches>;
+/// An output pin of the harness.
+type OutPin = AnyPin<Output<PushPull>>;
+/// An input pin of the harness.
+type InPin = AnyPin<Input>;

@@ -198,13 +198,18 @@ impl EncoderScale {
 }
 
 /// Rounds `a / b` (`b > 0`) to the nearest integer, ties away from zero (saturating at
-/// the i64 extremes, which no caller reaches).
+/// the i64 extremes, which no caller reaches; 0 for `b <= 0`, which no caller passes:
+/// checked, so the flight image keeps no division panic).
 pub(crate) fn round_div(a: i64, b: i64) -> i64 {
+    if b <= 0 {
+        return 0;
+    }
     let half = b / 2;
+    let q = |n: i64| n.checked_div(b).unwrap_or(0);
     if a >= 0 {
-        a.saturating_add(half) / b
+        q(a.saturating_add(half))
     } else {
-        -(a.saturating_neg().saturating_add(half) / b)
+        -q(a.saturating_neg().saturating_add(half))
     }
 }
 

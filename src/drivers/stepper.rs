@@ -290,7 +290,7 @@ where
     }
 
     /// The microstep nearest to a stroke (mm), clamped to the travel limit; `None` if
-    /// not finite. Exact: the f32 is `m * 2^e` with an integer `m`, so the microsteps are
+    /// not finite (or the ratio's denominator is not positive, which construction refuses). Exact: the f32 is `m * 2^e` with an integer `m`, so the microsteps are
     /// the integer ratio `m * 10^6 * N / (D * 2^-e)`, rounded once (ties away from zero).
     fn microsteps_of_mm(&self, stroke_mm: f32) -> Option<i64> {
         if !stroke_mm.is_finite() {
@@ -320,10 +320,12 @@ where
             den <<= -exp;
         }
         let half = den / 2;
+        // Checked: `den` > 0 (the ratio is validated at construction), and the flight
+        // image keeps no division panic.
         let q = if num >= 0 {
-            (num + half) / den
+            (num + half).checked_div(den)?
         } else {
-            -((-num + half) / den)
+            -(-num + half).checked_div(den)?
         };
         Some(q as i64)
     }

@@ -1,0 +1,162 @@
+//! The flight image of the second board (STM32F405 Netduino Plus 2, feature
+//! `board-netduinoplus2`) in QEMU's `netduinoplus2` machine, driven over USART1 like a
+//! ground station: boot event, ping, housekeeping, a malformed packet, a refused move.
+//!
+//! QEMU 7.2 models that machine's USART, SPI and timers but not its GPIO, RCC, IWDG or
+//! flash interface (src/board/netduinoplus2.rs): the link and the control task run;
+//! the BiSS chain answers nothing (SPI with no slave) and the drives' FAULT inputs read
+//! low (active), so the controller reports the encoder and drive faults and refuses
+//! motion: that is what this test checks, with the link itself. Needs the image built
+//! and QEMU, so it is `#[ignore]`d in the plain test run;
+//! `scripts/qemu-link-test-netduinoplus2.sh` (and CI) runs it.
+
+mod common;
+
+use std::time::Duration;
+
+use common::qemu::{elf_at, Qemu, NETDUINOPLUS2};
+use m2ctl::controller::{event, ResetCause, State};
+use m2ctl::ground::station::{Station, Tm};
+use m2ctl::link::command::WirePose;
+use m2ctl::link::tm::Verification;
+use m2ctl::link::{Command, RequestId};
+use m2ctl::supervision::FaultFlags;
+
+/// The flight image for this board, as the script leaves it.
+const ELF: &str = "target/m2fw-netduinoplus2.elf";
+
+const OK3: [Verification; 3] = [
+    Verification::AcceptanceSuccess,
+    Verification::StartSuccess,
+    Verification::CompletionSuccess,
+];
+
+struct Link {
+    q: Qemu,
+    st: Station,
+}
+
+impl Link {
+    fn send(&mut self, cmd: &Command) -> RequestId {
+        let (frame, rid) = self.st.frame(cmd).unwrap();
+        self.q.send(&frame);
+        rid
+    }
+
+    fn until(&mut self, timeout: Duration, mut done: impl FnMut(&Station) -> bool) -> bool {
+        let t0 = std::time::Instant::now();
+        while t0.elapsed() < timeout {
+            let bytes = self.q.read_for(Duration::from_millis(50));
+            self.st.receive(&bytes);
+            if done(&self.st) {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// The verification reports of `rid` once it has a final one (or `timeout`).
+    fn complete(&mut self, rid: RequestId, timeout: Duration) -> Vec<Verification> {
+        self.until(timeout, |s| {
+            s.reports(rid).iter().any(|v| {
+                matches!(
+                    v,
+                    Verification::CompletionSuccess
+                        | Verification::CompletionFailure { .. }
+                        | Verification::StartFailure { .. }
+                        | Verification::AcceptanceFailure { .. }
+                )
+            })
+        });
+        self.st.reports(rid)
+    }
+
+    fn housekeeping(&mut self, timeout: Duration) -> m2ctl::link::hk::Housekeeping {
+        let rid = self.send(&Command::HousekeepingOneShot);
+        assert_eq!(self.complete(rid, timeout), OK3, "housekeeping");
+        self.st.last_hk().unwrap()
+    }
+}
+
+#[test]
+#[ignore = "needs QEMU and the netduinoplus2 image: scripts/qemu-link-test-netduinoplus2.sh"]
+fn netduinoplus2_flight_image_answers_over_usart1() {
+    let mut l = Link {
+        q: Qemu::start_elf_on(&elf_at(ELF), NETDUINOPLUS2),
+        st: Station::new(),
+    };
+    let t = Duration::from_secs(20);
+
+    assert!(
+        l.until(t, |s| !s.events(event::BOOT).is_empty()),
+        "no boot event"
+    );
+    let rid = l.send(&Command::Ping);
+    assert_eq!(l.complete(rid, t), OK3);
+    assert!(l.st.log.contains(&Tm::Ping));
+
+    let hk = l.housekeeping(t);
+    println!(
+        "HK: state {} faults {:#x} warnings {:#x} fault legs {:#04x} cycle {} reset cause {} boot {}",
+        hk.state, hk.fault_flags, hk.warning_flags, hk.fault_legs, hk.cycle_counter,
+        hk.reset_cause, hk.boot_count
+    );
+    // First boot of a fresh QEMU, on the nominal table.
+    assert_eq!(hk.reset_cause, ResetCause::PowerOn.code());
+    assert_eq!(hk.boot_count, 1);
+    assert_eq!(hk.active_table_id, 0);
+    // No encoder answers in QEMU and every drive's FAULT input reads low (active): both
+    // faults are latched on all six legs, the state is faulted.
+    assert_ne!(hk.fault_flags & FaultFlags::ENCODER_READ_FAILURE.bits(), 0);
+    assert_ne!(hk.fault_flags & FaultFlags::DRIVE_FAULT.bits(), 0);
+    assert_eq!(hk.fault_legs, 0x3f);
+    assert_eq!(hk.state, State::Faulted.code());
+
+    // The control task runs (TIM3 at the control rate): the cycle counter advances.
+    let later = l.housekeeping(t);
+    assert!(
+        later.cycle_counter > hk.cycle_counter,
+        "cycle counter {} then {}",
+        hk.cycle_counter,
+        later.cycle_counter
+    );
+
+    // A malformed packet (bad CRC) is refused with the link's code.
+    let (mut pkt, rid) = l.st.packet(&Command::Ping).unwrap();
+    let n = pkt.len();
+    pkt[n - 1] ^= 0xff;
+    let mut frame = vec![0u8; pkt.len() * 2 + 4];
+    let fl = m2ctl::link::encode_frame(&pkt, &mut frame).unwrap();
+    l.q.send(&frame[..fl]);
+    let reps = l.complete(rid, t);
+    assert!(
+        matches!(
+            reps[..],
+            [Verification::AcceptanceFailure { code: 0x0505, .. }]
+        ),
+        "{reps:?}"
+    );
+
+    // A move with faults latched is refused with a code; nothing is commanded.
+    let rid = l.send(&Command::MoveAbsolute(WirePose {
+        translation_nm: [50_000, 0, 0],
+        rotation_uas: [0, 0, 0],
+    }));
+    let reps = l.complete(rid, t);
+    println!("move while faulted: {reps:?}");
+    assert!(
+        reps.iter().any(|v| matches!(
+            v,
+            Verification::StartFailure { .. } | Verification::AcceptanceFailure { .. }
+        )),
+        "{reps:?}"
+    );
+    let after = l.housekeeping(t);
+    assert_eq!(after.strokes_commanded_nm, hk.strokes_commanded_nm);
+    assert_eq!(
+        l.st.events(event::BOOT).len(),
+        1,
+        "the firmware rebooted: boot detail {:?}",
+        l.st.events(event::BOOT_DETAIL)
+    );
+}
