@@ -87,7 +87,8 @@ use crate::drivers::switches::{LegSwitches, SwitchPolarity, TravelSwitchInputs};
 use crate::drivers::Mechanism as DriverMechanism;
 use crate::kinematics::LEGS;
 use crate::table::{BankLayout, FlashStatus};
-use crate::timing::{CYCLE_US, US_PER_S};
+use crate::timing::CYCLE_US;
+use crate::units::US_PER_S;
 
 /// The memory map of `memory.x`, as build.rs reads it.
 mod memory_x {
