@@ -113,8 +113,8 @@ struct WorkerQueues<'a> {
 }
 
 impl JobPort for WorkerQueues<'_> {
-    fn send(&mut self, request: JobRequest) -> Result<(), JobRequest> {
-        self.requests.enqueue(request)
+    fn send(&mut self, request: &JobRequest) -> bool {
+        self.requests.enqueue(*request).is_ok()
     }
     fn recv(&mut self) -> Option<JobResult> {
         self.results.dequeue()
@@ -214,25 +214,25 @@ fn build_controller(
     ctl
 }
 
-/// The worker's request side: hands the next request (or the one it refused last
-/// time) to the worker. Not inlined, like [`step_worker`]: the ~1 KB requests moved
-/// here and the step's own frame are never on the stack together.
+/// The worker's request side: hands the next request to the worker where it lies in
+/// the queue (by reference, peeked), and takes it off the queue only once the worker
+/// took it; a refused request waits there for the next step. Not inlined, like
+/// [`step_worker`]: their frames are never on the stack together.
 #[inline(never)]
 fn take_request(
     worker: &mut Worker<board::TableFlash>,
     requests: &mut heapless::spsc::Consumer<'static, JobRequest, JOB_QUEUE_LEN>,
-    refused: &mut heapless::Vec<JobRequest, 1>,
 ) {
-    if refused.is_empty() {
-        if let Some(r) = requests.dequeue() {
-            let _ = refused.push(r);
-        }
+    if requests.peek().is_some_and(|r| worker.submit(r)) {
+        // Taken: the worker copied it.
+        drop_front(requests);
     }
-    if let Some(r) = refused.pop() {
-        if let Err(r) = worker.submit(r) {
-            let _ = refused.push(r);
-        }
-    }
+}
+
+/// Removes the front request (already copied by the worker).
+#[inline(never)]
+fn drop_front(requests: &mut heapless::spsc::Consumer<'static, JobRequest, JOB_QUEUE_LEN>) {
+    let _ = requests.dequeue();
 }
 
 /// One worker step; its result goes to the result queue (or waits in `unsent` while
@@ -430,15 +430,14 @@ mod app {
     /// same priority: neither preempts the other, so their stacks never add up).
     #[task(binds = IRQ31, priority = 1, local = [
         worker, requests_rx, results_tx,
-        refused: heapless::Vec<JobRequest, 1> = heapless::Vec::new(),
         unsent: heapless::Vec<JobResult, 1> = heapless::Vec::new(),
     ])]
     fn worker(cx: worker::Context) {
         let l = cx.local;
-        // `refused`/`unsent` hold one request the worker refused for now and one result
-        // the queue had no room for (statics, not stack; empty vectors are zeroed
-        // memory, so they cost no flash).
-        take_request(l.worker, l.requests_rx, l.refused);
+        // `unsent` holds one result the queue had no room for (a static, not stack; an
+        // empty vector is zeroed memory, so it costs no flash). A refused request waits
+        // in its queue.
+        take_request(l.worker, l.requests_rx);
         step_worker(l.worker, l.results_tx, l.unsent);
     }
 

@@ -99,7 +99,7 @@ struct Port<'a> {
 }
 
 impl JobPort for Port<'_> {
-    fn send(&mut self, request: JobRequest) -> Result<(), JobRequest> {
+    fn send(&mut self, request: &JobRequest) -> bool {
         self.worker.submit(request)
     }
     fn recv(&mut self) -> Option<JobResult> {

@@ -123,6 +123,10 @@ impl<M: MechanismIo> Controller<M> {
         );
     }
 
+    /// Not inlined (nor are its table and parameter arms): the decoded telecommand in
+    /// the caller's frame and an arm's locals (a table, a job request) are each on the
+    /// stack once, never merged with the move planner's frame.
+    #[inline(never)]
     fn execute(&mut self, tc: &Telecommand) -> Result<Outcome, CommandError> {
         match tc.command {
             Command::Ping => {
@@ -156,15 +160,7 @@ impl<M: MechanismIo> Controller<M> {
                 self.tm.push(self.cycle, TmRecord::Parameters { mask });
                 Ok(Outcome::Done)
             }
-            Command::SetParameters(values) => {
-                // Applied between motions only, after they are persisted.
-                self.require_idle()?;
-                let new = self
-                    .params
-                    .with(values.entries(), &self.active.table)
-                    .map_err(CommandError::Parameter)?;
-                self.start_job(JobRequest::SaveParameters(new))
-            }
+            Command::SetParameters(ref values) => self.set_parameters(values.entries()),
             Command::MoveRelative(delta) => {
                 let target = self.relative_target(delta.to_pose())?;
                 self.start_move(target)
@@ -198,15 +194,7 @@ impl<M: MechanismIo> Controller<M> {
                 self.upload.load(chunk.offset_bytes(), chunk.bytes());
                 Ok(Outcome::Done)
             }
-            Command::CommitTable { crc32 } => {
-                // Commits happen at rest only (a flash erase can stall a single-bank
-                // device for seconds); moves wait until the job is done.
-                self.require_idle()?;
-                let table = self.upload.check(crc32)?;
-                self.upload.clear_received();
-                self.pending_table = None;
-                self.start_job(JobRequest::Commit(table))
-            }
+            Command::CommitTable { crc32 } => self.commit_uploaded(crc32),
             Command::ActivateTable { table_id, crc32 } => {
                 self.require_idle()?;
                 let p = self.pending_table.ok_or(CommandError::NoPending)?;
@@ -241,6 +229,28 @@ impl<M: MechanismIo> Controller<M> {
                 Ok(Outcome::Done)
             }
         }
+    }
+
+    /// TC[8,1] set parameters: applied between motions only, after they are persisted.
+    #[inline(never)]
+    fn set_parameters(&mut self, entries: &[(u16, i32)]) -> Result<Outcome, CommandError> {
+        self.require_idle()?;
+        let new = self
+            .params
+            .with(entries, &self.active.table)
+            .map_err(CommandError::Parameter)?;
+        self.start_job(JobRequest::SaveParameters(new))
+    }
+
+    /// Commit of the uploaded table. Commits happen at rest only (a flash erase can
+    /// stall a single-bank device for seconds); moves wait until the job is done.
+    #[inline(never)]
+    fn commit_uploaded(&mut self, crc32: u32) -> Result<Outcome, CommandError> {
+        self.require_idle()?;
+        let table = self.upload.check(crc32)?;
+        self.upload.clear_received();
+        self.pending_table = None;
+        self.start_job(JobRequest::Commit(table))
     }
 
     fn start_job(&mut self, request: JobRequest) -> Result<Outcome, CommandError> {

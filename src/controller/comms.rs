@@ -67,9 +67,9 @@ pub trait TxBytes {
 /// The background worker as the link service sees it (two bounded queues on the
 /// target, the worker itself on the host).
 pub trait JobPort {
-    /// Hands a request over; gives it back if there is no room.
-    #[allow(clippy::result_large_err)] // handed back by value: no heap
-    fn send(&mut self, request: JobRequest) -> Result<(), JobRequest>;
+    /// Hands a request over (copies it) and returns true; false if there is no room
+    /// (the request stays with the controller). By reference: a request is ~1.3 KB.
+    fn send(&mut self, request: &JobRequest) -> bool;
     /// The next result, if any.
     fn recv(&mut self) -> Option<JobResult>;
 }
@@ -89,8 +89,6 @@ pub struct LinkService {
     deframer: Deframer<RX_FRAME_BUFFER_LEN>,
     tm: TmWriter,
     counters: LinkCounters,
-    /// A job request the port had no room for.
-    held_request: Option<JobRequest>,
 }
 
 impl Default for LinkService {
@@ -119,7 +117,6 @@ impl LinkService {
                 frames_dropped: 0,
                 uart_overruns: 0,
             },
-            held_request: None,
         }
     }
 
@@ -145,6 +142,7 @@ impl LinkService {
 
     /// Step 1: at most [`MAX_TC_PER_PASS`] telecommands: the schedule's due activities
     /// first, then from the RX bytes.
+    #[inline(never)]
     pub fn receive<M, C>(&mut self, ctl: &mut C, rx: &mut impl RxBytes)
     where
         M: MechanismIo,
@@ -172,6 +170,7 @@ impl LinkService {
     }
 
     /// Step 2: encode queued records while their frames fit in the TX queue.
+    #[inline(never)]
     pub fn transmit<M, C>(&mut self, ctl: &mut C, tx: &mut impl TxBytes)
     where
         M: MechanismIo,
@@ -220,6 +219,7 @@ impl LinkService {
         }
     }
 
+    #[inline(never)]
     fn encode(&mut self, stamped: &Stamped, content: &Content, out: &mut [u8]) -> Option<usize> {
         let time = TmTime::from_micros(cycle_to_us(u64::from(stamped.cycle)));
         match content {
@@ -255,26 +255,16 @@ impl LinkService {
     }
 
     /// Moves job requests from the controller to the worker and results back.
+    #[inline(never)]
     pub fn exchange_jobs<M, C>(&mut self, ctl: &mut C, port: &mut impl JobPort)
     where
         M: MechanismIo,
         C: Exclusive<Controller<M>>,
     {
         while let Some(result) = port.recv() {
-            ctl.lock(|c| c.job_finished(result));
+            ctl.lock(|c| c.job_finished(&result));
         }
-        loop {
-            let request = match self.held_request.take() {
-                Some(r) => r,
-                None => match ctl.lock(|c| c.take_job_request()) {
-                    Some(r) => r,
-                    None => return,
-                },
-            };
-            if let Err(r) = port.send(request) {
-                self.held_request = Some(r);
-                return;
-            }
-        }
+        // A request the port has no room for stays with the controller until the next pass.
+        while ctl.lock(|c| c.offer_job_request(|r| port.send(r))) {}
     }
 }

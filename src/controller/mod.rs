@@ -556,18 +556,25 @@ impl<M: MechanismIo> Controller<M> {
         if self.cycle % self.ops.hk_period_cycles.max(1) == 0 {
             self.tm.push(self.cycle, TmRecord::Housekeeping);
         }
-        if self.cycle % SCRUB_PERIOD_CYCLES == 0 {
-            self.jobs.request_scrub(jobs::ScrubImage {
-                generation: self.generation,
-                active: self.active,
-                supervision: *self.supervisor.config(),
-                params: self.params,
-                ops: self.ops,
-            });
+        if self.cycle % SCRUB_PERIOD_CYCLES == 0 && self.jobs.scrub_wanted() {
+            self.queue_scrub();
         }
         // 6. State.
         self.publish_state();
         self.cycle = self.cycle.wrapping_add(1);
+    }
+
+    /// Queues the scrub snapshot of the running configuration for the worker. Not
+    /// inlined: the ~1.3 KB snapshot is not on the stack with the cycle's motion step.
+    #[inline(never)]
+    fn queue_scrub(&mut self) {
+        self.jobs.request_scrub(&jobs::ScrubImage {
+            generation: self.generation,
+            active: self.active,
+            supervision: *self.supervisor.config(),
+            params: self.params,
+            ops: self.ops,
+        });
     }
 
     /// The board saw this control cycle overrun its period (the timer fired again before

@@ -330,6 +330,7 @@ impl<M: MechanismIo> Controller<M> {
     /// Every reason a move to `target` (operator frames) would be refused now, changing
     /// nothing: the state (fault, motion, job), the target's workspace check, the straight
     /// path's first refused sample.
+    #[inline(never)]
     pub(super) fn check_move(&mut self, target: Pose<f32>) -> MoveCheck {
         let now = self.require_can_move().err().map_or(0, |e| e.code());
         let target_refusals =
@@ -385,6 +386,7 @@ impl<M: MechanismIo> Controller<M> {
     /// The relative-move target: the held pose plus `delta` component by component, in
     /// the operator's frames (translations added along the user frame's axes, Euler
     /// angles added).
+    #[inline(never)]
     pub(super) fn relative_target(&mut self, delta: Pose<f32>) -> Result<Pose<f32>, CommandError> {
         self.require_can_move()?;
         let mut target = self.held_pose()?;

@@ -349,6 +349,7 @@ impl<M: MechanismIo> Controller<M> {
     }
 
     /// A TC[11,x] (module documentation).
+    #[inline(never)]
     pub(super) fn execute_schedule(
         &mut self,
         command: &ScheduleCommand,

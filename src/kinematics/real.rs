@@ -135,7 +135,10 @@ const COSM1_COEFF_REDUCED_F32: [f32; 6] = [
 /// `PIO2_HI` has 8 significant bits and `PIO2_MID` 11, so `n * PIO2_HI` and
 /// `n * PIO2_MID` are exact for |n| < 2^13 (|x| < 12,800 rad).
 const PIO2_HI: f32 = 1.570_312_5;
+/// (The digits of the two parts below are their exact f32 values, as in Cephes.)
+#[allow(clippy::excessive_precision)]
 const PIO2_MID: f32 = 4.837_512_969_970_703e-4;
+#[allow(clippy::excessive_precision)]
 const PIO2_LO: f32 = 7.549_789_954_891_882e-8;
 
 /// `(sin x, cos x - 1)` of an `f32` beyond [`SMALL_ANGLE_RAD`], in f32 arithmetic only
