@@ -235,36 +235,19 @@ fn drop_front(requests: &mut heapless::spsc::Consumer<'static, JobRequest, JOB_Q
     let _ = requests.dequeue();
 }
 
-/// One worker step; its result goes to the result queue (or waits in `unsent` while
-/// the queue is full, and then no step is taken).
+/// One worker step, taken only while the result queue has room for its result (so a
+/// result is never held back on the stack or in a side slot).
 #[inline(never)]
 fn step_worker(
     worker: &mut Worker<board::TableFlash>,
     results: &mut heapless::spsc::Producer<'static, JobResult, JOB_QUEUE_LEN>,
-    unsent: &mut heapless::Vec<JobResult, 1>,
 ) {
-    if !unsent.is_empty() {
-        send_unsent(results, unsent);
+    if !results.ready() {
         return;
     }
     if let Some(r) = worker.step(board::ticks()) {
-        if let Err(r) = results.enqueue(r) {
-            let _ = unsent.push(r);
-        }
-    }
-}
-
-/// Retries the result the queue had no room for (not inlined: its copy of the result
-/// is not on the stack during a step).
-#[inline(never)]
-fn send_unsent(
-    results: &mut heapless::spsc::Producer<'static, JobResult, JOB_QUEUE_LEN>,
-    unsent: &mut heapless::Vec<JobResult, 1>,
-) {
-    if let Some(r) = unsent.pop() {
-        if let Err(r) = results.enqueue(r) {
-            let _ = unsent.push(r);
-        }
+        // Room was checked above: this cannot fail.
+        let _ = results.enqueue(r);
     }
 }
 
@@ -428,17 +411,12 @@ mod app {
 
     /// The background worker: one step per control period, after the link pass (the
     /// same priority: neither preempts the other, so their stacks never add up).
-    #[task(binds = IRQ31, priority = 1, local = [
-        worker, requests_rx, results_tx,
-        unsent: heapless::Vec<JobResult, 1> = heapless::Vec::new(),
-    ])]
+    #[task(binds = IRQ31, priority = 1, local = [worker, requests_rx, results_tx])]
     fn worker(cx: worker::Context) {
         let l = cx.local;
-        // `unsent` holds one result the queue had no room for (a static, not stack; an
-        // empty vector is zeroed memory, so it costs no flash). A refused request waits
-        // in its queue.
+        // A refused request waits in its queue; no step while the result queue is full.
         take_request(l.worker, l.requests_rx);
-        step_worker(l.worker, l.results_tx, l.unsent);
+        step_worker(l.worker, l.results_tx);
     }
 
     /// Nothing else to do: sleep until the next interrupt.

@@ -248,9 +248,12 @@ impl<M: MechanismIo> Controller<M> {
     fn commit_uploaded(&mut self, crc32: u32) -> Result<Outcome, CommandError> {
         self.require_idle()?;
         let table = self.upload.check(crc32)?;
+        self.jobs
+            .submit_commit(&table)
+            .map_err(|kind: JobKind| CommandError::JobBusy(kind.code()))?;
         self.upload.clear_received();
         self.pending_table = None;
-        self.start_job(JobRequest::Commit(table))
+        Ok(Outcome::JobStarted)
     }
 
     fn start_job(&mut self, request: JobRequest) -> Result<Outcome, CommandError> {

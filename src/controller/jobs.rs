@@ -89,11 +89,18 @@ impl ScrubImage {
     pub fn consistent(&self) -> bool {
         let a = &self.active;
         a.table.crc32() == a.crc32
-            && ActiveTable::new(a.table, a.source).is_ok_and(|d| d == *a)
+            && geometry_matches(a)
             && super::Parameters::decode(&self.params.encode()) == self.params
             && self.params.supervision(&a.table) == self.supervision
             && super::Ops::derive(&self.params, &a.table) == self.ops
     }
+}
+
+/// The running table's derived geometry is exactly what its table derives (out of
+/// line: the re-derived geometry is on the stack alone, not a whole `ActiveTable`).
+#[inline(never)]
+fn geometry_matches(a: &ActiveTable) -> bool {
+    crate::kinematics::Geometry::new(&a.table.geometry_params()).is_ok_and(|g| g == a.geom)
 }
 
 /// What the controller asks of the worker. The messages carry whole tables by value
@@ -215,6 +222,18 @@ impl JobLane {
         }
         self.running = request.kind();
         self.outbox = Some(request);
+        Ok(())
+    }
+
+    /// [`JobLane::submit`] of a commit of `table`, copied once, straight into the
+    /// outbox (not via a ~1.3 KB request on the stack).
+    #[inline(never)]
+    pub fn submit_commit(&mut self, table: &Table) -> Result<(), JobKind> {
+        if let Some(k) = self.running {
+            return Err(k);
+        }
+        self.running = Some(JobKind::Commit);
+        self.outbox = Some(JobRequest::Commit(*table));
         Ok(())
     }
 
@@ -487,22 +506,11 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
             }
             _ if self.op.is_some() => false,
             JobRequest::Commit(table) => {
-                let phase = if self.store.selection().is_none() {
-                    CommitPhase::Anchor
-                } else {
-                    CommitPhase::Validate
-                };
-                self.op = Some(Op::Commit {
-                    table: *table,
-                    phase,
-                });
+                self.accept_commit(table);
                 true
             }
             JobRequest::SaveParameters(params) => {
-                match self.store.start_parameters(&params.encode()) {
-                    Ok(()) => self.op = Some(Op::Parameters(*params)),
-                    Err(e) => self.fail_later(JobKind::Parameters, e),
-                }
+                self.accept_parameters(params);
                 true
             }
             _ => {
@@ -511,6 +519,27 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
                 self.start_selection(request);
                 true
             }
+        }
+    }
+
+    #[inline(never)]
+    fn accept_commit(&mut self, table: &Table) {
+        let phase = if self.store.selection().is_none() {
+            CommitPhase::Anchor
+        } else {
+            CommitPhase::Validate
+        };
+        self.op = Some(Op::Commit {
+            table: *table,
+            phase,
+        });
+    }
+
+    #[inline(never)]
+    fn accept_parameters(&mut self, params: &super::Parameters) {
+        match self.store.start_parameters(&params.encode()) {
+            Ok(()) => self.op = Some(Op::Parameters(*params)),
+            Err(e) => self.fail_later(JobKind::Parameters, e),
         }
     }
 
@@ -546,11 +575,23 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
         }
     }
 
+    /// Switch bank: the table of the bank not running (with nominal running, the bank
+    /// with the newest record), read and validated, then its selection persisted.
     #[inline(never)]
     fn select_other_bank(&mut self) {
-        match self.other_bank_table() {
-            Ok((sel, table)) => self.begin_select(JobKind::Select, sel, &table),
-            Err(e) => self.fail_later(JobKind::Select, e),
+        let kind = JobKind::Select;
+        let bank = match self.other_bank() {
+            Ok(b) => b,
+            Err(e) => return self.fail_later(kind, e),
+        };
+        match self.store.read_bank(bank) {
+            Err(s) => self.fail_later(kind, StoreError::NoRecord(s)),
+            Ok((h, t)) => match validate(&t, &self.validation) {
+                Err(v) => self.fail_later(kind, StoreError::Invalid(v)),
+                Ok(()) => {
+                    self.begin_select(kind, Selection::bank(bank, h.sequence, h.table_crc), &t)
+                }
+            },
         }
     }
 
@@ -572,11 +613,11 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
         }
     }
 
-    /// The table switch-bank selects: the bank not running (with nominal running, the
-    /// newest record), validated.
+    /// The bank switch-bank selects: the bank not running (with nominal running, the
+    /// bank with the newest record).
     #[inline(never)]
-    fn other_bank_table(&mut self) -> Result<(Selection, Table), StoreError> {
-        let bank = match self.store.running().bank() {
+    fn other_bank(&mut self) -> Result<Bank, StoreError> {
+        Ok(match self.store.running().bank() {
             Some(b) => b.other(),
             None => match (
                 self.store.read_header(Bank::A),
@@ -589,10 +630,7 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
                 (Err(_), Ok(_)) => Bank::B,
                 (Err(s), Err(_)) => return Err(StoreError::NoRecord(s)),
             },
-        };
-        let (h, t) = self.store.read_bank(bank).map_err(StoreError::NoRecord)?;
-        validate(&t, &self.validation).map_err(StoreError::Invalid)?;
-        Ok((Selection::bank(bank, h.sequence, h.table_crc), t))
+        })
     }
 
     /// One unit of work; returns a result when something finished. `now_cycle` is the
@@ -602,13 +640,8 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
         if let Some((kind, error)) = self.failed.take() {
             return Some(JobResult::Failed { kind, error });
         }
-        if let Some((table, source)) = &self.reloaded {
-            let result = JobResult::Reloaded {
-                table: *table,
-                source: *source,
-            };
-            self.reloaded = None;
-            return Some(result);
+        if self.reloaded.is_some() {
+            return self.take_reloaded();
         }
         // Checked where it is (a ~1 KB image: not moved to the stack).
         if let Some(img) = &self.scrub {
@@ -634,6 +667,18 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
             }
         }
         None
+    }
+
+    /// The reload's result (out of line: the table is copied once, into the result).
+    #[inline(never)]
+    fn take_reloaded(&mut self) -> Option<JobResult> {
+        let (table, source) = self.reloaded.as_ref()?;
+        let result = JobResult::Reloaded {
+            table: *table,
+            source: *source,
+        };
+        self.reloaded = None;
+        Some(result)
     }
 
     /// Reads both banks: a bank with a header whose record does not read back valid is

@@ -459,6 +459,7 @@ impl<M: MechanismIo> Controller<M> {
 
     /// Holds every drive where it is, takes the held strokes as the commanded ones and
     /// their pose as the commanded pose.
+    #[inline(never)]
     fn hold_here(&mut self) {
         self.mech.hold();
         self.sync_to_drives();

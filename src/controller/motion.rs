@@ -422,6 +422,7 @@ impl<M: MechanismIo> Controller<M> {
 
     /// Starts a direct-stroke (recovery) move of `leg` (1..=6) by `delta_mm`: that leg
     /// from its held setpoint, every other leg keeping exactly its setpoint.
+    #[inline(never)]
     pub(super) fn start_direct_stroke(
         &mut self,
         leg: u8,
