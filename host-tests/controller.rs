@@ -42,7 +42,10 @@ fn move_absolute_reaches_the_target_and_reports_completion_on_arrival() {
     // only on arrival.
     assert_eq!(r.st.reports(rid), [Verification::AcceptanceSuccess]);
     assert_eq!(r.ctl.state(), State::Moving);
-    r.run(m2ctl::controller::PLAN_SAMPLES_PER_CYCLE as u32 + 3);
+    // The path's samples at PLAN_SAMPLES_PER_CYCLE a cycle, plus the cycles around them.
+    let planning_cycles = (m2ctl::motion::PATH_SAMPLE_INTERVALS + 1)
+        .div_ceil(m2ctl::controller::PLAN_SAMPLES_PER_CYCLE) as u32;
+    r.run(planning_cycles + 3);
     assert_eq!(
         r.st.reports(rid),
         [Verification::AcceptanceSuccess, Verification::StartSuccess]

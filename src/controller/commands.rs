@@ -18,6 +18,11 @@ impl<M: MechanismIo> Controller<M> {
     /// One telecommand packet (the bytes of one deframed frame): decode, report,
     /// execute. A refused telecommand changes nothing but the counters and the reports.
     pub fn handle_telecommand(&mut self, packet: &[u8]) {
+        // A move check a caller without a link service left uncollected: evaluated and
+        // reported now, before this telecommand (none is lost, the order is kept).
+        if self.move_check.is_some() {
+            self.run_move_check();
+        }
         let tc = match decode_telecommand(packet) {
             Ok(tc) => tc,
             Err(rej) => {
@@ -49,6 +54,8 @@ impl<M: MechanismIo> Controller<M> {
                     self.verify(rid, Verification::CompletionSuccess);
                 }
             }
+            // Start and completion follow the check's report (`finish_move_check`).
+            Ok(Outcome::CheckQueued) => {}
             Ok(Outcome::Planning) => {
                 // Start success or failure is reported when the plan is done.
                 self.tc_pending = Some(PendingTc {
@@ -139,15 +146,8 @@ impl<M: MechanismIo> Controller<M> {
             }
             Command::MoveAbsolute(target) => self.start_move(target.to_pose()),
             Command::CheckMove(target) => {
-                let check = self.check_move(target.to_pose());
-                self.tm.push(
-                    self.cycle,
-                    TmRecord::MoveCheck {
-                        request_id: tc.request_id,
-                        check,
-                    },
-                );
-                Ok(Outcome::Done)
+                self.queue_move_check(tc.request_id, tc.ack, target.to_pose());
+                Ok(Outcome::CheckQueued)
             }
             Command::ReportParameters(ids) => {
                 let mut mask = 0u32;

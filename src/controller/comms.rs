@@ -19,8 +19,12 @@
 //!
 //! The controller is reached through [`Exclusive`]: on the target an RTIC resource
 //! lock, held only for one telecommand or one record at a time; on the host a plain
-//! `&mut`. Encoding happens outside the lock.
+//! `&mut`. Encoding happens outside the lock, and so does a move check's evaluation
+//! (TC[8,1] 0x0006: the whole path's IK and FK): the telecommand leaves a copy of what
+//! the check reads ([`MoveCheckJob`]), the link service evaluates it unlocked and
+//! reports it under the lock.
 
+use super::motion::MoveCheckJob;
 use super::telemetry::{Stamped, TmRecord};
 use super::{Controller, JobRequest, JobResult};
 use crate::hw::MechanismIo;
@@ -89,6 +93,9 @@ pub struct LinkService {
     deframer: Deframer<RX_FRAME_BUFFER_LEN>,
     tm: TmWriter,
     counters: LinkCounters,
+    /// The move check being evaluated ([`LinkService::run_move_check`]; here, not on
+    /// the stack).
+    move_check: Option<MoveCheckJob>,
 }
 
 impl Default for LinkService {
@@ -117,6 +124,7 @@ impl LinkService {
                 frames_dropped: 0,
                 uart_overruns: 0,
             },
+            move_check: None,
         }
     }
 
@@ -152,6 +160,7 @@ impl LinkService {
         let mut handled = 0;
         // Time-tagged activities due now (ST[11]) share the pass's budget, first.
         while handled < MAX_TC_PER_PASS && ctl.lock(|c| c.release_next_due()) {
+            self.run_move_check(ctl);
             handled += 1;
         }
         while handled < MAX_TC_PER_PASS {
@@ -160,6 +169,7 @@ impl LinkService {
                 None => {}
                 Some(Ok(packet)) => {
                     ctl.lock(|c| c.handle_telecommand(packet));
+                    self.run_move_check(ctl);
                     handled += 1;
                 }
                 Some(Err(_)) => {
@@ -167,6 +177,25 @@ impl LinkService {
                 }
             }
         }
+    }
+
+    /// Evaluates the move check the last telecommand queued (if any) outside the
+    /// controller's lock: locked only to take its copy and to report it, so the control
+    /// task never waits for the path's IK and FK (module documentation).
+    #[inline(never)]
+    fn run_move_check<M, C>(&mut self, ctl: &mut C)
+    where
+        M: MechanismIo,
+        C: Exclusive<Controller<M>>,
+    {
+        let slot = &mut self.move_check;
+        ctl.lock(|c| c.take_move_check(slot));
+        if let Some(job) = &self.move_check {
+            let check = job.evaluate();
+            let (request_id, ack) = (job.request_id(), job.ack());
+            ctl.lock(|c| c.finish_move_check(request_id, ack, check));
+        }
+        self.move_check = None;
     }
 
     /// Step 2: encode queued records while their frames fit in the TX queue.

@@ -32,6 +32,7 @@
 
 use super::{ActiveTable, Controller};
 use crate::hw::MechanismIo;
+use crate::kinematics::{Geometry, GeometryError};
 use crate::link::tm::EventSeverity;
 use crate::supervision::{FaultFlags, SupervisionConfig};
 use crate::table::{
@@ -100,7 +101,7 @@ impl ScrubImage {
 /// line: the re-derived geometry is on the stack alone, not a whole `ActiveTable`).
 #[inline(never)]
 fn geometry_matches(a: &ActiveTable) -> bool {
-    crate::kinematics::Geometry::new(&a.table.geometry_params()).is_ok_and(|g| g == a.geom)
+    Geometry::new(&a.table.geometry_params()).is_ok_and(|g| g == a.geom)
 }
 
 /// What the controller asks of the worker. The messages carry whole tables by value
@@ -140,6 +141,17 @@ impl JobRequest {
     }
 }
 
+/// A table's working geometry as the worker derived it ([`Geometry::new`] of its
+/// parameters): what [`Controller::job_finished`] runs with.
+pub type DerivedGeometry = Result<Geometry<f32>, GeometryError>;
+
+/// Derives `table`'s working geometry (out of line: its f64 parameters are on the
+/// stack alone).
+#[inline(never)]
+pub fn derive_geometry(table: &Table) -> DerivedGeometry {
+    Geometry::new(&table.geometry_params())
+}
+
 /// What the worker answers.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum JobResult {
@@ -154,6 +166,9 @@ pub enum JobResult {
     Selected {
         /// The table.
         table: Table,
+        /// Its working geometry, derived by the worker (not under the controller's
+        /// lock: the f64 derivation is most of an activation's cost).
+        geom: DerivedGeometry,
         /// What was selected.
         selection: Selection,
     },
@@ -163,6 +178,8 @@ pub enum JobResult {
     Reloaded {
         /// The table.
         table: Table,
+        /// Its working geometry, derived by the worker.
+        geom: DerivedGeometry,
         /// Its source.
         source: BootSource,
     },
@@ -295,10 +312,11 @@ impl<M: MechanismIo> Controller<M> {
             }
             JobResult::Selected {
                 ref table,
+                ref geom,
                 selection,
             } => {
                 self.jobs.running = None;
-                match self.run_table(table, selection.source) {
+                match self.run_table(table, geom, selection.source) {
                     Ok(()) => {
                         if let (Some(p), Some(bank)) = (self.pending_table, selection.source.bank())
                         {
@@ -325,9 +343,13 @@ impl<M: MechanismIo> Controller<M> {
                 );
                 self.complete_pending(Ok(()));
             }
-            JobResult::Reloaded { ref table, source } => {
+            JobResult::Reloaded {
+                ref table,
+                ref geom,
+                source,
+            } => {
                 self.jobs.running = None;
-                if self.run_table(table, source).is_ok() {
+                if self.run_table(table, geom, source).is_ok() {
                     self.supervisor
                         .set_external_condition(FaultFlags::TABLE_CORRUPT, false);
                     self.event(
@@ -390,16 +412,22 @@ impl<M: MechanismIo> Controller<M> {
         }
     }
 
-    /// Runs `table` from `source` at rest: derive, swap, hold, report (event 0x0010).
-    /// Nothing changes if its geometry does not derive. The table is copied once, into
-    /// the running slot (not via a ~1 KB `ActiveTable` on the stack).
+    /// Runs `table` from `source` at rest with `geom`, its geometry as the worker
+    /// derived it: swap, hold, report (event 0x0010). Nothing changes if its geometry
+    /// did not derive. The table is copied once, into the running slot.
     #[inline(never)]
-    fn run_table(&mut self, table: &Table, source: BootSource) -> Result<(), super::CommandError> {
-        let geom = crate::kinematics::Geometry::new(&table.geometry_params())
+    fn run_table(
+        &mut self,
+        table: &Table,
+        geom: &DerivedGeometry,
+        source: BootSource,
+    ) -> Result<(), super::CommandError> {
+        let geom = geom
+            .as_ref()
             .map_err(|_| super::CommandError::Store(StoreError::NotExpected))?;
         self.active.table = *table;
         self.active.crc32 = table.crc32();
-        self.active.geom = geom;
+        self.active.geom = *geom;
         self.active.source = source;
         self.geometry_ok = true;
         self.generation = self.generation.wrapping_add(1);
@@ -675,6 +703,7 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
         let (table, source) = self.reloaded.as_ref()?;
         let result = JobResult::Reloaded {
             table: *table,
+            geom: derive_geometry(table),
             source: *source,
         };
         self.reloaded = None;
@@ -818,6 +847,7 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
                 };
                 let result = JobResult::Selected {
                     table: *table,
+                    geom: derive_geometry(table),
                     selection,
                 };
                 self.op = None;
