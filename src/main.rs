@@ -214,6 +214,15 @@ fn build_controller(
     ctl
 }
 
+/// The link service, built in its static slot by a non-inlined function (its frame,
+/// with whatever temporary the construction needs, is gone before init's other work).
+#[inline(never)]
+fn build_link(
+    slot: &'static mut MaybeUninit<m2ctl::controller::comms::LinkService>,
+) -> &'static mut m2ctl::controller::comms::LinkService {
+    slot.write(m2ctl::controller::comms::LinkService::new())
+}
+
 /// The worker's request side: hands the next request to the worker where it lies in
 /// the queue (by reference, peeked), and takes it off the queue only once the worker
 /// took it; a refused request waits there for the next step. Not inlined, like
@@ -334,7 +343,7 @@ mod app {
                 rx_in,
                 uart_tx,
                 tx_out,
-                link: cx.local.link_slot.write(LinkService::new()),
+                link: build_link(cx.local.link_slot),
                 rx_out,
                 tx_in,
                 uart_errors,
