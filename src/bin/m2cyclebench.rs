@@ -58,6 +58,11 @@ const UPLINK_LEN: usize = 2048;
 const TC_FRAME_LEN: usize = 2 * MAX_TC_PACKET_LEN + 4;
 /// Idle periods measured.
 const IDLE_PERIODS: u32 = 20;
+/// The scenarios' move (and move check): 0.8/-0.6/0.4 mm, 45/-30/20 arcsec.
+const MOVE_TARGET: WirePose = WirePose {
+    translation_nm: [800_000, -600_000, 400_000],
+    rotation_uas: [45_000_000, -30_000_000, 20_000_000],
+};
 /// Time-tagged move checks released in one pass (= `MAX_TC_PER_PASS`, the most one
 /// pass takes).
 const SCHEDULED_CHECKS: usize = m2ctl::controller::comms::MAX_TC_PER_PASS;
@@ -347,7 +352,12 @@ fn run() -> bool {
     }) else {
         return false;
     };
-    let ok = scenarios(rig);
+    // The lock bodies after the scenarios, not inside them (the bench's own frames
+    // are not on the stack twice).
+    let ok = scenarios(rig) && lock_bodies(rig, &MOVE_TARGET);
+    if !ok {
+        defmt::error!("bench: a scenario or a lock body did not do what it should");
+    }
     defmt::info!("STACK part=control peak_bytes={=u32}", rig.peaks.control);
     defmt::info!("STACK part=link peak_bytes={=u32}", rig.peaks.link);
     defmt::info!("STACK part=worker peak_bytes={=u32}", rig.peaks.worker);
@@ -401,10 +411,7 @@ fn scenarios(r: &mut Rig) -> bool {
 
     // A move of 0.8/-0.6/0.4 mm, 45/-30/20 arcsec: its telecommand, planning, cruise,
     // arrival, with a housekeeping report every second.
-    let target = WirePose {
-        translation_nm: [800_000, -600_000, 400_000],
-        rotation_uas: [45_000_000, -30_000_000, 20_000_000],
-    };
+    let target = MOVE_TARGET;
     if !r.queue(&Command::MoveAbsolute(target)) {
         return false;
     }
@@ -517,7 +524,6 @@ fn scenarios(r: &mut Rig) -> bool {
             && r.ctl.tm_queue().is_empty()
     });
     let clean = clean && r.ctl.faults().is_empty();
-    let locks = lock_bodies(r, &target);
     if !(moved
         && burst_done
         && uploaded
@@ -526,11 +532,10 @@ fn scenarios(r: &mut Rig) -> bool {
         && checked
         && params_set
         && released
-        && locks
         && clean)
     {
         defmt::error!(
-            "bench: scenario failed: moved {=bool} burst {=bool} upload {=bool} commit {=bool} activate {=bool} check {=bool} params {=bool} releases {=bool} locks {=bool} clean {=bool}",
+            "bench: scenario failed: moved {=bool} burst {=bool} upload {=bool} commit {=bool} activate {=bool} check {=bool} params {=bool} releases {=bool} clean {=bool}",
             moved,
             burst_done,
             uploaded,
@@ -539,7 +544,6 @@ fn scenarios(r: &mut Rig) -> bool {
             checked,
             params_set,
             released,
-            locks,
             clean
         );
         return false;
@@ -580,10 +584,47 @@ fn lock_bodies(r: &mut Rig, target: &WirePose) -> bool {
         core::hint::black_box(c.dump_chunk(m2ctl::link::MemoryId::ActiveTable, 0));
     });
     // A move: accepted, its planning started (the samples come in the control cycles).
-    ok &= r.lock_tc("tc_move_absolute", &Command::MoveAbsolute(*target));
+    // (Back toward home: the bench is at `target` already.)
+    let back = WirePose {
+        translation_nm: target.translation_nm.map(|v| -v / 2),
+        rotation_uas: target.rotation_uas.map(|v| -v / 2),
+    };
+    ok &= r.lock_tc("tc_move_absolute", &Command::MoveAbsolute(back));
+    ok &= r.ctl.state() == State::Moving;
     while r.ctl.state() != State::Idle {
         r.ctl.control_cycle();
     }
+    // TC[20,3] set parameters (a job request queued), the worker's answer applied
+    // (derived settings and thresholds), the request handed on to the worker's queue.
+    let Ok(values) = ParameterValues::new(&[(HK_PERIOD_PARAM_ID, HK_PERIOD_CYCLES as i32)]) else {
+        return false;
+    };
+    ok &= r.lock_tc("tc_set_parameters", &Command::SetParameters(values));
+    let mut handed = false;
+    r.lock_section("job_request_handed_on", |c| {
+        c.offer_job_request(|_| {
+            handed = true;
+            true
+        })
+    });
+    ok &= handed;
+    let params = *r.ctl.parameters();
+    r.lock_section("job_finished_parameters", |c| {
+        c.job_finished(&JobResult::ParametersSaved(params))
+    });
+    // A TC[11,4] of two move checks (parsed, checked, inserted), then deleted again.
+    let release = TmTime::from_micros(cycle_to_us(u64::from(
+        r.ctl.cycle().wrapping_add(RELEASE_AFTER_CYCLES),
+    )));
+    if let Some(insert) = r.schedule_insert(release, &Command::CheckMove(*target)) {
+        ok &= r.lock_tc("tc_schedule_insert", &insert);
+    } else {
+        ok = false;
+    }
+    ok &= r.lock_tc(
+        "tc_schedule_reset",
+        &Command::Schedule(ScheduleCommand::Reset),
+    );
     // A table activation as the worker's answer: derive, swap, hold (FK).
     let mut table = Table::nominal();
     table.table_id = BENCH_TABLE_ID.wrapping_add(1);
