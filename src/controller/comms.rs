@@ -29,9 +29,8 @@ use super::telemetry::{Stamped, TmRecord};
 use super::{Controller, JobRequest, JobResult};
 use crate::hw::MechanismIo;
 use crate::link::framing::{max_cobs_len, Deframer};
-use crate::link::tm::{TmTime, TmWriter};
+use crate::link::tm::TmWriter;
 use crate::link::{Housekeeping, MAX_TC_PACKET_LEN, MAX_TM_FRAME_LEN};
-use crate::timing::cycle_to_us;
 
 /// Telecommands handled per pass (per control cycle): a table upload's five chunks and
 /// its commit arrive within two cycles; the budget per telecommand is measured by the
@@ -250,7 +249,7 @@ impl LinkService {
 
     #[inline(never)]
     fn encode(&mut self, stamped: &Stamped, content: &Content, out: &mut [u8]) -> Option<usize> {
-        let time = TmTime::from_micros(cycle_to_us(u64::from(stamped.cycle)));
+        let time = super::schedule::obt_of_cycle(stamped.cycle);
         match content {
             Content::Plain(TmRecord::Verification { request_id, report }) => self
                 .tm
