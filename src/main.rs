@@ -18,7 +18,8 @@
 //! The controller is the one shared resource (`control` and `link_service`): the link
 //! service holds its lock (priority ceiling 3) for one telecommand, one telemetry
 //! record or one job message at a time, so the control task waits at most for the
-//! longest of those (measured by `m2cyclebench`); encoding happens outside the lock.
+//! longest of those (measured by `m2cyclebench`: its `LOCK` sections); encoding, a move
+//! check's IK/FK and an activation's geometry derivation happen outside the lock.
 //! Everything else moves through bounded single-producer/single-consumer queues
 //! (`heapless::spsc`) owned by exactly one task at each end, without locks: UART bytes
 //! (RX, TX), job requests and results (link service <-> idle). The control task never
