@@ -211,9 +211,9 @@ impl<M: MechanismIo> Controller<M> {
     /// Advances a move being planned: on completion it becomes the path (start success
     /// reported), on refusal or abort the sliders keep holding (start failure reported).
     fn step_planning(&mut self) {
-        let Motion::Planning(mut planner) = self.motion else {
+        if !matches!(self.motion, Motion::Planning(_)) {
             return;
-        };
+        }
         let result = if self.plan_aborted {
             let latched = self.supervisor.latched();
             Some(Err(if latched.is_empty() {
@@ -221,14 +221,17 @@ impl<M: MechanismIo> Controller<M> {
             } else {
                 CommandError::AbortedByFault(latched)
             }))
-        } else {
+        } else if let Motion::Planning(planner) = &mut self.motion {
+            // Advanced where it is (not copied out and back: the control task's stack).
             planner
                 .advance(&self.active.geom, super::PLAN_SAMPLES_PER_CYCLE)
                 .map(|r| r.map_err(CommandError::Motion))
+        } else {
+            None
         };
         self.plan_aborted = false;
         match result {
-            None => self.motion = Motion::Planning(planner),
+            None => {}
             Some(Ok(traj)) => {
                 self.refusal_bits = 0;
                 // The path starts in this very cycle (the motion step follows).
