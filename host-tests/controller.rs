@@ -43,7 +43,10 @@ fn move_absolute_reaches_the_target_and_reports_completion_on_arrival() {
     // only on arrival.
     assert_eq!(r.st.reports(rid), [Verification::AcceptanceSuccess]);
     assert_eq!(r.ctl.state(), State::Moving);
-    r.run(m2ctl::controller::PLAN_SAMPLES_PER_CYCLE as u32 + 3);
+    // The path's samples at PLAN_SAMPLES_PER_CYCLE a cycle, plus the cycles around them.
+    let planning_cycles = (m2ctl::motion::PATH_SAMPLE_INTERVALS + 1)
+        .div_ceil(m2ctl::controller::PLAN_SAMPLES_PER_CYCLE) as u32;
+    r.run(planning_cycles + 3);
     assert_eq!(
         r.st.reports(rid),
         [Verification::AcceptanceSuccess, Verification::StartSuccess]
@@ -562,4 +565,48 @@ fn stop_while_a_move_is_being_planned_cancels_it() {
     );
     assert_eq!(r.ctl.state(), State::Idle);
     assert_eq!(r.hk().pose_commanded, WirePose::default());
+}
+
+/// README, "The executive": a move check's evaluation (IK of the whole path and FK) is
+/// not part of the telecommand's lock body: executing the TC leaves a copy of what the
+/// check reads and reports nothing but the acceptance; evaluated outside, the copy
+/// gives the same answer the link service reports for the same check.
+#[test]
+fn a_move_check_is_evaluated_outside_the_telecommands_lock_body() {
+    let mut r = Bench::new();
+    r.run(1);
+    // A far target: the whole straight path is sampled.
+    let target = wire(800.0, -600.0, 400.0, 45.0, -30.0, 20.0);
+    let (pkt, rid) = r.st.packet(&Command::CheckMove(target)).unwrap();
+    while r.ctl.tm_queue().pop().is_some() {}
+    // What the link service runs under the lock for this TC.
+    r.ctl.handle_telecommand(&pkt);
+    let mut queued = Vec::new();
+    while let Some(s) = r.ctl.tm_queue().pop() {
+        queued.push(s.record);
+    }
+    assert!(
+        !queued
+            .iter()
+            .any(|t| matches!(t, m2ctl::controller::TmRecord::MoveCheck { .. })),
+        "the check was evaluated in the TC's lock body: {queued:?}"
+    );
+    assert_eq!(queued.len(), 1, "only the acceptance: {queued:?}");
+    let mut slot = None;
+    r.ctl.take_move_check(&mut slot);
+    let job = slot.expect("the check waits for its evaluation");
+    assert_eq!(job.request_id(), rid);
+    let outside = job.evaluate();
+    // The same check through the link service (received, evaluated, reported).
+    let rid2 = r.send(&Command::CheckMove(target));
+    let reported =
+        r.st.log
+            .iter()
+            .find_map(|m| match m {
+                Tm::MoveCheck(id, c) if *id == rid2 => Some(*c),
+                _ => None,
+            })
+            .expect("TM[8,130] of the second check");
+    assert_eq!(outside, reported);
+    assert!(all_ok(&r.st.reports(rid2)), "{:?}", r.st.reports(rid2));
 }

@@ -42,6 +42,12 @@ k=$(count "$D/m2selftest"); echo "$k"
 e=$(pick "$k" 1)
 echo "IK (one pose, six strokes, all checks):          $(( $(pick "$k" 2) - e )) instructions (goal <= 600)"
 echo "FK (warm start within 10 um, with residual):     $(( $(pick "$k" 3) - e )) instructions (goal <= 5000)"
+# The same kinematics as the flight image compiles them (profile flight, opt-level s).
+cargo build --profile flight --target thumbv7em-none-eabihf --features firmware --bin m2selftest
+ks=$(count "$F/m2selftest")
+es=$(pick "$ks" 1)
+echo "IK in the flight profile (opt-level s):          $(( $(pick "$ks" 2) - es )) instructions (flight goal <= 1000)"
+echo "FK in the flight profile (opt-level s):          $(( $(pick "$ks" 3) - es )) instructions (flight goal <= 8000)"
 read -r text data bss _ < <(sizes "$D/m2selftest")
 stack=$(run_log "$D/m2selftest" | sed -n 's/.*STACK peak_bytes=\([0-9]*\).*/\1/p')
 echo "self-test image flash (text + data):             $((text + data)) bytes (goal <= 65536)"
@@ -59,8 +65,19 @@ while read -r name first periods; do
     $1 == "BENCH" { n = $3; v = $5 - e; if (n >= f && n < f + 3 * p) { k = (n - f) % 3; if (v > m[k]) m[k] = v } }
     END { printf "%-13s %5d periods: control cycle max %6d (goal <= 20000), link pass max %8d, worker step max %8d instructions\n", name, p, m[0], m[1], m[2] }'
 done
+# The controller's lock bodies, each alone (m2cyclebench's `LOCK name=.. section=n`
+# lines): the longest is what a control cycle may wait for the link service's lock.
+echo "$log" | sed -n 's/.*LOCK name=\([a-z_]*\) section=\([0-9]*\).*/\1 \2/p' |
+while read -r name n; do
+  echo "$c" | awk -F'[ =]' -v n="$n" -v e="$e" -v name="$name" '
+    $1 == "BENCH" && $3 == n { printf "lock body %-24s %8d instructions\n", name, $5 - e }'
+done
 # Static worst-case stack of each m2fw task (frames along the deepest direct-call chain);
 # the measured peak of the flight image is printed by scripts/qemu-link-test.sh.
 python3 scripts/stack-depth.py "$F/m2fw" main CONTROL_TIMER LINK_SERVICE WORKER UART_RX UART_TX | grep STATIC
+# The whole image's worst case: idle (thread mode, after init) preempted by a priority-1
+# task, preempted by UART TX, by the control task, by UART RX (goal <= 8192); the boot
+# path (main's STATIC line: init, before any interrupt is enabled) is the other candidate.
+python3 scripts/stack-depth.py "$F/m2fw" --nested main:frame LINK_SERVICE,WORKER UART_TX CONTROL_TIMER UART_RX
 read -r ftext fdata fbss _ < <(sizes "$F/m2fw")
 echo "flight image m2fw flash (text + data):           $((ftext + fdata)) bytes (goal <= 65536); RAM data + bss $((fdata + fbss)) bytes"

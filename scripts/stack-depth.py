@@ -2,6 +2,14 @@
 """Static worst-case stack depth of the tasks of a Cortex-M (Thumb-2) ELF.
 
 usage: stack-depth.py <elf> <root symbol>...   (e.g. CONTROL_TIMER LINK_SERVICE WORKER UART_RX main)
+       stack-depth.py <elf> --nested <level> <level>...
+         each level a comma-separated list of the roots of one priority, lowest first
+         (e.g. main:frame LINK_SERVICE,WORKER UART_TX CONTROL_TIMER UART_RX; `name:frame` counts only
+         that function's own frame: thread mode idles in main's frame after init
+         returned): the worst case with every level
+         preempting the one below (one shared stack, as RTIC runs): the deepest root of
+         each level, plus an exception frame with FP context (26 words, 104 bytes, the
+         Cortex-M4F's extended frame) for every level above the first.
 
 From `arm-none-eabi-objdump -d`: each function's frame is what its push/stmdb, vpush
 and `sub sp` reserve; its callees are the direct calls and tail branches (bl, b.w, b)
@@ -46,6 +54,11 @@ def parse(elf):
     return funcs
 
 
+# Bytes an exception entry pushes with an active FP context (Cortex-M4F extended frame:
+# r0-r3, r12, lr, pc, xpsr, s0-s15, fpscr, reserved).
+EXCEPTION_FRAME_FP_BYTES = 26 * 4
+
+
 def count_regs(text):
     n = 0
     for r in text.split(","):
@@ -76,6 +89,20 @@ def main():
         return f["frame"] + best, ((fn, f["frame"]),) + path
 
     sys.setrecursionlimit(100000)
+    if len(sys.argv) > 2 and sys.argv[2] == "--nested":
+        total, parts = 0, []
+        for k, level in enumerate(sys.argv[3:]):
+            def level_depth(r):
+                if r.endswith(":frame"):
+                    return funcs.get(r[: -len(":frame")], {"frame": 0})["frame"]
+                return depth(r, frozenset())[0]
+
+            d, root = max((level_depth(r), r) for r in level.split(","))
+            frame = EXCEPTION_FRAME_FP_BYTES if k > 0 else 0
+            total += d + frame
+            parts.append(f"{root} {d}" + (f" + {frame}" if frame else ""))
+        print(f"NESTED depth_bytes={total} = " + " + ".join(parts))
+        return
     for root in sys.argv[2:]:
         d, path = depth(root, frozenset())
         print(f"STATIC root={root} depth_bytes={d}")

@@ -23,7 +23,8 @@
 //! The controller is the one shared resource (`control` and `link_service`): the link
 //! service holds its lock (priority ceiling 3) for one telecommand, one telemetry
 //! record or one job message at a time, so the control task waits at most for the
-//! longest of those (measured by `m2cyclebench`); encoding happens outside the lock.
+//! longest of those (measured by `m2cyclebench`: its `LOCK` sections); encoding, a move
+//! check's IK/FK and an activation's geometry derivation happen outside the lock.
 //! Everything else moves through bounded single-producer/single-consumer queues
 //! (`heapless::spsc`) owned by exactly one task at each end, without locks: UART bytes
 //! (RX, TX), job requests and results (link service <-> idle). The control task never
@@ -118,8 +119,8 @@ struct WorkerQueues<'a> {
 }
 
 impl JobPort for WorkerQueues<'_> {
-    fn send(&mut self, request: JobRequest) -> Result<(), JobRequest> {
-        self.requests.enqueue(request)
+    fn send(&mut self, request: &JobRequest) -> bool {
+        self.requests.enqueue(*request).is_ok()
     }
     fn recv(&mut self) -> Option<JobResult> {
         self.results.dequeue()
@@ -219,57 +220,49 @@ fn build_controller(
     ctl
 }
 
-/// The worker's request side: hands the next request (or the one it refused last
-/// time) to the worker. Not inlined, like [`step_worker`]: the ~1 KB requests moved
-/// here and the step's own frame are never on the stack together.
+/// The link service, built in its static slot by a non-inlined function (its frame,
+/// with whatever temporary the construction needs, is gone before init's other work).
+#[inline(never)]
+fn build_link(
+    slot: &'static mut MaybeUninit<m2ctl::controller::comms::LinkService>,
+) -> &'static mut m2ctl::controller::comms::LinkService {
+    slot.write(m2ctl::controller::comms::LinkService::new())
+}
+
+/// The worker's request side: hands the next request to the worker where it lies in
+/// the queue (by reference, peeked), and takes it off the queue only once the worker
+/// took it; a refused request waits there for the next step. Not inlined, like
+/// [`step_worker`]: their frames are never on the stack together.
 #[inline(never)]
 fn take_request(
     worker: &mut Worker<board::TableFlash>,
     requests: &mut heapless::spsc::Consumer<'static, JobRequest, JOB_QUEUE_LEN>,
-    refused: &mut heapless::Vec<JobRequest, 1>,
 ) {
-    if refused.is_empty() {
-        if let Some(r) = requests.dequeue() {
-            let _ = refused.push(r);
-        }
-    }
-    if let Some(r) = refused.pop() {
-        if let Err(r) = worker.submit(r) {
-            let _ = refused.push(r);
-        }
+    if requests.peek().is_some_and(|r| worker.submit(r)) {
+        // Taken: the worker copied it.
+        drop_front(requests);
     }
 }
 
-/// One worker step; its result goes to the result queue (or waits in `unsent` while
-/// the queue is full, and then no step is taken).
+/// Removes the front request (already copied by the worker).
+#[inline(never)]
+fn drop_front(requests: &mut heapless::spsc::Consumer<'static, JobRequest, JOB_QUEUE_LEN>) {
+    let _ = requests.dequeue();
+}
+
+/// One worker step, taken only while the result queue has room for its result (so a
+/// result is never held back on the stack or in a side slot).
 #[inline(never)]
 fn step_worker(
     worker: &mut Worker<board::TableFlash>,
     results: &mut heapless::spsc::Producer<'static, JobResult, JOB_QUEUE_LEN>,
-    unsent: &mut heapless::Vec<JobResult, 1>,
 ) {
-    if !unsent.is_empty() {
-        send_unsent(results, unsent);
+    if !results.ready() {
         return;
     }
     if let Some(r) = worker.step(board::ticks()) {
-        if let Err(r) = results.enqueue(r) {
-            let _ = unsent.push(r);
-        }
-    }
-}
-
-/// Retries the result the queue had no room for (not inlined: its copy of the result
-/// is not on the stack during a step).
-#[inline(never)]
-fn send_unsent(
-    results: &mut heapless::spsc::Producer<'static, JobResult, JOB_QUEUE_LEN>,
-    unsent: &mut heapless::Vec<JobResult, 1>,
-) {
-    if let Some(r) = unsent.pop() {
-        if let Err(r) = results.enqueue(r) {
-            let _ = unsent.push(r);
-        }
+        // Room was checked above: this cannot fail.
+        let _ = results.enqueue(r);
     }
 }
 
@@ -356,7 +349,7 @@ mod app {
                 rx_in,
                 uart_tx,
                 tx_out,
-                link: cx.local.link_slot.write(LinkService::new()),
+                link: build_link(cx.local.link_slot),
                 rx_out,
                 tx_in,
                 uart_errors,
@@ -433,18 +426,12 @@ mod app {
 
     /// The background worker: one step per control period, after the link pass (the
     /// same priority: neither preempts the other, so their stacks never add up).
-    #[task(binds = WORKER, priority = 1, local = [
-        worker, requests_rx, results_tx,
-        refused: heapless::Vec<JobRequest, 1> = heapless::Vec::new(),
-        unsent: heapless::Vec<JobResult, 1> = heapless::Vec::new(),
-    ])]
+    #[task(binds = WORKER, priority = 1, local = [worker, requests_rx, results_tx])]
     fn worker(cx: worker::Context) {
         let l = cx.local;
-        // `refused`/`unsent` hold one request the worker refused for now and one result
-        // the queue had no room for (statics, not stack; empty vectors are zeroed
-        // memory, so they cost no flash).
-        take_request(l.worker, l.requests_rx, l.refused);
-        step_worker(l.worker, l.results_tx, l.unsent);
+        // A refused request waits in its queue; no step while the result queue is full.
+        take_request(l.worker, l.requests_rx);
+        step_worker(l.worker, l.results_tx);
     }
 
     /// Nothing else to do: sleep until the next interrupt.

@@ -9,7 +9,9 @@
 //! Sections: `BENCH n=1` is the empty pair; then every period contributes three
 //! sections, control (n), link (n+1), worker (n+2). A `GROUP name=.. first=n
 //! periods=k` line (defmt log) names the periods of each scenario: idle, a move, a TC
-//! burst, housekeeping, a table upload, the background commit, the activation.
+//! burst, housekeeping, a table upload, the background commit, the activation, the
+//! scrubs, a move check TC[8,1] 0x0006, set parameters TC[20,3], four scheduled
+//! (ST[11]) move checks released in one pass.
 //! `STACK part=.. peak_bytes=..` lines give the deepest stack of each part; `BOOT` the
 //! boot path's. `scripts/bench.sh` joins the two. Exits through semihosting (0 if
 //! every scenario did what it should, so the figures are what they claim).
@@ -27,11 +29,14 @@ use m2ctl::board::active::{self as hw, Board, Sliders, TableFlash};
 use m2ctl::controller::comms::{JobPort, LinkService, RxBytes, TxBytes};
 use m2ctl::controller::{Controller, JobRequest, JobResult, ResetCause, State, Worker};
 use m2ctl::hw::SliderDrives;
+use m2ctl::link::command::ParameterValues;
 use m2ctl::link::command::WirePose;
+use m2ctl::link::schedule::{ActivityBlock, ScheduleCommand, MAX_SCHEDULED_TC_LEN};
 use m2ctl::link::tc::{encode_telecommand, TcHeader};
+use m2ctl::link::TmTime;
 use m2ctl::link::{encode_frame, Command, MAX_TC_PACKET_LEN};
 use m2ctl::table::{Table, TableStore, ValidationConfig};
-use m2ctl::timing::HK_PERIOD_CYCLES;
+use m2ctl::timing::{cycle_to_us, HK_PERIOD_CYCLES};
 
 /// Exit code: every scenario ran as intended.
 const EXIT_PASS: i32 = 0;
@@ -52,6 +57,20 @@ const UPLINK_LEN: usize = 2048;
 const TC_FRAME_LEN: usize = 2 * MAX_TC_PACKET_LEN + 4;
 /// Idle periods measured.
 const IDLE_PERIODS: u32 = 20;
+/// The scenarios' move (and move check): 0.8/-0.6/0.4 mm, 45/-30/20 arcsec.
+const MOVE_TARGET: WirePose = WirePose {
+    translation_nm: [800_000, -600_000, 400_000],
+    rotation_uas: [45_000_000, -30_000_000, 20_000_000],
+};
+/// Time-tagged move checks released in one pass (= `MAX_TC_PER_PASS`, the most one
+/// pass takes).
+const SCHEDULED_CHECKS: usize = m2ctl::controller::comms::MAX_TC_PER_PASS;
+/// Scheduled move checks per TC[11,4] (its application data holds at most three moves).
+const CHECKS_PER_INSERT: usize = 2;
+/// The scheduled checks are released this many control cycles after their insert.
+const RELEASE_AFTER_CYCLES: u32 = 50;
+/// Parameter ID of the housekeeping period (TC[20,3]).
+const HK_PERIOD_PARAM_ID: u16 = 0x0020;
 /// Most periods a scenario may take before it counts as failed.
 const MAX_PERIODS: u32 = 20_000;
 /// Table ID of the table the benchmark uploads and commits.
@@ -98,7 +117,7 @@ struct Port<'a> {
 }
 
 impl JobPort for Port<'_> {
-    fn send(&mut self, request: JobRequest) -> Result<(), JobRequest> {
+    fn send(&mut self, request: &JobRequest) -> bool {
         self.worker.submit(request)
     }
     fn recv(&mut self) -> Option<JobResult> {
@@ -200,6 +219,53 @@ impl Rig {
             .is_some_and(|f| f.iter().all(|b| self.up.0.push_back(*b).is_ok()))
     }
 
+    /// A TC[11,4] inserting [`CHECKS_PER_INSERT`] copies of `cmd`, all released at
+    /// `release` (each its own packet, with its own sequence count).
+    #[inline(never)]
+    fn schedule_insert(&mut self, release: TmTime, cmd: &Command) -> Option<Command> {
+        let mut pkts = [[0u8; MAX_SCHEDULED_TC_LEN]; CHECKS_PER_INSERT];
+        let mut lens = [0usize; CHECKS_PER_INSERT];
+        for (pkt, len) in pkts.iter_mut().zip(lens.iter_mut()) {
+            *len = encode_telecommand(cmd, TcHeader::new(self.seq), pkt).ok()?;
+            self.seq = self.seq.wrapping_add(1);
+        }
+        let mut acts: heapless::Vec<(TmTime, &[u8]), CHECKS_PER_INSERT> = heapless::Vec::new();
+        for (pkt, len) in pkts.iter().zip(lens.iter()) {
+            acts.push((release, pkt.get(..*len)?)).ok()?;
+        }
+        let block = ActivityBlock::new(&acts).ok()?;
+        Some(Command::Schedule(ScheduleCommand::Insert(block)))
+    }
+
+    /// One lock body `f` as its own measured section, named `name` (`LOCK` line).
+    #[inline(never)]
+    fn lock_section<R>(
+        &mut self,
+        name: &str,
+        f: impl FnOnce(&mut Controller<QemuSliders>) -> R,
+    ) -> R {
+        let ctl = &mut *self.ctl;
+        hw::bench_start();
+        let r = f(ctl);
+        hw::bench_end();
+        self.sections += 1;
+        defmt::info!("LOCK name={=str} section={=u32}", name, self.sections);
+        r
+    }
+
+    /// `cmd` handed to the controller as the link service does it (one lock body).
+    #[inline(never)]
+    fn lock_tc(&mut self, name: &str, cmd: &Command) -> bool {
+        let mut pkt = [0u8; MAX_TC_PACKET_LEN];
+        let Ok(n) = encode_telecommand(cmd, TcHeader::new(self.seq), &mut pkt) else {
+            return false;
+        };
+        self.seq = self.seq.wrapping_add(1);
+        let Some(p) = pkt.get(..n) else { return false };
+        self.lock_section(name, |c| c.handle_telecommand(p));
+        true
+    }
+
     /// Runs `periods` periods as the group `name`.
     fn group(&mut self, name: &str, periods: u32) {
         let first = self.sections + 1;
@@ -285,7 +351,12 @@ fn run() -> bool {
     }) else {
         return false;
     };
-    let ok = scenarios(rig);
+    // The lock bodies after the scenarios, not inside them (the bench's own frames
+    // are not on the stack twice).
+    let ok = scenarios(rig) && lock_bodies(rig, &MOVE_TARGET);
+    if !ok {
+        defmt::error!("bench: a scenario or a lock body did not do what it should");
+    }
     defmt::info!("STACK part=control peak_bytes={=u32}", rig.peaks.control);
     defmt::info!("STACK part=link peak_bytes={=u32}", rig.peaks.link);
     defmt::info!("STACK part=worker peak_bytes={=u32}", rig.peaks.worker);
@@ -339,10 +410,7 @@ fn scenarios(r: &mut Rig) -> bool {
 
     // A move of 0.8/-0.6/0.4 mm, 45/-30/20 arcsec: its telecommand, planning, cruise,
     // arrival, with a housekeeping report every second.
-    let target = WirePose {
-        translation_nm: [800_000, -600_000, 400_000],
-        rotation_uas: [45_000_000, -30_000_000, 20_000_000],
-    };
+    let target = MOVE_TARGET;
     if !r.queue(&Command::MoveAbsolute(target)) {
         return false;
     }
@@ -410,17 +478,165 @@ fn scenarios(r: &mut Rig) -> bool {
     // A scrub of the RAM table and both banks once more after the change.
     r.group("scrub", 1_100);
     let clean = r.ctl.faults().is_empty() && r.ctl.housekeeping().bank_health == 0;
-    if !(moved && burst_done && uploaded && committed && activated && clean) {
+
+    // A move check TC[8,1] 0x0006 of the same 0.8 mm / 45" move: the whole straight path
+    // checked (IK of every sample, FK) in one telecommand, so in one link-service lock:
+    // its link pass bounds how long the control task may wait for that lock.
+    if !r.queue(&Command::CheckMove(target)) {
+        return false;
+    }
+    let checked = r.group_until("check_move", |r| {
+        r.up.0.is_empty() && r.ctl.tm_queue().is_empty()
+    });
+
+    // Set parameters TC[20,3] (housekeeping period, the default value): persisted by
+    // the worker (a selection record write), then applied.
+    let Ok(values) = ParameterValues::new(&[(HK_PERIOD_PARAM_ID, HK_PERIOD_CYCLES as i32)]) else {
+        return false;
+    };
+    if !r.queue(&Command::SetParameters(values)) {
+        return false;
+    }
+    let generation_before = r.ctl.housekeeping().tc_accepted;
+    let params_set = r.group_until("set_parameters", |r| {
+        r.ctl.housekeeping().job == 0 && r.ctl.tm_queue().is_empty() && r.up.0.is_empty()
+    }) && r.ctl.housekeeping().tc_accepted == generation_before.wrapping_add(1);
+
+    // Four time-tagged move checks released by the schedule (ST[11]) in one pass: two
+    // TC[11,4] (at most three moves fit in one) inserting them with the same release
+    // time, 50 periods from now.
+    let released_before = r.ctl.housekeeping().schedule.released;
+    let release = TmTime::from_micros(cycle_to_us(u64::from(
+        r.ctl.cycle().wrapping_add(RELEASE_AFTER_CYCLES),
+    )));
+    for _ in 0..SCHEDULED_CHECKS / CHECKS_PER_INSERT {
+        let Some(insert) = r.schedule_insert(release, &Command::CheckMove(target)) else {
+            return false;
+        };
+        if !r.queue(&insert) {
+            return false;
+        }
+    }
+    let released = r.group_until("releases", |r| {
+        r.ctl.housekeeping().schedule.released
+            == released_before.wrapping_add(SCHEDULED_CHECKS as u16)
+            && r.ctl.tm_queue().is_empty()
+    });
+    let clean = clean && r.ctl.faults().is_empty();
+    if !(moved
+        && burst_done
+        && uploaded
+        && committed
+        && activated
+        && checked
+        && params_set
+        && released
+        && clean)
+    {
         defmt::error!(
-            "bench: scenario failed: moved {=bool} burst {=bool} upload {=bool} commit {=bool} activate {=bool} clean {=bool}",
+            "bench: scenario failed: moved {=bool} burst {=bool} upload {=bool} commit {=bool} activate {=bool} check {=bool} params {=bool} releases {=bool} clean {=bool}",
             moved,
             burst_done,
             uploaded,
             committed,
             activated,
+            checked,
+            params_set,
+            released,
             clean
         );
         return false;
     }
     true
+}
+
+/// The controller's lock bodies, each measured alone (a `LOCK name=.. section=n` line
+/// names its section): what the link service runs while it holds the lock, so the
+/// longest a control cycle may wait for it (RTIC's priority ceiling: one lock body).
+/// At rest, after the scenarios: a telecommand of each kind the link hands over
+/// (a move check only queues its copy; the move starts its planning), the pieces of a
+/// move check's report, a housekeeping record's content, a job request handed on, and
+/// the activation of a table (`job_finished`, the worker's `Selected`).
+#[inline(never)]
+fn lock_bodies(r: &mut Rig, target: &WirePose) -> bool {
+    let mut ok = true;
+    for (name, cmd) in [
+        ("tc_ping", Command::Ping),
+        ("tc_hk_one_shot", Command::HousekeepingOneShot),
+        ("tc_check_move", Command::CheckMove(*target)),
+    ] {
+        ok &= r.lock_tc(name, &cmd);
+    }
+    // The move check the last TC queued: taken, evaluated unlocked, reported.
+    let mut slot = None;
+    r.lock_section("check_take", |c| c.take_move_check(&mut slot));
+    ok &= slot.is_some();
+    if let Some(job) = &slot {
+        let check = job.evaluate();
+        let (rid, ack) = (job.request_id(), job.ack());
+        r.lock_section("check_report", |c| c.finish_move_check(rid, ack, check));
+    }
+    r.lock_section("hk_content", |c| {
+        core::hint::black_box(c.housekeeping());
+    });
+    r.lock_section("dump_chunk", |c| {
+        core::hint::black_box(c.dump_chunk(m2ctl::link::MemoryId::ActiveTable, 0));
+    });
+    // A move: accepted, its planning started (the samples come in the control cycles).
+    // (Back toward home: the bench is at `target` already.)
+    let back = WirePose {
+        translation_nm: target.translation_nm.map(|v| -v / 2),
+        rotation_uas: target.rotation_uas.map(|v| -v / 2),
+    };
+    ok &= r.lock_tc("tc_move_absolute", &Command::MoveAbsolute(back));
+    ok &= r.ctl.state() == State::Moving;
+    while r.ctl.state() != State::Idle {
+        r.ctl.control_cycle();
+    }
+    // TC[20,3] set parameters (a job request queued), the worker's answer applied
+    // (derived settings and thresholds), the request handed on to the worker's queue.
+    let Ok(values) = ParameterValues::new(&[(HK_PERIOD_PARAM_ID, HK_PERIOD_CYCLES as i32)]) else {
+        return false;
+    };
+    ok &= r.lock_tc("tc_set_parameters", &Command::SetParameters(values));
+    let mut handed = false;
+    r.lock_section("job_request_handed_on", |c| {
+        c.offer_job_request(|_| {
+            handed = true;
+            true
+        })
+    });
+    ok &= handed;
+    let params = *r.ctl.parameters();
+    r.lock_section("job_finished_parameters", |c| {
+        c.job_finished(&JobResult::ParametersSaved(params))
+    });
+    // A TC[11,4] of two move checks (parsed, checked, inserted), then deleted again.
+    let release = TmTime::from_micros(cycle_to_us(u64::from(
+        r.ctl.cycle().wrapping_add(RELEASE_AFTER_CYCLES),
+    )));
+    if let Some(insert) = r.schedule_insert(release, &Command::CheckMove(*target)) {
+        ok &= r.lock_tc("tc_schedule_insert", &insert);
+    } else {
+        ok = false;
+    }
+    ok &= r.lock_tc(
+        "tc_schedule_reset",
+        &Command::Schedule(ScheduleCommand::Reset),
+    );
+    // A table activation as the worker's answer: derive, swap, hold (FK).
+    let mut table = Table::nominal();
+    table.table_id = BENCH_TABLE_ID.wrapping_add(1);
+    let result = JobResult::Selected {
+        table,
+        geom: m2ctl::controller::jobs::derive_geometry(&table),
+        selection: m2ctl::table::Selection::nominal(),
+    };
+    r.lock_section("job_finished_selected", |c| c.job_finished(&result));
+    ok &= r.ctl.active_table().table_id == table.table_id;
+    // Drain what these queued.
+    while !r.ctl.tm_queue().is_empty() {
+        let _ = r.ctl.tm_queue().pop();
+    }
+    ok
 }

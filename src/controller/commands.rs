@@ -16,6 +16,11 @@ impl<M: MechanismIo> Controller<M> {
     /// One telecommand packet (the bytes of one deframed frame): decode, report,
     /// execute. A refused telecommand changes nothing but the counters and the reports.
     pub fn handle_telecommand(&mut self, packet: &[u8]) {
+        // A move check a caller without a link service left uncollected: evaluated and
+        // reported now, before this telecommand (none is lost, the order is kept).
+        if self.move_check.is_some() {
+            self.run_move_check();
+        }
         let tc = match decode_telecommand(packet) {
             Ok(tc) => tc,
             Err(rej) => {
@@ -47,6 +52,8 @@ impl<M: MechanismIo> Controller<M> {
                     self.verify(rid, Verification::CompletionSuccess);
                 }
             }
+            // Start and completion follow the check's report (`finish_move_check`).
+            Ok(Outcome::CheckQueued) => {}
             Ok(Outcome::Planning) => {
                 // Start success or failure is reported when the plan is done.
                 self.tc_pending = Some(PendingTc {
@@ -121,6 +128,10 @@ impl<M: MechanismIo> Controller<M> {
         );
     }
 
+    /// Not inlined (nor are its table and parameter arms): the decoded telecommand in
+    /// the caller's frame and an arm's locals (a table, a job request) are each on the
+    /// stack once, never merged with the move planner's frame.
+    #[inline(never)]
     fn execute(&mut self, tc: &Telecommand) -> Result<Outcome, CommandError> {
         match tc.command {
             Command::Ping => {
@@ -133,15 +144,8 @@ impl<M: MechanismIo> Controller<M> {
             }
             Command::MoveAbsolute(target) => self.start_move(target.to_pose()),
             Command::CheckMove(target) => {
-                let check = self.check_move(target.to_pose());
-                self.tm.push(
-                    self.cycle,
-                    TmRecord::MoveCheck {
-                        request_id: tc.request_id,
-                        check,
-                    },
-                );
-                Ok(Outcome::Done)
+                self.queue_move_check(tc.request_id, tc.ack, target.to_pose());
+                Ok(Outcome::CheckQueued)
             }
             Command::ReportParameters(ids) => {
                 let mut mask = 0u32;
@@ -154,15 +158,7 @@ impl<M: MechanismIo> Controller<M> {
                 self.tm.push(self.cycle, TmRecord::Parameters { mask });
                 Ok(Outcome::Done)
             }
-            Command::SetParameters(values) => {
-                // Applied between motions only, after they are persisted.
-                self.require_idle()?;
-                let new = self
-                    .params
-                    .with(values.entries(), &self.active.table)
-                    .map_err(CommandError::Parameter)?;
-                self.start_job(JobRequest::SaveParameters(new))
-            }
+            Command::SetParameters(ref values) => self.set_parameters(values.entries()),
             Command::MoveRelative(delta) => {
                 let target = self.relative_target(delta.to_pose())?;
                 self.start_move(target)
@@ -196,15 +192,7 @@ impl<M: MechanismIo> Controller<M> {
                 self.upload.load(chunk.offset_bytes(), chunk.bytes());
                 Ok(Outcome::Done)
             }
-            Command::CommitTable { crc32 } => {
-                // Commits happen at rest only (a flash erase can stall a single-bank
-                // device for seconds); moves wait until the job is done.
-                self.require_idle()?;
-                let table = self.upload.check(crc32)?;
-                self.upload.clear_received();
-                self.pending_table = None;
-                self.start_job(JobRequest::Commit(table))
-            }
+            Command::CommitTable { crc32 } => self.commit_uploaded(crc32),
             Command::ActivateTable { table_id, crc32 } => {
                 self.require_idle()?;
                 let p = self.pending_table.ok_or(CommandError::NoPending)?;
@@ -239,6 +227,31 @@ impl<M: MechanismIo> Controller<M> {
                 Ok(Outcome::Done)
             }
         }
+    }
+
+    /// TC[8,1] set parameters: applied between motions only, after they are persisted.
+    #[inline(never)]
+    fn set_parameters(&mut self, entries: &[(u16, i32)]) -> Result<Outcome, CommandError> {
+        self.require_idle()?;
+        let new = self
+            .params
+            .with(entries, &self.active.table)
+            .map_err(CommandError::Parameter)?;
+        self.start_job(JobRequest::SaveParameters(new))
+    }
+
+    /// Commit of the uploaded table. Commits happen at rest only (a flash erase can
+    /// stall a single-bank device for seconds); moves wait until the job is done.
+    #[inline(never)]
+    fn commit_uploaded(&mut self, crc32: u32) -> Result<Outcome, CommandError> {
+        self.require_idle()?;
+        let table = self.upload.check(crc32)?;
+        self.jobs
+            .submit_commit(&table)
+            .map_err(|kind: JobKind| CommandError::JobBusy(kind.code()))?;
+        self.upload.clear_received();
+        self.pending_table = None;
+        Ok(Outcome::JobStarted)
     }
 
     fn start_job(&mut self, request: JobRequest) -> Result<Outcome, CommandError> {

@@ -19,15 +19,18 @@
 //!
 //! The controller is reached through [`Exclusive`]: on the target an RTIC resource
 //! lock, held only for one telecommand or one record at a time; on the host a plain
-//! `&mut`. Encoding happens outside the lock.
+//! `&mut`. Encoding happens outside the lock, and so does a move check's evaluation
+//! (TC[8,1] 0x0006: the whole path's IK and FK): the telecommand leaves a copy of what
+//! the check reads ([`MoveCheckJob`]), the link service evaluates it unlocked and
+//! reports it under the lock.
 
+use super::motion::MoveCheckJob;
 use super::telemetry::{Stamped, TmRecord};
 use super::{Controller, JobRequest, JobResult};
 use crate::hw::MechanismIo;
 use crate::link::framing::{max_cobs_len, Deframer};
-use crate::link::tm::{TmTime, TmWriter};
+use crate::link::tm::TmWriter;
 use crate::link::{Housekeeping, MAX_TC_PACKET_LEN, MAX_TM_FRAME_LEN};
-use crate::timing::cycle_to_us;
 
 /// Telecommands handled per pass (per control cycle): a table upload's five chunks and
 /// its commit arrive within two cycles; the budget per telecommand is measured by the
@@ -67,9 +70,9 @@ pub trait TxBytes {
 /// The background worker as the link service sees it (two bounded queues on the
 /// target, the worker itself on the host).
 pub trait JobPort {
-    /// Hands a request over; gives it back if there is no room.
-    #[allow(clippy::result_large_err)] // handed back by value: no heap
-    fn send(&mut self, request: JobRequest) -> Result<(), JobRequest>;
+    /// Hands a request over (copies it) and returns true; false if there is no room
+    /// (the request stays with the controller). By reference: a request is ~1.3 KB.
+    fn send(&mut self, request: &JobRequest) -> bool;
     /// The next result, if any.
     fn recv(&mut self) -> Option<JobResult>;
 }
@@ -89,8 +92,9 @@ pub struct LinkService {
     deframer: Deframer<RX_FRAME_BUFFER_LEN>,
     tm: TmWriter,
     counters: LinkCounters,
-    /// A job request the port had no room for.
-    held_request: Option<JobRequest>,
+    /// The move check being evaluated ([`LinkService::run_move_check`]; here, not on
+    /// the stack).
+    move_check: Option<MoveCheckJob>,
 }
 
 impl Default for LinkService {
@@ -119,7 +123,7 @@ impl LinkService {
                 frames_dropped: 0,
                 uart_overruns: 0,
             },
-            held_request: None,
+            move_check: None,
         }
     }
 
@@ -145,6 +149,7 @@ impl LinkService {
 
     /// Step 1: at most [`MAX_TC_PER_PASS`] telecommands: the schedule's due activities
     /// first, then from the RX bytes.
+    #[inline(never)]
     pub fn receive<M, C>(&mut self, ctl: &mut C, rx: &mut impl RxBytes)
     where
         M: MechanismIo,
@@ -154,6 +159,7 @@ impl LinkService {
         let mut handled = 0;
         // Time-tagged activities due now (ST[11]) share the pass's budget, first.
         while handled < MAX_TC_PER_PASS && ctl.lock(|c| c.release_next_due()) {
+            self.run_move_check(ctl);
             handled += 1;
         }
         while handled < MAX_TC_PER_PASS {
@@ -162,6 +168,7 @@ impl LinkService {
                 None => {}
                 Some(Ok(packet)) => {
                     ctl.lock(|c| c.handle_telecommand(packet));
+                    self.run_move_check(ctl);
                     handled += 1;
                 }
                 Some(Err(_)) => {
@@ -171,7 +178,27 @@ impl LinkService {
         }
     }
 
+    /// Evaluates the move check the last telecommand queued (if any) outside the
+    /// controller's lock: locked only to take its copy and to report it, so the control
+    /// task never waits for the path's IK and FK (module documentation).
+    #[inline(never)]
+    fn run_move_check<M, C>(&mut self, ctl: &mut C)
+    where
+        M: MechanismIo,
+        C: Exclusive<Controller<M>>,
+    {
+        let slot = &mut self.move_check;
+        ctl.lock(|c| c.take_move_check(slot));
+        if let Some(job) = &self.move_check {
+            let check = job.evaluate();
+            let (request_id, ack) = (job.request_id(), job.ack());
+            ctl.lock(|c| c.finish_move_check(request_id, ack, check));
+        }
+        self.move_check = None;
+    }
+
     /// Step 2: encode queued records while their frames fit in the TX queue.
+    #[inline(never)]
     pub fn transmit<M, C>(&mut self, ctl: &mut C, tx: &mut impl TxBytes)
     where
         M: MechanismIo,
@@ -220,8 +247,9 @@ impl LinkService {
         }
     }
 
+    #[inline(never)]
     fn encode(&mut self, stamped: &Stamped, content: &Content, out: &mut [u8]) -> Option<usize> {
-        let time = TmTime::from_micros(cycle_to_us(u64::from(stamped.cycle)));
+        let time = super::schedule::obt_of_cycle(stamped.cycle);
         match content {
             Content::Plain(TmRecord::Verification { request_id, report }) => self
                 .tm
@@ -255,26 +283,16 @@ impl LinkService {
     }
 
     /// Moves job requests from the controller to the worker and results back.
+    #[inline(never)]
     pub fn exchange_jobs<M, C>(&mut self, ctl: &mut C, port: &mut impl JobPort)
     where
         M: MechanismIo,
         C: Exclusive<Controller<M>>,
     {
         while let Some(result) = port.recv() {
-            ctl.lock(|c| c.job_finished(result));
+            ctl.lock(|c| c.job_finished(&result));
         }
-        loop {
-            let request = match self.held_request.take() {
-                Some(r) => r,
-                None => match ctl.lock(|c| c.take_job_request()) {
-                    Some(r) => r,
-                    None => return,
-                },
-            };
-            if let Err(r) = port.send(request) {
-                self.held_request = Some(r);
-                return;
-            }
-        }
+        // A request the port has no room for stays with the controller until the next pass.
+        while ctl.lock(|c| c.offer_job_request(|r| port.send(r))) {}
     }
 }

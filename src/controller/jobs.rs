@@ -32,6 +32,7 @@
 
 use super::{ActiveTable, Controller};
 use crate::hw::MechanismIo;
+use crate::kinematics::{Geometry, GeometryError};
 use crate::link::tm::EventSeverity;
 use crate::supervision::{FaultFlags, SupervisionConfig};
 use crate::table::{
@@ -85,14 +86,22 @@ impl ScrubImage {
     /// True when the image is self-consistent: the table's CRC is the recorded one, the
     /// geometry, thresholds and settings are exactly what the table and the parameters
     /// derive, and the parameters are in range (they re-encode to themselves).
+    #[inline(never)]
     pub fn consistent(&self) -> bool {
         let a = &self.active;
         a.table.crc32() == a.crc32
-            && ActiveTable::new(a.table, a.source).is_ok_and(|d| d == *a)
+            && geometry_matches(a)
             && super::Parameters::decode(&self.params.encode()) == self.params
             && self.params.supervision(&a.table) == self.supervision
             && super::Ops::derive(&self.params, &a.table) == self.ops
     }
+}
+
+/// The running table's derived geometry is exactly what its table derives (out of
+/// line: the re-derived geometry is on the stack alone, not a whole `ActiveTable`).
+#[inline(never)]
+fn geometry_matches(a: &ActiveTable) -> bool {
+    Geometry::new(&a.table.geometry_params()).is_ok_and(|g| g == a.geom)
 }
 
 /// What the controller asks of the worker. The messages carry whole tables by value
@@ -132,6 +141,17 @@ impl JobRequest {
     }
 }
 
+/// A table's working geometry as the worker derived it ([`Geometry::new`] of its
+/// parameters): what [`Controller::job_finished`] runs with.
+pub type DerivedGeometry = Result<Geometry<f32>, GeometryError>;
+
+/// Derives `table`'s working geometry (out of line: its f64 parameters are on the
+/// stack alone).
+#[inline(never)]
+pub fn derive_geometry(table: &Table) -> DerivedGeometry {
+    Geometry::new(&table.geometry_params())
+}
+
 /// What the worker answers.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum JobResult {
@@ -146,6 +166,9 @@ pub enum JobResult {
     Selected {
         /// The table.
         table: Table,
+        /// Its working geometry, derived by the worker (not under the controller's
+        /// lock: the f64 derivation is most of an activation's cost).
+        geom: DerivedGeometry,
         /// What was selected.
         selection: Selection,
     },
@@ -155,6 +178,8 @@ pub enum JobResult {
     Reloaded {
         /// The table.
         table: Table,
+        /// Its working geometry, derived by the worker.
+        geom: DerivedGeometry,
         /// Its source.
         source: BootSource,
     },
@@ -190,7 +215,9 @@ pub const BANK_B_CORRUPT: u8 = 1 << 1;
 #[derive(Clone, Copy, Debug)]
 pub(super) struct JobLane {
     outbox: Option<JobRequest>,
-    scrub: Option<ScrubImage>,
+    /// Always a [`JobRequest::Scrub`]: kept as the request so that it is handed to the
+    /// worker by reference, never rebuilt on the stack.
+    scrub: Option<JobRequest>,
     running: Option<JobKind>,
     scrub_outstanding: bool,
 }
@@ -215,17 +242,32 @@ impl JobLane {
         Ok(())
     }
 
+    /// [`JobLane::submit`] of a commit of `table`, copied once, straight into the
+    /// outbox (not via a ~1.3 KB request on the stack).
+    #[inline(never)]
+    pub fn submit_commit(&mut self, table: &Table) -> Result<(), JobKind> {
+        if let Some(k) = self.running {
+            return Err(k);
+        }
+        self.running = Some(JobKind::Commit);
+        self.outbox = Some(JobRequest::Commit(*table));
+        Ok(())
+    }
+
     /// The outstanding scrub (if any) was of an older generation: forget it.
     pub fn scrub_done(&mut self) {
         self.scrub_outstanding = false;
     }
 
-    /// Queues a scrub snapshot unless one is still outstanding.
-    pub fn request_scrub(&mut self, image: ScrubImage) {
-        if !self.scrub_outstanding {
-            self.scrub = Some(image);
-            self.scrub_outstanding = true;
-        }
+    /// True when a scrub snapshot may be queued (none outstanding).
+    pub fn scrub_wanted(&self) -> bool {
+        !self.scrub_outstanding
+    }
+
+    /// Queues a scrub snapshot (after [`JobLane::scrub_wanted`]).
+    pub fn request_scrub(&mut self, image: &ScrubImage) {
+        self.scrub = Some(JobRequest::Scrub(*image));
+        self.scrub_outstanding = true;
     }
 
     /// The running operator job's code (0: none).
@@ -235,17 +277,29 @@ impl JobLane {
 }
 
 impl<M: MechanismIo> Controller<M> {
-    /// The next request for the worker (an operator job first, then a scrub snapshot).
-    pub fn take_job_request(&mut self) -> Option<JobRequest> {
-        if let Some(r) = self.jobs.outbox.take() {
-            return Some(r);
+    /// Offers the next request for the worker (an operator job first, then a scrub
+    /// snapshot) to `send`, by reference: it copies the request where it goes and
+    /// returns true, and the request leaves the controller; or it returns false (no
+    /// room), and the request stays for the next offer. Returns whether one was taken.
+    /// (A request is ~1.3 KB: handing it on by reference keeps it off the stack.)
+    pub fn offer_job_request(&mut self, send: impl FnOnce(&JobRequest) -> bool) -> bool {
+        let slot = if self.jobs.outbox.is_some() {
+            &mut self.jobs.outbox
+        } else {
+            &mut self.jobs.scrub
+        };
+        match slot {
+            Some(r) if send(r) => {
+                *slot = None;
+                true
+            }
+            _ => false,
         }
-        self.jobs.scrub.take().map(JobRequest::Scrub)
     }
 
     /// Applies the worker's answer (between motions: no motion starts while a job runs).
-    pub fn job_finished(&mut self, result: JobResult) {
-        match result {
+    pub fn job_finished(&mut self, result: &JobResult) {
+        match *result {
             JobResult::Committed { report, table_id } => {
                 self.jobs.running = None;
                 self.pending_table = Some(super::PendingTable { report, table_id });
@@ -256,9 +310,13 @@ impl<M: MechanismIo> Controller<M> {
                 );
                 self.complete_pending(Ok(()));
             }
-            JobResult::Selected { table, selection } => {
+            JobResult::Selected {
+                ref table,
+                ref geom,
+                selection,
+            } => {
                 self.jobs.running = None;
-                match self.run_table(table, selection.source) {
+                match self.run_table(table, geom, selection.source) {
                     Ok(()) => {
                         if let (Some(p), Some(bank)) = (self.pending_table, selection.source.bank())
                         {
@@ -285,9 +343,13 @@ impl<M: MechanismIo> Controller<M> {
                 );
                 self.complete_pending(Ok(()));
             }
-            JobResult::Reloaded { table, source } => {
+            JobResult::Reloaded {
+                ref table,
+                ref geom,
+                source,
+            } => {
                 self.jobs.running = None;
-                if self.run_table(table, source).is_ok() {
+                if self.run_table(table, geom, source).is_ok() {
                     self.supervisor
                         .set_external_condition(FaultFlags::TABLE_CORRUPT, false);
                     self.event(
@@ -350,24 +412,36 @@ impl<M: MechanismIo> Controller<M> {
         }
     }
 
-    /// Runs `table` from `source` at rest: derive, swap, hold, report (event 0x0010).
-    fn run_table(&mut self, table: Table, source: BootSource) -> Result<(), super::CommandError> {
-        let act = ActiveTable::new(table, source)
+    /// Runs `table` from `source` at rest with `geom`, its geometry as the worker
+    /// derived it: swap, hold, report (event 0x0010). Nothing changes if its geometry
+    /// did not derive. The table is copied once, into the running slot.
+    #[inline(never)]
+    fn run_table(
+        &mut self,
+        table: &Table,
+        geom: &DerivedGeometry,
+        source: BootSource,
+    ) -> Result<(), super::CommandError> {
+        let geom = geom
+            .as_ref()
             .map_err(|_| super::CommandError::Store(StoreError::NotExpected))?;
-        self.active = act;
+        self.active.table = *table;
+        self.active.crc32 = table.crc32();
+        self.active.geom = *geom;
+        self.active.source = source;
         self.geometry_ok = true;
         self.generation = self.generation.wrapping_add(1);
         self.jobs.scrub_outstanding = false;
-        self.ops = super::Ops::derive(&self.params, &act.table);
+        self.ops = super::Ops::derive(&self.params, &self.active.table);
         self.supervisor
-            .set_config(self.params.supervision(&act.table));
+            .set_config(self.params.supervision(&self.active.table));
         // The same strokes are a (slightly) different pose under the new geometry:
         // hold and re-derive the commanded pose.
         self.hold_here();
         self.event(
             EventSeverity::Info,
             super::event::TABLE_ACTIVATED,
-            [act.table.table_id, act.crc32],
+            [self.active.table.table_id, self.active.crc32],
         );
         Ok(())
     }
@@ -445,41 +519,55 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
             && self.reloaded.is_none()
     }
 
-    /// Takes a request; refused (handed back) while an operator job runs, or a scrub is
-    /// still queued, for a request of that kind.
-    #[allow(clippy::result_large_err)] // the request is handed back by value (no heap)
-    pub fn submit(&mut self, request: JobRequest) -> Result<(), JobRequest> {
+    /// Takes (copies) a request and returns true; refused (false, nothing copied) while
+    /// an operator job runs, or a scrub is still queued, for a request of that kind.
+    /// By reference: the ~1.3 KB request is copied once, from its queue into the worker.
+    #[inline(never)]
+    pub fn submit(&mut self, request: &JobRequest) -> bool {
         match request {
             JobRequest::Scrub(img) => {
                 if self.scrub.is_some() {
-                    return Err(request);
+                    return false;
                 }
-                self.scrub = Some(img);
-                Ok(())
+                self.scrub = Some(*img);
+                true
             }
-            _ if self.op.is_some() => Err(request),
+            _ if self.op.is_some() => false,
             JobRequest::Commit(table) => {
-                let phase = if self.store.selection().is_none() {
-                    CommitPhase::Anchor
-                } else {
-                    CommitPhase::Validate
-                };
-                self.op = Some(Op::Commit { table, phase });
-                Ok(())
+                self.accept_commit(table);
+                true
             }
             JobRequest::SaveParameters(params) => {
-                match self.store.start_parameters(&params.encode()) {
-                    Ok(()) => self.op = Some(Op::Parameters(params)),
-                    Err(e) => self.fail_later(JobKind::Parameters, e),
-                }
-                Ok(())
+                self.accept_parameters(params);
+                true
             }
             _ => {
                 self.op = None;
                 // Selections start at once; a refusal is a result, given at the next step.
                 self.start_selection(request);
-                Ok(())
+                true
             }
+        }
+    }
+
+    #[inline(never)]
+    fn accept_commit(&mut self, table: &Table) {
+        let phase = if self.store.selection().is_none() {
+            CommitPhase::Anchor
+        } else {
+            CommitPhase::Validate
+        };
+        self.op = Some(Op::Commit {
+            table: *table,
+            phase,
+        });
+    }
+
+    #[inline(never)]
+    fn accept_parameters(&mut self, params: &super::Parameters) {
+        match self.store.start_parameters(&params.encode()) {
+            Ok(()) => self.op = Some(Op::Parameters(*params)),
+            Err(e) => self.fail_later(JobKind::Parameters, e),
         }
     }
 
@@ -488,39 +576,76 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
         self.failed = Some((kind, error));
     }
 
-    fn start_selection(&mut self, request: JobRequest) {
-        let kind = request.kind().unwrap_or(JobKind::Select);
-        let chosen: Result<(Selection, Table), StoreError> = match request {
-            JobRequest::ActivatePending(report) => match self.pending_table {
-                Some((r, t)) if r == report && self.store.pending() == Some(report) => {
-                    Ok((Selection::bank(r.bank, r.sequence, r.table_crc), t))
-                }
-                _ => Err(StoreError::NotExpected),
-            },
-            JobRequest::SwitchBank => self.other_bank_table(),
-            JobRequest::RevertToNominal => Ok((Selection::nominal(), Table::nominal())),
-            JobRequest::Reload => {
-                let sel = self.store.running_selection();
-                self.store.read_selected(&sel).map(|t| (sel, t))
+    /// Starts a selection (activate, switch bank, revert, reload). Each kind out of
+    /// line: their table reads are alternatives, never on the stack together.
+    fn start_selection(&mut self, request: &JobRequest) {
+        match request {
+            JobRequest::ActivatePending(report) => self.select_pending(report),
+            JobRequest::SwitchBank => self.select_other_bank(),
+            JobRequest::RevertToNominal => {
+                self.begin_select(JobKind::Select, Selection::nominal(), &Table::nominal())
             }
-            _ => Err(StoreError::NotExpected),
+            JobRequest::Reload => self.reload(),
+            _ => self.fail_later(JobKind::Select, StoreError::NotExpected),
+        }
+    }
+
+    #[inline(never)]
+    fn select_pending(&mut self, report: &CommitReport) {
+        match self.pending_table {
+            Some((r, t)) if r == *report && self.store.pending() == Some(*report) => self
+                .begin_select(
+                    JobKind::Select,
+                    Selection::bank(r.bank, r.sequence, r.table_crc),
+                    &t,
+                ),
+            _ => self.fail_later(JobKind::Select, StoreError::NotExpected),
+        }
+    }
+
+    /// Switch bank: the table of the bank not running (with nominal running, the bank
+    /// with the newest record), read and validated, then its selection persisted.
+    #[inline(never)]
+    fn select_other_bank(&mut self) {
+        let kind = JobKind::Select;
+        let bank = match self.other_bank() {
+            Ok(b) => b,
+            Err(e) => return self.fail_later(kind, e),
         };
-        match chosen {
-            Ok((sel, table)) if kind == JobKind::Reload => {
-                self.reloaded = Some((table, sel.source));
-            }
-            Ok((sel, table)) => match self.store.start_select(&sel) {
-                Ok(()) => self.op = Some(Op::Select { table }),
-                Err(e) => self.fail_later(kind, e),
+        match self.store.read_bank(bank) {
+            Err(s) => self.fail_later(kind, StoreError::NoRecord(s)),
+            Ok((h, t)) => match validate(&t, &self.validation) {
+                Err(v) => self.fail_later(kind, StoreError::Invalid(v)),
+                Ok(()) => {
+                    self.begin_select(kind, Selection::bank(bank, h.sequence, h.table_crc), &t)
+                }
             },
+        }
+    }
+
+    #[inline(never)]
+    fn reload(&mut self) {
+        let sel = self.store.running_selection();
+        match self.store.read_selected(&sel) {
+            Ok(table) => self.reloaded = Some((table, sel.source)),
+            Err(e) => self.fail_later(JobKind::Reload, e),
+        }
+    }
+
+    /// Persists `sel`; `table` runs when that is done.
+    #[inline(never)]
+    fn begin_select(&mut self, kind: JobKind, sel: Selection, table: &Table) {
+        match self.store.start_select(&sel) {
+            Ok(()) => self.op = Some(Op::Select { table: *table }),
             Err(e) => self.fail_later(kind, e),
         }
     }
 
-    /// The table switch-bank selects: the bank not running (with nominal running, the
-    /// newest record), validated.
-    fn other_bank_table(&mut self) -> Result<(Selection, Table), StoreError> {
-        let bank = match self.store.running().bank() {
+    /// The bank switch-bank selects: the bank not running (with nominal running, the
+    /// bank with the newest record).
+    #[inline(never)]
+    fn other_bank(&mut self) -> Result<Bank, StoreError> {
+        Ok(match self.store.running().bank() {
             Some(b) => b.other(),
             None => match (
                 self.store.read_header(Bank::A),
@@ -533,20 +658,18 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
                 (Err(_), Ok(_)) => Bank::B,
                 (Err(s), Err(_)) => return Err(StoreError::NoRecord(s)),
             },
-        };
-        let (h, t) = self.store.read_bank(bank).map_err(StoreError::NoRecord)?;
-        validate(&t, &self.validation).map_err(StoreError::Invalid)?;
-        Ok((Selection::bank(bank, h.sequence, h.table_crc), t))
+        })
     }
 
     /// One unit of work; returns a result when something finished. `now_cycle` is the
     /// controller's cycle counter (for the bank-check period).
+    #[inline(never)]
     pub fn step(&mut self, now_cycle: u32) -> Option<JobResult> {
         if let Some((kind, error)) = self.failed.take() {
             return Some(JobResult::Failed { kind, error });
         }
-        if let Some((table, source)) = self.reloaded.take() {
-            return Some(JobResult::Reloaded { table, source });
+        if self.reloaded.is_some() {
+            return self.take_reloaded();
         }
         // Checked where it is (a ~1 KB image: not moved to the stack).
         if let Some(img) = &self.scrub {
@@ -557,8 +680,8 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
             self.scrub = None;
             return Some(result);
         }
-        if let Some(op) = self.op {
-            return self.step_op(op);
+        if self.op.is_some() {
+            return self.step_op();
         }
         let due = self
             .last_bank_check
@@ -574,8 +697,22 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
         None
     }
 
+    /// The reload's result (out of line: the table is copied once, into the result).
+    #[inline(never)]
+    fn take_reloaded(&mut self) -> Option<JobResult> {
+        let (table, source) = self.reloaded.as_ref()?;
+        let result = JobResult::Reloaded {
+            table: *table,
+            geom: derive_geometry(table),
+            source: *source,
+        };
+        self.reloaded = None;
+        Some(result)
+    }
+
     /// Reads both banks: a bank with a header whose record does not read back valid is
     /// corrupt (a blank bank is not).
+    #[inline(never)]
     fn check_banks(&mut self) -> u8 {
         let mut corrupt = 0;
         for (bank, bit) in [(Bank::A, BANK_A_CORRUPT), (Bank::B, BANK_B_CORRUPT)] {
@@ -587,89 +724,139 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
         corrupt
     }
 
-    fn step_op(&mut self, op: Op) -> Option<JobResult> {
-        match op {
-            Op::Commit { table, phase } => match phase {
-                CommitPhase::Anchor => {
-                    if !self.store.writing() {
-                        let sel = self.store.running_selection();
-                        if let Err(e) = self.store.start_select(&sel) {
-                            return self.op_failed(JobKind::Commit, e);
-                        }
-                    }
-                    match self.store.poll() {
-                        WritePoll::Pending => None,
-                        WritePoll::Done(Err(e)) => self.op_failed(JobKind::Commit, e),
-                        WritePoll::Done(Ok(_)) | WritePoll::Idle => {
-                            self.op = Some(Op::Commit {
-                                table,
-                                phase: CommitPhase::Validate,
-                            });
-                            None
-                        }
-                    }
-                }
-                CommitPhase::Validate => {
-                    if let Err(v) = validate(&table, &self.validation) {
-                        return self.op_failed(JobKind::Commit, StoreError::Invalid(v));
-                    }
+    /// One step of the running operator job (each phase out of line: their frames are
+    /// alternatives, never on the stack together; the job's table is used where it
+    /// lies in `self.op`, not copied out).
+    #[inline(never)]
+    fn step_op(&mut self) -> Option<JobResult> {
+        match self.op {
+            Some(Op::Commit {
+                phase: CommitPhase::Anchor,
+                ..
+            }) => self.commit_anchor(),
+            Some(Op::Commit {
+                phase: CommitPhase::Validate,
+                ..
+            }) => self.commit_validate(),
+            Some(Op::Commit {
+                phase: CommitPhase::Write,
+                ..
+            }) => self.commit_write(),
+            Some(Op::Parameters(_)) => self.parameters_poll(),
+            Some(Op::Select { .. }) => self.select_poll(),
+            None => None,
+        }
+    }
+
+    fn set_commit_phase(&mut self, next: CommitPhase) {
+        if let Some(Op::Commit { phase, .. }) = &mut self.op {
+            *phase = next;
+        }
+    }
+
+    #[inline(never)]
+    fn commit_anchor(&mut self) -> Option<JobResult> {
+        if !self.store.writing() {
+            let sel = self.store.running_selection();
+            if let Err(e) = self.store.start_select(&sel) {
+                return self.op_failed(JobKind::Commit, e);
+            }
+        }
+        match self.store.poll() {
+            WritePoll::Pending => None,
+            WritePoll::Done(Err(e)) => self.op_failed(JobKind::Commit, e),
+            WritePoll::Done(Ok(_)) | WritePoll::Idle => {
+                self.set_commit_phase(CommitPhase::Validate);
+                None
+            }
+        }
+    }
+
+    #[inline(never)]
+    fn commit_validate(&mut self) -> Option<JobResult> {
+        let Some(Op::Commit { table, .. }) = &self.op else {
+            return None;
+        };
+        if let Err(v) = validate(table, &self.validation) {
+            return self.op_failed(JobKind::Commit, StoreError::Invalid(v));
+        }
+        self.pending_table = None;
+        let Some(Op::Commit { table, .. }) = &self.op else {
+            return None;
+        };
+        match self.store.start_commit(table) {
+            Ok(_) => {
+                self.set_commit_phase(CommitPhase::Write);
+                None
+            }
+            Err(e) => self.op_failed(JobKind::Commit, e),
+        }
+    }
+
+    #[inline(never)]
+    fn commit_write(&mut self) -> Option<JobResult> {
+        match self.store.poll() {
+            WritePoll::Pending => None,
+            WritePoll::Done(Ok(WriteDone::Committed(report))) => {
+                let Some(Op::Commit { table, .. }) = &self.op else {
+                    return None;
+                };
+                let table_id = table.table_id;
+                self.pending_table = Some((report, *table));
+                self.op = None;
+                Some(JobResult::Committed { report, table_id })
+            }
+            WritePoll::Done(Err(e)) => self.op_failed(JobKind::Commit, e),
+            WritePoll::Done(Ok(WriteDone::Selected(_))) | WritePoll::Idle => {
+                self.op_failed(JobKind::Commit, StoreError::Busy)
+            }
+        }
+    }
+
+    #[inline(never)]
+    fn parameters_poll(&mut self) -> Option<JobResult> {
+        match self.store.poll() {
+            WritePoll::Pending => None,
+            WritePoll::Done(Ok(WriteDone::Selected(_))) => {
+                let Some(Op::Parameters(params)) = self.op.take() else {
+                    return None;
+                };
+                Some(JobResult::ParametersSaved(params))
+            }
+            WritePoll::Done(Err(e)) => self.op_failed(JobKind::Parameters, e),
+            WritePoll::Done(Ok(WriteDone::Committed(_))) | WritePoll::Idle => {
+                self.op_failed(JobKind::Parameters, StoreError::Busy)
+            }
+        }
+    }
+
+    #[inline(never)]
+    fn select_poll(&mut self) -> Option<JobResult> {
+        match self.store.poll() {
+            WritePoll::Pending => None,
+            WritePoll::Done(Ok(WriteDone::Selected(selection))) => {
+                if selection.source.bank().is_some()
+                    && self
+                        .pending_table
+                        .is_some_and(|(r, _)| Some(r.bank) == selection.source.bank())
+                {
                     self.pending_table = None;
-                    match self.store.start_commit(&table) {
-                        Ok(_) => {
-                            self.op = Some(Op::Commit {
-                                table,
-                                phase: CommitPhase::Write,
-                            });
-                            None
-                        }
-                        Err(e) => self.op_failed(JobKind::Commit, e),
-                    }
                 }
-                CommitPhase::Write => match self.store.poll() {
-                    WritePoll::Pending => None,
-                    WritePoll::Done(Ok(WriteDone::Committed(report))) => {
-                        self.op = None;
-                        self.pending_table = Some((report, table));
-                        Some(JobResult::Committed {
-                            report,
-                            table_id: table.table_id,
-                        })
-                    }
-                    WritePoll::Done(Err(e)) => self.op_failed(JobKind::Commit, e),
-                    WritePoll::Done(Ok(WriteDone::Selected(_))) | WritePoll::Idle => {
-                        self.op_failed(JobKind::Commit, StoreError::Busy)
-                    }
-                },
-            },
-            Op::Parameters(params) => match self.store.poll() {
-                WritePoll::Pending => None,
-                WritePoll::Done(Ok(WriteDone::Selected(_))) => {
-                    self.op = None;
-                    Some(JobResult::ParametersSaved(params))
-                }
-                WritePoll::Done(Err(e)) => self.op_failed(JobKind::Parameters, e),
-                WritePoll::Done(Ok(WriteDone::Committed(_))) | WritePoll::Idle => {
-                    self.op_failed(JobKind::Parameters, StoreError::Busy)
-                }
-            },
-            Op::Select { table } => match self.store.poll() {
-                WritePoll::Pending => None,
-                WritePoll::Done(Ok(WriteDone::Selected(selection))) => {
-                    self.op = None;
-                    if selection.source.bank().is_some()
-                        && self
-                            .pending_table
-                            .is_some_and(|(r, _)| Some(r.bank) == selection.source.bank())
-                    {
-                        self.pending_table = None;
-                    }
-                    Some(JobResult::Selected { table, selection })
-                }
-                WritePoll::Done(Err(e)) => self.op_failed(JobKind::Select, e),
-                WritePoll::Done(Ok(WriteDone::Committed(_))) | WritePoll::Idle => {
-                    self.op_failed(JobKind::Select, StoreError::Busy)
-                }
-            },
+                let Some(Op::Select { table }) = &self.op else {
+                    return None;
+                };
+                let result = JobResult::Selected {
+                    table: *table,
+                    geom: derive_geometry(table),
+                    selection,
+                };
+                self.op = None;
+                Some(result)
+            }
+            WritePoll::Done(Err(e)) => self.op_failed(JobKind::Select, e),
+            WritePoll::Done(Ok(WriteDone::Committed(_))) | WritePoll::Idle => {
+                self.op_failed(JobKind::Select, StoreError::Busy)
+            }
         }
     }
 

@@ -95,8 +95,10 @@ use motion::Motion;
 use verification::PendingTc;
 
 /// Path samples (IK evaluations) a move's planning may use per control cycle: the
-/// ~17 samples of a plan are spread over a few cycles so that no cycle carries them all.
-pub const PLAN_SAMPLES_PER_CYCLE: usize = 4;
+/// ~17 samples of a plan are spread over a few cycles (9 at most) so that no cycle
+/// carries them all. Two: with four the planning cycles of the flight image took up
+/// to 23,327 instructions, over the 20,000 budget (`m2cyclebench`, move scenario).
+pub const PLAN_SAMPLES_PER_CYCLE: usize = 2;
 /// Consecutive control-cycle overruns after which motion stops and
 /// [`FaultFlags::DEADLINE_MISSED`] latches ([`Controller::note_overrun`]).
 pub const OVERRUN_HOLD_LIMIT: u16 = 3;
@@ -269,6 +271,9 @@ pub struct Controller<M> {
     reported_state: State,
     /// The telecommand whose start or completion report is still to come.
     tc_pending: Option<PendingTc>,
+    /// A move check executed but not yet evaluated (the link service evaluates it
+    /// outside the controller's lock: [`motion::MoveCheckJob`]).
+    move_check: Option<motion::MoveCheckJob>,
     jobs: jobs::JobLane,
     fk_cfg: FkConfig<f32>,
     /// Last good FK pose (warm start and telemetry).
@@ -362,6 +367,7 @@ impl<M: MechanismIo> Controller<M> {
             motion: Motion::Hold,
             reported_state: State::Idle,
             tc_pending: None,
+            move_check: None,
             jobs: jobs::JobLane::new(),
             fk_cfg: FkConfig::default(),
             pose_fk: Pose::home(),
@@ -459,6 +465,7 @@ impl<M: MechanismIo> Controller<M> {
 
     /// Holds every drive where it is, takes the held strokes as the commanded ones and
     /// their pose as the commanded pose.
+    #[inline(never)]
     fn hold_here(&mut self) {
         self.mech.hold();
         self.sync_to_drives();
@@ -556,18 +563,25 @@ impl<M: MechanismIo> Controller<M> {
         if self.cycle % self.ops.hk_period_cycles.max(1) == 0 {
             self.tm.push(self.cycle, TmRecord::Housekeeping);
         }
-        if self.cycle % SCRUB_PERIOD_CYCLES == 0 {
-            self.jobs.request_scrub(jobs::ScrubImage {
-                generation: self.generation,
-                active: self.active,
-                supervision: *self.supervisor.config(),
-                params: self.params,
-                ops: self.ops,
-            });
+        if self.cycle % SCRUB_PERIOD_CYCLES == 0 && self.jobs.scrub_wanted() {
+            self.queue_scrub();
         }
         // 6. State.
         self.publish_state();
         self.cycle = self.cycle.wrapping_add(1);
+    }
+
+    /// Queues the scrub snapshot of the running configuration for the worker. Not
+    /// inlined: the ~1.3 KB snapshot is not on the stack with the cycle's motion step.
+    #[inline(never)]
+    fn queue_scrub(&mut self) {
+        self.jobs.request_scrub(&jobs::ScrubImage {
+            generation: self.generation,
+            active: self.active,
+            supervision: *self.supervisor.config(),
+            params: self.params,
+            ops: self.ops,
+        });
     }
 
     /// The board saw this control cycle overrun its period (the timer fired again before

@@ -3,10 +3,14 @@
 
 use super::error::{suspect, CommandError};
 use super::verification::Outcome;
+use super::TmRecord;
 use super::{event, Controller, State};
 use crate::hw::MechanismIo;
-use crate::kinematics::{fk, ik, Pose, LEGS};
+use crate::kinematics::{fk, ik, FkConfig, Frames, Geometry, Pose, LEGS};
+use crate::link::tc::{AckFlags, RequestId};
 use crate::link::tm::EventSeverity;
+use crate::link::tm::Verification;
+use crate::motion::MotionLimits;
 use crate::motion::{
     DirectStrokeLimits, PlanStart, StrokeMove, Trajectory, TrajectoryPlanner, PATH_SAMPLE_INTERVALS,
 };
@@ -35,6 +39,101 @@ pub(super) enum Motion {
 
 /// The answer of a move check (TM[8,130]).
 pub use crate::link::tm::MoveCheckReport as MoveCheck;
+
+/// A move check TC[8,1] 0x0006 as executed: the controller's state, working geometry,
+/// frames, limits and held strokes at that moment, copied so that the check is
+/// evaluated outside the controller's lock. Its evaluation (IK of the target, FK of the
+/// held strokes, IK of every sample of the straight path: up to
+/// `PATH_SAMPLE_INTERVALS + 1` IK and one FK, ~66,000 instructions on the M4F at
+/// opt-level s, `m2cyclebench`) would otherwise hold the lock, and so delay the
+/// control task, by more than a control cycle's budget.
+#[derive(Clone, Copy, Debug)]
+pub struct MoveCheckJob {
+    request_id: RequestId,
+    ack: AckFlags,
+    /// Target pose (operator frames: mm, rad).
+    target: Pose<f32>,
+    /// Why a move could not start now (0: it could).
+    state_code: u16,
+    geom: Geometry<f32>,
+    frames: Frames<f32>,
+    motion: MotionLimits,
+    fk_cfg: FkConfig<f32>,
+    /// Strokes the drives held (mm).
+    held_mm: [f32; LEGS],
+    /// The commanded pose (internal frames; FK warm start).
+    pose_commanded: Pose<f32>,
+}
+
+impl MoveCheckJob {
+    /// The request the check answers.
+    pub fn request_id(&self) -> RequestId {
+        self.request_id
+    }
+
+    /// The telecommand's acknowledgement flags.
+    pub fn ack(&self) -> AckFlags {
+        self.ack
+    }
+
+    /// Every reason a move to the target would be refused: the state (fault, motion,
+    /// job), the target's workspace check, the straight path's first refused sample.
+    #[inline(never)]
+    pub fn evaluate(&self) -> MoveCheck {
+        let now = self.state_code;
+        let target_refusals =
+            crate::kinematics::check(&self.geom, &self.frames.to_internal(&self.target)).to_bits();
+        let Ok(start) = fk(
+            &self.geom,
+            &self.held_mm,
+            &self.pose_commanded,
+            &self.fk_cfg,
+        ) else {
+            return MoveCheck {
+                code: if now != 0 {
+                    now
+                } else {
+                    CommandError::NoPose.code()
+                },
+                target_refusals,
+                path_refusals: 0,
+                path_sample: 0,
+            };
+        };
+        let start = self.frames.to_operator(&start.pose);
+        let planned = TrajectoryPlanner::begin_in(
+            &self.geom,
+            &self.frames,
+            &start,
+            &self.target,
+            &self.motion,
+        )
+        .and_then(|b| match b {
+            PlanStart::Ready(_) => Ok(()),
+            // All the path's samples at once: a bounded cost (PATH_SAMPLE_INTERVALS + 1
+            // IK evaluations and one FK, measured in the cycle benchmark).
+            PlanStart::Sampling(mut p) => p
+                .advance(&self.geom, PATH_SAMPLE_INTERVALS + 1)
+                .unwrap_or(Err(crate::motion::MotionError::TooLong))
+                .map(|_| ()),
+        });
+        let (code, path_refusals, path_sample) = match planned {
+            Ok(()) => (0, 0, 0),
+            Err(crate::motion::MotionError::PathRefused { sample, refusals }) => (
+                crate::motion::MotionError::PathRefused { sample, refusals }.code(),
+                refusals.to_bits(),
+                sample,
+            ),
+            Err(e) => (e.code(), 0, 0),
+        };
+        MoveCheck {
+            code: if now != 0 { now } else { code },
+            target_refusals,
+            path_refusals,
+            path_sample,
+        }
+    }
+}
 
 /// Faults that make a leg's encoder unfit to guide a direct-stroke move of that leg.
 const ENCODER_FAULTS: [(FaultFlags, u32); 3] = [
@@ -112,9 +211,9 @@ impl<M: MechanismIo> Controller<M> {
     /// Advances a move being planned: on completion it becomes the path (start success
     /// reported), on refusal or abort the sliders keep holding (start failure reported).
     fn step_planning(&mut self) {
-        let Motion::Planning(mut planner) = self.motion else {
+        if !matches!(self.motion, Motion::Planning(_)) {
             return;
-        };
+        }
         let result = if self.plan_aborted {
             let latched = self.supervisor.latched();
             Some(Err(if latched.is_empty() {
@@ -122,14 +221,17 @@ impl<M: MechanismIo> Controller<M> {
             } else {
                 CommandError::AbortedByFault(latched)
             }))
-        } else {
+        } else if let Motion::Planning(planner) = &mut self.motion {
+            // Advanced where it is (not copied out and back: the control task's stack).
             planner
                 .advance(&self.active.geom, super::PLAN_SAMPLES_PER_CYCLE)
                 .map(|r| r.map_err(CommandError::Motion))
+        } else {
+            None
         };
         self.plan_aborted = false;
         match result {
-            None => self.motion = Motion::Planning(planner),
+            None => {}
             Some(Ok(traj)) => {
                 self.refusal_bits = 0;
                 // The path starts in this very cycle (the motion step follows).
@@ -327,64 +429,70 @@ impl<M: MechanismIo> Controller<M> {
         }
     }
 
-    /// Every reason a move to `target` (operator frames) would be refused now, changing
-    /// nothing: the state (fault, motion, job), the target's workspace check, the straight
-    /// path's first refused sample.
-    pub(super) fn check_move(&mut self, target: Pose<f32>) -> MoveCheck {
-        let now = self.require_can_move().err().map_or(0, |e| e.code());
-        let target_refusals =
-            crate::kinematics::check(&self.active.geom, &self.ops.frames.to_internal(&target))
-                .to_bits();
-        let held = self.mech.setpoints_mm();
-        let Ok(start) = fk(&self.active.geom, &held, &self.pose_commanded, &self.fk_cfg) else {
-            return MoveCheck {
-                code: if now != 0 {
-                    now
-                } else {
-                    CommandError::NoPose.code()
-                },
-                target_refusals,
-                path_refusals: 0,
-                path_sample: 0,
-            };
-        };
-        let start = self.ops.frames.to_operator(&start.pose);
-        let planned = TrajectoryPlanner::begin_in(
-            &self.active.geom,
-            &self.ops.frames,
-            &start,
-            &target,
-            &self.ops.motion,
-        )
-        .and_then(|b| match b {
-            PlanStart::Ready(_) => Ok(()),
-            // All the path's samples at once: a bounded cost (PATH_SAMPLE_INTERVALS + 1
-            // IK evaluations and one FK, measured in the cycle benchmark).
-            PlanStart::Sampling(mut p) => p
-                .advance(&self.active.geom, PATH_SAMPLE_INTERVALS + 1)
-                .unwrap_or(Err(crate::motion::MotionError::TooLong))
-                .map(|_| ()),
+    /// Takes a move check TC[8,1] 0x0006 of `target` (operator frames): everything its
+    /// evaluation reads is copied into a [`MoveCheckJob`], evaluated by the link service
+    /// outside the controller's lock ([`Controller::take_move_check`]). (A check a
+    /// direct caller left uncollected was evaluated when this telecommand arrived:
+    /// [`Controller::handle_telecommand`].)
+    #[inline(never)]
+    pub(super) fn queue_move_check(
+        &mut self,
+        request_id: RequestId,
+        ack: AckFlags,
+        target: Pose<f32>,
+    ) {
+        self.move_check = Some(MoveCheckJob {
+            request_id,
+            ack,
+            target,
+            state_code: self.require_can_move().err().map_or(0, |e| e.code()),
+            geom: self.active.geom,
+            frames: self.ops.frames,
+            motion: self.ops.motion,
+            fk_cfg: self.fk_cfg,
+            held_mm: self.mech.setpoints_mm(),
+            pose_commanded: self.pose_commanded,
         });
-        let (code, path_refusals, path_sample) = match planned {
-            Ok(()) => (0, 0, 0),
-            Err(crate::motion::MotionError::PathRefused { sample, refusals }) => (
-                crate::motion::MotionError::PathRefused { sample, refusals }.code(),
-                refusals.to_bits(),
-                sample,
-            ),
-            Err(e) => (e.code(), 0, 0),
-        };
-        MoveCheck {
-            code: if now != 0 { now } else { code },
-            target_refusals,
-            path_refusals,
-            path_sample,
+    }
+
+    /// Moves the move check waiting for evaluation (if any) into `slot` (the link
+    /// service's; copied once, not via the stack).
+    pub fn take_move_check(&mut self, slot: &mut Option<MoveCheckJob>) {
+        if let Some(job) = &self.move_check {
+            *slot = Some(*job);
+            self.move_check = None;
+        }
+    }
+
+    /// Reports an evaluated move check: TM[8,130], then start and completion success as
+    /// its telecommand asked.
+    pub fn finish_move_check(&mut self, request_id: RequestId, ack: AckFlags, check: MoveCheck) {
+        self.tm
+            .push(self.cycle, TmRecord::MoveCheck { request_id, check });
+        if ack.start() {
+            self.verify(request_id, Verification::StartSuccess);
+        }
+        if ack.completion() {
+            self.verify(request_id, Verification::CompletionSuccess);
+        }
+    }
+
+    /// Evaluates and reports the waiting move check here (a caller without a link
+    /// service; the link service evaluates outside the lock instead).
+    #[inline(never)]
+    pub fn run_move_check(&mut self) {
+        let mut slot = None;
+        self.take_move_check(&mut slot);
+        if let Some(job) = &slot {
+            let check = job.evaluate();
+            self.finish_move_check(job.request_id, job.ack, check);
         }
     }
 
     /// The relative-move target: the held pose plus `delta` component by component, in
     /// the operator's frames (translations added along the user frame's axes, Euler
     /// angles added).
+    #[inline(never)]
     pub(super) fn relative_target(&mut self, delta: Pose<f32>) -> Result<Pose<f32>, CommandError> {
         self.require_can_move()?;
         let mut target = self.held_pose()?;
@@ -420,6 +528,7 @@ impl<M: MechanismIo> Controller<M> {
 
     /// Starts a direct-stroke (recovery) move of `leg` (1..=6) by `delta_mm`: that leg
     /// from its held setpoint, every other leg keeping exactly its setpoint.
+    #[inline(never)]
     pub(super) fn start_direct_stroke(
         &mut self,
         leg: u8,

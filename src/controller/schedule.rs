@@ -53,7 +53,7 @@ use crate::link::schedule::{
 };
 use crate::link::tc::RequestId;
 use crate::link::tm::{EventSeverity, TmTime, Verification};
-use crate::timing::cycle_to_us;
+use crate::timing::CONTROL_RATE_HZ;
 
 /// Why a schedule telecommand was refused (start failure TM[1,4]; codes 0x0Bxx, after
 /// the service number 11).
@@ -126,10 +126,24 @@ pub const fn request_id_word(id: RequestId) -> u32 {
     ((id.packet_id as u32) << 16) | id.sequence_control as u32
 }
 
-/// The on-board time of control cycle `cycle` (the TM time stamp of its records).
+/// The on-board time of control cycle `cycle` (the TM time stamp of its records):
+/// `TmTime::from_micros(cycle_to_us(cycle))`, in 32-bit arithmetic (a cycle is a whole
+/// number of microseconds and the rate divides a second, so it is exactly whole
+/// seconds plus `(cycle % rate) / rate` of a second, floored to 1/65536 s; no 64-bit
+/// division routine in the flight image).
 pub const fn obt_of_cycle(cycle: u32) -> TmTime {
-    TmTime::from_micros(cycle_to_us(cycle as u64))
+    let rate = CONTROL_RATE_HZ;
+    TmTime {
+        seconds: cycle / rate,
+        // < rate * 2^16 <= 2^32 for any rate up to 65,536 Hz (asserted below).
+        fraction: ((cycle % rate) * FRACTIONS_PER_SECOND / rate) as u16,
+    }
 }
+
+/// 1/65536 s units of [`TmTime::fraction`], as u32.
+const FRACTIONS_PER_SECOND: u32 = crate::link::tm::TIME_FRACTIONS_PER_SECOND as u32;
+const _: () =
+    assert!((CONTROL_RATE_HZ as u64) * crate::link::tm::TIME_FRACTIONS_PER_SECOND <= 1 << 32);
 
 /// The latest on-board time the clock reaches before its cycle counter wraps.
 pub const MAX_OBT: TmTime = obt_of_cycle(u32::MAX);
@@ -349,6 +363,7 @@ impl<M: MechanismIo> Controller<M> {
     }
 
     /// A TC[11,x] (module documentation).
+    #[inline(never)]
     pub(super) fn execute_schedule(
         &mut self,
         command: &ScheduleCommand,
@@ -466,6 +481,25 @@ impl<M: MechanismIo> Controller<M> {
             failed: self.schedule.failed,
             next_release: self.schedule.next_release().unwrap_or_default(),
             time_report_rate: self.time_reports.rate().code(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::timing::cycle_to_us;
+
+    /// The 32-bit OBT is the microsecond one, cycle for cycle: every cycle of the first
+    /// 2,000 s, then a stride through the whole counter, and its last cycles.
+    #[test]
+    fn obt_of_cycle_in_32_bits_is_the_microsecond_time() {
+        let reference = |c: u32| TmTime::from_micros(cycle_to_us(u64::from(c)));
+        let cycles = (0..2_000_000u32)
+            .chain((0..u32::MAX).step_by(65_537))
+            .chain(u32::MAX - 2_000..=u32::MAX);
+        for c in cycles {
+            assert_eq!(obt_of_cycle(c), reference(c), "cycle {c}");
         }
     }
 }

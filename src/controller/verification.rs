@@ -31,6 +31,9 @@ pub(super) enum Outcome {
     Started,
     /// A table job was handed to the background worker; completion follows its result.
     JobStarted,
+    /// A move check was taken; its report, start and completion follow its evaluation
+    /// ([`Controller::finish_move_check`]).
+    CheckQueued,
 }
 
 /// What kind of long-running telecommand is pending.

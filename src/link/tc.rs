@@ -132,6 +132,7 @@ pub struct Rejection {
 }
 
 /// Checked decoding of one packet (the bytes of one frame). Never panics.
+#[inline(never)]
 pub fn decode_telecommand(packet: &[u8]) -> Result<Telecommand, Rejection> {
     let request_id = RequestId::from_packet(packet);
     decode_full(packet).map_err(|error| Rejection { request_id, error })

@@ -74,7 +74,7 @@ struct WorkerPort<'a> {
 }
 
 impl JobPort for WorkerPort<'_> {
-    fn send(&mut self, request: JobRequest) -> Result<(), JobRequest> {
+    fn send(&mut self, request: &JobRequest) -> bool {
         self.worker.submit(request)
     }
     fn recv(&mut self) -> Option<JobResult> {

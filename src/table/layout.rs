@@ -361,52 +361,72 @@ impl Table {
         if Some(CRC32.checksum(body)) != stored_crc(bytes) {
             return Err(TableError::BadCrc);
         }
-        let table_id = r.u32().ok_or(short)?;
-        let calibration_id = r.u32().ok_or(short)?;
-        let tag = r.take::<PROVENANCE_TAG_LEN>().ok_or(short)?;
-        let mut legs = [LegParams {
-            a_mm: [0.0; 3],
-            b_mm: [0.0; 3],
-        }; LEGS];
-        for leg in legs.iter_mut() {
-            leg.a_mm = r.f64s().ok_or(short)?;
-            leg.b_mm = r.f64s().ok_or(short)?;
+        // Decoded field by field into the one table value that is returned (no array
+        // or struct temporaries: this runs on the worker's and the link's stack).
+        let mut t = ZEROED_TABLE;
+        t.table_id = r.u32().ok_or(short)?;
+        t.provenance.calibration_id = r.u32().ok_or(short)?;
+        t.provenance.tag = r.take::<PROVENANCE_TAG_LEN>().ok_or(short)?;
+        for leg in t.legs.iter_mut() {
+            for x in leg.a_mm.iter_mut().chain(leg.b_mm.iter_mut()) {
+                *x = r.f64().ok_or(short)?;
+            }
         }
-        let p0_mm = r.f64s().ok_or(short)?;
-        let stroke_limits = StrokeLimits {
-            min_mm: r.f64s().ok_or(short)?,
-            max_mm: r.f64s().ok_or(short)?,
-        };
-        let workspace = WorkspaceLimits {
-            translation_mm: r.f64s().ok_or(short)?,
-            rotation_rad: r.f64s().ok_or(short)?,
-        };
-        let supervision = SupervisionThresholds {
-            following_error_warning_mm: r.f32().ok_or(short)?,
-            following_error_fault_mm: r.f32().ok_or(short)?,
-            encoder_jump_mm_per_cycle: r.f32().ok_or(short)?,
-            stuck_min_progress_mm: r.f32().ok_or(short)?,
-            stuck_detection_cycles: r.u16().ok_or(short)?,
-            warning_debounce_cycles: r.u16().ok_or(short)?,
-            fault_debounce_cycles: r.u16().ok_or(short)?,
-        };
+        let f64_fields = t
+            .p0_mm
+            .iter_mut()
+            .chain(t.stroke_limits.min_mm.iter_mut())
+            .chain(t.stroke_limits.max_mm.iter_mut())
+            .chain(t.workspace.translation_mm.iter_mut())
+            .chain(t.workspace.rotation_rad.iter_mut());
+        for x in f64_fields {
+            *x = r.f64().ok_or(short)?;
+        }
+        let s = &mut t.supervision;
+        s.following_error_warning_mm = r.f32().ok_or(short)?;
+        s.following_error_fault_mm = r.f32().ok_or(short)?;
+        s.encoder_jump_mm_per_cycle = r.f32().ok_or(short)?;
+        s.stuck_min_progress_mm = r.f32().ok_or(short)?;
+        s.stuck_detection_cycles = r.u16().ok_or(short)?;
+        s.warning_debounce_cycles = r.u16().ok_or(short)?;
+        s.fault_debounce_cycles = r.u16().ok_or(short)?;
         if r.u16().ok_or(short)? != 0 {
             return Err(TableError::ReservedNotZero);
         }
-        Ok(Table {
-            table_id,
-            provenance: Provenance {
-                calibration_id,
-                tag,
-            },
-            legs,
-            p0_mm,
-            stroke_limits,
-            workspace,
-            supervision,
-        })
+        Ok(t)
     }
 }
+
+/// All fields zero: what [`Table::decode`] fills in.
+const ZEROED_TABLE: Table = Table {
+    table_id: 0,
+    provenance: Provenance {
+        calibration_id: 0,
+        tag: [0; PROVENANCE_TAG_LEN],
+    },
+    legs: [LegParams {
+        a_mm: [0.0; 3],
+        b_mm: [0.0; 3],
+    }; LEGS],
+    p0_mm: [0.0; 3],
+    stroke_limits: StrokeLimits {
+        min_mm: [0.0; LEGS],
+        max_mm: [0.0; LEGS],
+    },
+    workspace: WorkspaceLimits {
+        translation_mm: [0.0; 3],
+        rotation_rad: [0.0; 3],
+    },
+    supervision: SupervisionThresholds {
+        following_error_warning_mm: 0.0,
+        following_error_fault_mm: 0.0,
+        encoder_jump_mm_per_cycle: 0.0,
+        stuck_min_progress_mm: 0.0,
+        stuck_detection_cycles: 0,
+        warning_debounce_cycles: 0,
+        fault_debounce_cycles: 0,
+    },
+};
 
 /// The CRC-32 stored in the last four bytes of an encoded table; `None` if too short.
 pub fn stored_crc(bytes: &[u8]) -> Option<u32> {

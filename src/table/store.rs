@@ -1012,6 +1012,7 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
     /// Starts writing `table` into [`TableStore::target_bank`] **without validating
     /// it** (the caller has; tests use it to store deliberately bad tables). Any pending
     /// table is forgotten (its bank may be the one overwritten).
+    #[inline(never)] // its record image is not on the stack during a validation
     pub fn start_commit(&mut self, table: &Table) -> Result<CommitReport, StoreError> {
         if self.write.is_some() {
             return Err(StoreError::Busy);

@@ -544,6 +544,13 @@ fn check_fk_corners(t: &Table, geom: &Geometry<f32>) -> Result<(), ValidationErr
     Ok(())
 }
 
+/// The working geometry of `t` (not inlined: its f64 parameters are not on the stack
+/// during the grid and corner checks).
+#[inline(never)]
+fn working_geometry(t: &Table) -> Result<Geometry<f32>, ValidationError> {
+    Geometry::<f32>::new(&t.geometry_params()).map_err(ValidationError::Geometry)
+}
+
 /// Validates a candidate table (see the module docs for the checks and their order).
 /// Never panics, whatever the table holds.
 pub fn validate(t: &Table, cfg: &ValidationConfig) -> Result<(), ValidationError> {
@@ -557,8 +564,7 @@ pub fn validate(t: &Table, cfg: &ValidationConfig) -> Result<(), ValidationError
     }
     check_finite(t)?;
     check_near_reference(t, cfg)?;
-    let params = t.geometry_params();
-    let geom = Geometry::<f32>::new(&params).map_err(ValidationError::Geometry)?;
+    let geom = working_geometry(t)?;
     check_caps(t, cfg)?;
     check_supervision(&t.supervision)?;
     check_grid(t, &geom, cfg)?;
