@@ -486,3 +486,61 @@ fn pose_found_outside_the_workspace_at_boot_is_detected_and_recovered() {
     );
     assert_eq!(r.ctl.state(), State::Idle);
 }
+
+/// A fault that latches at rest holds the drives where their sliders are, as one that
+/// latches in motion does when the stop comes to rest: a slider jammed short of its
+/// setpoint (by less than the following-error fault threshold, so nothing latched when
+/// the move arrived) must not complete that move when the jam frees while a fault is
+/// latched. Found by the 10-minute soak (invariant 3: a jammed leg moved 8.7 um, at
+/// 0.5 um per cycle, after its repair while a stuck-active end switch held the
+/// controller faulted at rest).
+#[test]
+fn a_fault_latched_at_rest_holds_a_jammed_slider_short_of_its_setpoint() {
+    let jammed = 2usize;
+    let mut r = Bench::with_plant(Plant::new(&PROTOTYPE, PlantConfig::default()).unwrap());
+    r.run(2);
+    r.plant
+        .with(|p| p.inject(InjectedFault::StuckSlider { leg: jammed as u8 }));
+    // 5 um in z: every leg about 5 um, under the following-error fault threshold.
+    let mv = r.send(&Command::MoveAbsolute(WirePose {
+        translation_nm: [0, 0, 5_000],
+        rotation_uas: [0, 0, 0],
+    }));
+    r.settle(20_000);
+    assert_eq!(
+        r.st.reports(mv).last(),
+        Some(&Verification::CompletionSuccess)
+    );
+    assert_eq!(r.ctl.state(), State::Idle, "faults {:?}", r.ctl.faults());
+    let gap_mm = r
+        .plant
+        .with(|p| p.drive_setpoints_mm()[jammed] - p.strokes_mm()[jammed]);
+    assert!(
+        gap_mm.abs() > 3e-3,
+        "the jammed slider is {gap_mm} mm short"
+    );
+    // A fault latches at rest: an upper end switch of another leg stuck active.
+    r.plant.with(|p| {
+        p.inject(InjectedFault::SwitchStuckActive {
+            leg: 5,
+            end: m2ctl::sim::SwitchEnd::Upper,
+        })
+    });
+    r.run(5);
+    assert_eq!(r.ctl.state(), State::Faulted);
+    assert!(r.ctl.faults().contains(FaultFlags::LIMIT_SWITCH));
+    // The jam frees (and the switch) while the fault is still latched: nothing moves.
+    let before = r.plant.with(|p| p.strokes_mm());
+    r.plant.with(|p| p.clear_faults());
+    r.run(100);
+    let after = r.plant.with(|p| p.strokes_mm());
+    for leg in 0..6 {
+        assert!(
+            (after[leg] - before[leg]).abs() < 1e-9,
+            "leg {} moved {:.3} um while faulted at rest",
+            leg + 1,
+            (after[leg] - before[leg]) * 1e3
+        );
+    }
+    assert_eq!(r.ctl.state(), State::Faulted);
+}

@@ -143,11 +143,15 @@ const ENCODER_FAULTS: [(FaultFlags, u32); 3] = [
 ];
 
 impl<M: MechanismIo> Controller<M> {
-    /// Turns the current motion into a stop ramp (no-op when holding).
+    /// Turns the current motion into a stop ramp; at rest, holds every drive where it is.
     pub(super) fn begin_stop(&mut self) {
         let now = self.cycle;
         match &mut self.motion {
-            Motion::Hold => {}
+            // A fault latched at rest: the drives hold where their sliders are, as when
+            // a stop comes to rest with a fault latched (a slider jammed short of its
+            // setpoint must not complete its move when the jam frees). The next cycle's
+            // supervision takes the held strokes as the reference.
+            Motion::Hold => self.mech.hold(),
             Motion::Planning(_) => self.plan_aborted = true,
             Motion::Path {
                 traj,

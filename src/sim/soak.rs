@@ -191,6 +191,8 @@ pub struct Soak<C> {
     prev_cmd: [f32; LEGS],
     prev_truth: [f64; LEGS],
     prev_drives: [f64; LEGS],
+    /// The drives' positions at the end of the last cycle (mm): where a hold commands.
+    prev_positions: [f64; LEGS],
     prev_state: State,
     /// The legs of the motion of the last cycle (housekeeping's `moving_legs`).
     prev_moving_legs: u8,
@@ -257,6 +259,7 @@ impl<C: Choices> Soak<C> {
             prev_cmd,
             prev_truth: [0.0; LEGS],
             prev_drives: [0.0; LEGS],
+            prev_positions: [0.0; LEGS],
             prev_state: State::Idle,
             prev_moving_legs: 0,
             prev_faulted: false,
@@ -529,6 +532,7 @@ impl<C: Choices> Soak<C> {
         self.note("plant repaired".into());
         self.repaired = true;
         self.prev_drives = self.r.plant.with(|p| p.drive_setpoints_mm());
+        self.prev_positions = self.r.plant.with(|p| p.drive_positions_mm());
     }
 
     fn inject_fault(&mut self) {
@@ -638,6 +642,7 @@ impl<C: Choices> Soak<C> {
         self.prev_cmd = self.r.ctl.strokes_commanded_mm();
         self.prev_truth = self.r.plant.with(|p| p.strokes_mm());
         self.prev_drives = self.r.plant.with(|p| p.drive_setpoints_mm());
+        self.prev_positions = self.r.plant.with(|p| p.drive_positions_mm());
         self.prev_state = self.r.ctl.state();
         self.prev_moving_legs = self.r.ctl.housekeeping().moving_legs;
         self.prev_faulted = !self.r.ctl.faults().is_empty();
@@ -713,7 +718,8 @@ impl<C: Choices> Soak<C> {
         let positions = self.r.plant.with(|p| p.drive_positions_mm());
         for i in 0..LEGS {
             let d = (drives[i] - self.prev_drives[i]).abs();
-            let hold = (drives[i] - positions[i]).abs() <= STILL_MM;
+            // A hold: the drive commanded to where it was (it cannot move by that).
+            let hold = (drives[i] - self.prev_positions[i]).abs() <= STILL_MM;
             if d > step_limit && !hold && !skip {
                 self.violation(format!(
                     "leg {} drive setpoint stepped {:.3} um in one cycle ({:?} -> {state:?})",
@@ -734,7 +740,11 @@ impl<C: Choices> Soak<C> {
             } else {
                 from_drives
             };
-            if moving(state) && d > step_limit {
+            // Or a hold: commanded to where its drive is (a stop that came to rest with
+            // a fault latched holds the drives where their sliders are; a jammed
+            // slider's drive then steps back to it without moving anything, and a
+            // recovery move may start from there in the same cycle).
+            if moving(state) && d > step_limit && !hold {
                 self.violation(format!(
                     "leg {} commanded step {:.3} um ({:?} -> {state:?})",
                     i + 1,
@@ -797,7 +807,8 @@ impl<C: Choices> Soak<C> {
         for i in 0..LEGS {
             let bit = 1u8 << i;
             let d = f64::from(c[i]) - f64::from(self.prev_cmd[i]);
-            let hold = (drives[i] - positions[i]).abs() <= STILL_MM;
+            // A hold: the drive commanded to where it was (it cannot move by that).
+            let hold = (drives[i] - self.prev_positions[i]).abs() <= STILL_MM;
             let toward = (pos & bit != 0 && d > 0.0) || (neg & bit != 0 && d < 0.0);
             if toward && !hold && !skip {
                 self.violation(format!(
@@ -813,6 +824,7 @@ impl<C: Choices> Soak<C> {
         self.prev_cmd = c;
         self.prev_truth = truth;
         self.prev_drives = drives;
+        self.prev_positions = positions;
         self.prev_state = state;
         self.prev_moving_legs = hk.moving_legs;
         self.prev_faulted = faulted;
