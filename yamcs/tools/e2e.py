@@ -268,6 +268,8 @@ def main() -> int:
     for e in events[-12:]:
         print(f"       {e.generation_time.astimezone(timezone.utc):%H:%M:%S.%f} {e.severity:8s} {e.event_type:16s} {e.message}")
     check(seen.get("BOOT") == {"INFO"}, f"BOOT event INFO: {seen.get('BOOT')}")
+    details = [e.message for e in events if e.event_type == "BOOT_DETAIL"]
+    check(len(details) == 1, f"one boot during the test (no reset): {details}")
     check(seen.get("STATE_CHANGED") == {"INFO"}, f"STATE_CHANGED INFO: {seen.get('STATE_CHANGED')}")
     check(seen.get("MOVE_REFUSED") == {"WATCH"}, f"MOVE_REFUSED WATCH (PUS low severity): {seen.get('MOVE_REFUSED')}")
     check(seen.get("PARAMETERS_CHANGED") == {"INFO"}, f"PARAMETERS_CHANGED INFO: {seen.get('PARAMETERS_CHANGED')}")
