@@ -43,8 +43,9 @@ impl Link {
 /// A UART at 115,200 baud, 8N1, carries 11.52 bytes per millisecond.
 const UART_BYTES_PER_MS: usize = 11;
 
-/// A host stall of the QEMU process: 5 x the watchdog's 20 ms from last feed to reset.
-const HOST_STALL: Duration = Duration::from_millis(100);
+/// A host stall of the QEMU process: 5 x the watchdog's 200 ms from last feed to reset
+/// (`board::mps2_an386::WATCHDOG_TIMEOUT_CYCLES`, twice).
+const HOST_STALL: Duration = Duration::from_millis(1000);
 
 const OK3: [Verification; 3] = [
     Verification::AcceptanceSuccess,

@@ -379,7 +379,7 @@ const WDOG_UNLOCK: u32 = 0x1ACC_E551;
 const WDOG_RELOCK: u32 = 0;
 /// Control periods without a completed cycle before the watchdog's NMI (the reset
 /// follows one more such interval).
-pub const WATCHDOG_TIMEOUT_CYCLES: u32 = 10;
+pub const WATCHDOG_TIMEOUT_CYCLES: u32 = 100;
 /// Watchdog load value (clocks of [`SYSCLK_HZ`]).
 const WDOG_LOAD_VALUE: u32 = SYSCLK_HZ / CONTROL_RATE_HZ * WATCHDOG_TIMEOUT_CYCLES;
 
