@@ -3,7 +3,8 @@
 //! faults and repairs, and power cuts (also in the middle of flash writes), with the
 //! operator contract checked **every cycle**:
 //!
-//! 1. commanded and true strokes stay inside the running table's stroke limits;
+//! 1. commanded strokes stay inside the running table's stroke limits, and no slider is
+//!    taken outside them (or further outside, after a slip displaced it) by the controller;
 //! 2. no commanded stroke changes by more than the speed limit times a cycle (plus
 //!    rounding) from the last command or from what the drives held, whatever the
 //!    sequence;
@@ -705,8 +706,21 @@ impl<C: Choices> Soak<C> {
                     i + 1
                 ));
             }
-            if !(lo..=hi).contains(&truth[i]) {
-                self.violation(format!("leg {} true stroke {} mm outside", i + 1, truth[i]));
+            // The sliders: never taken outside, nor further outside, by the controller.
+            // A slip (missed steps) can displace a slider at rest beyond a limit by
+            // itself; the controller must then detect it (soft limit, following error)
+            // and only bring it back, which the soak does not forbid. Found by the
+            // 10-minute run: an 80 um slip at -4.93 mm put a slider 8 um beyond -5 mm,
+            // detected 2 cycles later, and counted as a violation every cycle after.
+            let t = truth[i];
+            let outward = if t < lo {
+                t < self.prev_truth[i] - STILL_MM
+            } else {
+                t > self.prev_truth[i] + STILL_MM
+            };
+            let was_inside = (lo..=hi).contains(&self.prev_truth[i]);
+            if !(lo..=hi).contains(&t) && (outward || was_inside) && !skip {
+                self.violation(format!("leg {} true stroke {t} mm outside", i + 1));
             }
         }
         // 2. Speed: no drive is commanded to a setpoint further than the speed limit
