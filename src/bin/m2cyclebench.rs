@@ -239,11 +239,7 @@ impl Rig {
 
     /// One lock body `f` as its own measured section, named `name` (`LOCK` line).
     #[inline(never)]
-    fn lock_section<R>(
-        &mut self,
-        name: &str,
-        f: impl FnOnce(&mut Controller<QemuSliders>) -> R,
-    ) -> R {
+    fn lock_section<R>(&mut self, name: &str, f: impl FnOnce(&mut Controller<Sliders>) -> R) -> R {
         let ctl = &mut *self.ctl;
         hw::bench_start();
         let r = f(ctl);
