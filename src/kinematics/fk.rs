@@ -35,11 +35,9 @@
 //! below the residual tolerance, else the call fails: a half-converged pose is never
 //! returned as good.
 
-use nalgebra::Vector3;
-
 use super::geometry::{Geometry, LEGS};
 use super::ik::{leg_state, LegState};
-use super::linalg::{UnitZJacobian, UnitZLu};
+use super::linalg::{cross3, dot3, UnitZJacobian, UnitZLu};
 use super::pose::{Pose, RotationDelta};
 use super::real::Real;
 
@@ -190,14 +188,15 @@ impl<T: Real> Evaluation<T> {
 fn jacobian<T: Real>(ev: &Evaluation<T>) -> UnitZJacobian<T> {
     let w = &ev.rot.w;
     // R e_x (first column of R) and Rz e_y = (-sin gamma, cos gamma, 0).
-    let ax = Vector3::new(T::ONE + w[(0, 0)], w[(1, 0)], w[(2, 0)]);
+    let c0 = &w.data.0[0];
+    let ax = [T::ONE + c0[0], c0[1], c0[2]];
     let (sg, cg) = (ev.rot.sg, ev.rot.cg);
     let rows = ev.legs.each_ref().map(|st| {
         let inv_q = T::ONE / st.q_mm;
         let (nx, ny) = (st.h_mm[0] * inv_q, st.h_mm[1] * inv_q);
         // m = Rb x n with n = (nx, ny, 1).
-        let m = st.rb_mm.cross(&Vector3::new(nx, ny, T::ONE));
-        [nx, ny, ax.dot(&m), cg * m[1] - sg * m[0], m[2]]
+        let m = cross3(&st.rb_mm, &[nx, ny, T::ONE]);
+        [nx, ny, dot3(&ax, &m), cg * m[1] - sg * m[0], m[2]]
     });
     UnitZJacobian { rows }
 }
@@ -254,9 +253,33 @@ pub fn fk<T: Real>(
     let mut p = start.to_array();
     let mut iterations = 0u8;
     let mut ev = Evaluation::blank();
-    let mut r = residual_at(geom, strokes_mm, &p, &mut ev, iterations)?;
     let mut lu = UnitZLu::blank();
+    // What the strokes evaluated at the top of the loop are for. One evaluation site:
+    // the (inlined) leg evaluation is in the code once, not once per use.
+    let mut phase = Phase::Start;
     loop {
+        let r = residual_at(geom, strokes_mm, &p, &mut ev, iterations)?;
+        match phase {
+            Phase::Final => return finish(p, &r, iterations, cfg),
+            Phase::AfterStep(step) => {
+                // `<=` is false for NaN: a NaN step never counts as converged.
+                if step_in_tolerances(&step, cfg) <= T::ONE {
+                    return finish(p, &r, iterations, cfg);
+                }
+                // The next step, estimated with this factorization (see the module docs).
+                let next = lu.solve(&r);
+                let size = step_in_tolerances(&next, cfg);
+                if size <= negligible {
+                    return finish(p, &r, iterations, cfg);
+                }
+                if size <= T::ONE {
+                    apply(&mut p, &next, iterations)?;
+                    phase = Phase::Final;
+                    continue;
+                }
+            }
+            Phase::Start => {}
+        }
         if iterations >= cfg.max_iterations {
             return Err(FkError::NotConverged { iterations });
         }
@@ -266,23 +289,20 @@ pub fn fk<T: Real>(
         let step = lu.solve(&r);
         iterations += 1;
         apply(&mut p, &step, iterations)?;
-        r = residual_at(geom, strokes_mm, &p, &mut ev, iterations)?;
-        // `<=` is false for NaN: a NaN step never counts as converged.
-        if step_in_tolerances(&step, cfg) <= T::ONE {
-            return finish(p, &r, iterations, cfg);
-        }
-        // The next step, estimated with this factorization (see the module docs).
-        let next = lu.solve(&r);
-        let size = step_in_tolerances(&next, cfg);
-        if size <= negligible {
-            return finish(p, &r, iterations, cfg);
-        }
-        if size <= T::ONE {
-            apply(&mut p, &next, iterations)?;
-            r = residual_at(geom, strokes_mm, &p, &mut ev, iterations)?;
-            return finish(p, &r, iterations, cfg);
-        }
+        phase = Phase::AfterStep(step);
     }
+}
+
+/// The use of the strokes evaluated at the top of [`fk`]'s loop.
+#[derive(Clone, Copy)]
+enum Phase<T> {
+    /// At the start pose: the first Newton step follows.
+    Start,
+    /// After a Newton step `d_k` (pose units): converged if it was within the step
+    /// tolerances, else the next step is estimated with the same factorization.
+    AfterStep([T; 6]),
+    /// After the final (estimated) step: the residual check, then return.
+    Final,
 }
 
 /// Evaluates the legs at `p` into `ev`; returns the residual `s_measured - IK(p)` (mm).

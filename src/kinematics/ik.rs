@@ -20,9 +20,8 @@
 //! `q` enters only a denominator of size ~2 d0_z, so its rounding is damped ~100-fold.
 //! A negative radicand `d0_z^2 - delta` means the leg cannot reach the pose.
 
-use nalgebra::Vector3;
-
 use super::geometry::{Geometry, Leg, LEGS};
+use super::linalg::{add3, mat_vec3};
 use super::pose::{Pose, RotationDelta};
 use super::real::Real;
 use super::workspace::Refusals;
@@ -71,7 +70,7 @@ pub(crate) struct LegState<T: Real> {
     /// Vertical rod component at the pose (mm), > 0.
     pub q_mm: T,
     /// `R b = b + (R - I) b` (mm, frame B): the upper joint relative to M's origin.
-    pub rb_mm: Vector3<T>,
+    pub rb_mm: [T; 3],
 }
 
 /// Evaluates one leg; `None` when the radicand is not positive (leg cannot reach).
@@ -81,8 +80,9 @@ pub(crate) fn leg_state<T: Real>(
     rot: &RotationDelta<T>,
     t: &[T; 3],
 ) -> Option<LegState<T>> {
-    let wb = rot.apply_delta(&leg.b_mm);
-    let u = wb + Vector3::from(*t);
+    let b = &leg.b_mm.data.0[0];
+    let wb = mat_vec3(&rot.w, b);
+    let u = add3(&wb, t);
     let d0 = &leg.d0_mm;
     let delta = u[0] * (leg.two_d0_xy_mm[0] + u[0]) + u[1] * (leg.two_d0_xy_mm[1] + u[1]);
     let radicand = leg.d0z_sq_mm2 - delta;
@@ -103,7 +103,7 @@ pub(crate) fn leg_state<T: Real>(
         stroke_mm: u[2] + delta / (q + d0[2]),
         h_mm: [d0[0] + u[0], d0[1] + u[1]],
         q_mm: q,
-        rb_mm: leg.b_mm + wb,
+        rb_mm: add3(b, &wb),
     })
 }
 

@@ -22,6 +22,44 @@ pub const N: usize = 6;
 /// column, all ones, is implicit).
 pub const NC: usize = N - 1;
 
+/// Components of a 3x3 matrix product with a 3-vector, `m v` (each row summed left to
+/// right). Written out on arrays: the flight image is built for size, and there
+/// nalgebra's generic `Mul`/`Add` were out-of-line calls in the innermost kinematics
+/// loop (this form has no call and no bounds check at any opt-level).
+#[inline(always)]
+pub fn mat_vec3<T: Real>(m: &nalgebra::Matrix3<T>, v: &[T; 3]) -> [T; 3] {
+    // Column-major storage: `c[j][i]` is row i, column j.
+    let c = &m.data.0;
+    let [x, y, z] = *v;
+    [
+        c[0][0] * x + c[1][0] * y + c[2][0] * z,
+        c[0][1] * x + c[1][1] * y + c[2][1] * z,
+        c[0][2] * x + c[1][2] * y + c[2][2] * z,
+    ]
+}
+
+/// `a + b` by component.
+#[inline(always)]
+pub fn add3<T: Real>(a: &[T; 3], b: &[T; 3]) -> [T; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+/// `a x b`.
+#[inline(always)]
+pub fn cross3<T: Real>(a: &[T; 3], b: &[T; 3]) -> [T; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// `a . b`, summed left to right.
+#[inline(always)]
+pub fn dot3<T: Real>(a: &[T; 3], b: &[T; 3]) -> T {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
 /// A 6x6 Jacobian whose z column (index 2 of `[x, y, z, alpha, beta, gamma]`) is all
 /// ones. Row i is leg i; the columns held are `[x, y, alpha, beta, gamma]`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -70,7 +108,14 @@ fn eliminate<T: Real, const K: usize>(
         return false;
     }
     if p != K {
-        lu.swap(K, p.min(NC - 1));
+        // Entry by entry: `<[_]>::swap` of two rows links a general `memmove` (1.6 KB
+        // of flash) because it cannot see that the rows are distinct.
+        let p = p.min(NC - 1);
+        for j in 0..NC {
+            let t = lu[K][j];
+            lu[K][j] = lu[p][j];
+            lu[p][j] = t;
+        }
     }
     swaps[K] = p as u8;
     let inv = T::ONE / lu[K][K];
@@ -120,8 +165,10 @@ impl<T: Real> UnitZLu<T> {
         let [j0, j1, j2, j3, j4, j5] = &jac.rows;
         // The largest entry is at least the z column's 1.
         let mut scale = T::ONE;
-        for v in jac.rows.iter().flatten() {
-            scale = scale.max(v.abs());
+        for row in jac.rows.iter() {
+            for v in row.iter() {
+                scale = scale.max(v.abs());
+            }
         }
         let threshold = pivot_ratio * scale;
         // Eliminate z with row 0 (multiplier 1): rows 1..5 minus row 0.

@@ -108,6 +108,6 @@ impl<T: Real> RotationDelta<T> {
     /// `(R - I) v`.
     #[inline(always)]
     pub fn apply_delta(&self, v: &Vector3<T>) -> Vector3<T> {
-        self.w * v
+        Vector3::from(super::linalg::mat_vec3(&self.w, &v.data.0[0]))
     }
 }
