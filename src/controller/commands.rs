@@ -290,7 +290,7 @@ impl<M: MechanismIo> Controller<M> {
             len: bytes.len(),
             bytes: [0; TABLE_CHUNK_MAX_LEN],
         };
-        chunk.bytes.get_mut(..bytes.len())?.copy_from_slice(bytes);
+        crate::link::wire::copy_prefix(&mut chunk.bytes, bytes)?;
         Some(chunk)
     }
 }

@@ -44,8 +44,8 @@ pub use crate::link::tm::MoveCheckReport as MoveCheck;
 /// frames, limits and held strokes at that moment, copied so that the check is
 /// evaluated outside the controller's lock. Its evaluation (IK of the target, FK of the
 /// held strokes, IK of every sample of the straight path: up to
-/// `PATH_SAMPLE_INTERVALS + 1` IK and one FK, ~66,000 instructions on the M4F at
-/// opt-level s, `m2cyclebench`) would otherwise hold the lock, and so delay the
+/// `PATH_SAMPLE_INTERVALS + 1` IK and one FK, ~57,000 instructions on the M4F in
+/// the flight profile, `m2cyclebench`) would otherwise hold the lock, and so delay the
 /// control task, by more than a control cycle's budget.
 #[derive(Clone, Copy, Debug)]
 pub struct MoveCheckJob {

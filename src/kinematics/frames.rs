@@ -30,6 +30,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
+use super::linalg::{add3, mat_mul3, mat_vec3, sub3, transpose3};
 use super::pose::{Pose, RotationDelta};
 use super::real::Real;
 
@@ -90,21 +91,16 @@ impl<T: Real> Frames<T> {
             return *op;
         }
         let q = RotationDelta::new(&op.rotation_rad).w;
-        let u = Vector3::new(
-            op.translation_mm[0],
-            op.translation_mm[1],
-            op.translation_mm[2],
-        );
+        let u = op.translation_mm;
         let (w, rotation_rad, moved) = match &self.user {
             None => (q, op.rotation_rad, u),
             Some(r_u) => {
-                let w = r_u * q * r_u.transpose();
-                (w, euler_of(&w), r_u * u)
+                let w = mat_mul3(&mat_mul3(r_u, &q), &transpose3(r_u));
+                (w, euler_of(&w), mat_vec3(r_u, &u))
             }
         };
-        let t = moved - w * self.pivot_mm;
         Pose {
-            translation_mm: [t[0], t[1], t[2]],
+            translation_mm: sub3(&moved, &mat_vec3(&w, &self.pivot_mm.data.0[0])),
             rotation_rad,
         }
     }
@@ -115,21 +111,17 @@ impl<T: Real> Frames<T> {
             return *int;
         }
         let w = RotationDelta::new(&int.rotation_rad).w;
-        let t = Vector3::new(
-            int.translation_mm[0],
-            int.translation_mm[1],
-            int.translation_mm[2],
-        );
-        let moved = t + w * self.pivot_mm;
+        let moved = add3(&int.translation_mm, &mat_vec3(&w, &self.pivot_mm.data.0[0]));
         let (u, rotation_rad) = match &self.user {
             None => (moved, int.rotation_rad),
             Some(r_u) => {
-                let q = r_u.transpose() * w * r_u;
-                (r_u.transpose() * moved, euler_of(&q))
+                let r_t = transpose3(r_u);
+                let q = mat_mul3(&mat_mul3(&r_t, &w), r_u);
+                (mat_vec3(&r_t, &moved), euler_of(&q))
             }
         };
         Pose {
-            translation_mm: [u[0], u[1], u[2]],
+            translation_mm: u,
             rotation_rad,
         }
     }

@@ -38,6 +38,42 @@ pub fn mat_vec3<T: Real>(m: &nalgebra::Matrix3<T>, v: &[T; 3]) -> [T; 3] {
     ]
 }
 
+/// The product `a b` of two 3x3 matrices (each entry summed over k = 0, 1, 2 in order),
+/// written out like [`mat_vec3`]: nalgebra's generic product has an index check (a
+/// panic branch) that the size-built flight image does not optimise away.
+#[inline(always)]
+pub fn mat_mul3<T: Real>(
+    a: &nalgebra::Matrix3<T>,
+    b: &nalgebra::Matrix3<T>,
+) -> nalgebra::Matrix3<T> {
+    let (a, b) = (&a.data.0, &b.data.0);
+    let mut c = [[T::ZERO; 3]; 3];
+    for (cj, bj) in c.iter_mut().zip(b.iter()) {
+        for (i, cij) in cj.iter_mut().enumerate() {
+            *cij = a[0][i] * bj[0] + a[1][i] * bj[1] + a[2][i] * bj[2];
+        }
+    }
+    nalgebra::Matrix3::from_array_storage(nalgebra::ArrayStorage(c))
+}
+
+/// The transpose of a 3x3 matrix.
+#[inline(always)]
+pub fn transpose3<T: Real>(a: &nalgebra::Matrix3<T>) -> nalgebra::Matrix3<T> {
+    let a = &a.data.0;
+    let c = [
+        [a[0][0], a[1][0], a[2][0]],
+        [a[0][1], a[1][1], a[2][1]],
+        [a[0][2], a[1][2], a[2][2]],
+    ];
+    nalgebra::Matrix3::from_array_storage(nalgebra::ArrayStorage(c))
+}
+
+/// `a - b` by component.
+#[inline(always)]
+pub fn sub3<T: Real>(a: &[T; 3], b: &[T; 3]) -> [T; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
 /// `a + b` by component.
 #[inline(always)]
 pub fn add3<T: Real>(a: &[T; 3], b: &[T; 3]) -> [T; 3] {

@@ -4,7 +4,7 @@
 use super::error::{sat_u16, LinkError};
 use super::schedule::{ScheduleCommand, MAX_INSERT_APP_DATA_LEN};
 use super::time::TimeReportRate;
-use super::wire::{Order, Reader, Writer};
+use super::wire::{copy_prefix, Order, Reader, Writer};
 use super::{service, subtype};
 use crate::kinematics::{Pose, Real, LEGS};
 use crate::table::TABLE_LEN;
@@ -146,9 +146,7 @@ impl TableChunk {
             return Err(refused);
         }
         let mut data = [0u8; TABLE_CHUNK_MAX_LEN];
-        data.get_mut(..bytes.len())
-            .ok_or(refused)?
-            .copy_from_slice(bytes);
+        copy_prefix(&mut data, bytes).ok_or(refused)?;
         Ok(TableChunk {
             offset: offset_bytes,
             len: u8::try_from(bytes.len()).map_err(|_| refused)?,

@@ -25,7 +25,7 @@ use super::command::{expect_len, Command};
 use super::error::{sat_u16, LinkError};
 use super::tc::{RequestId, TcPacket, REQUEST_ID_LEN};
 use super::tm::TmTime;
-use super::wire::{Order, Reader, Writer};
+use super::wire::{copy_prefix, Order, Reader, Writer};
 use super::{
     service, subtype, CCSDS_PRIMARY_HEADER_LEN, DATA_LEN_FIELD_OFFSET, DATA_LEN_OFFSET,
     TM_TIMESTAMP_LEN,
@@ -189,10 +189,7 @@ impl ActivityBlock {
             });
         }
         let mut bytes = [0u8; MAX_INSERT_APP_DATA_LEN];
-        bytes
-            .get_mut(..app_data.len())
-            .ok_or(LinkError::Oversized)?
-            .copy_from_slice(app_data);
+        copy_prefix(&mut bytes, app_data).ok_or(LinkError::Oversized)?;
         Ok(ActivityBlock {
             len: u8::try_from(app_data.len()).map_err(|_| LinkError::Oversized)?,
             bytes,
@@ -265,7 +262,7 @@ impl RequestIdList {
             return None;
         }
         let mut out = [RequestId::default(); SCHEDULE_CAPACITY];
-        out.get_mut(..ids.len())?.copy_from_slice(ids);
+        copy_prefix(&mut out, ids)?;
         Some(RequestIdList {
             len: u8::try_from(ids.len()).ok()?,
             ids: out,

@@ -176,6 +176,19 @@ impl<'a> Reader<'a> {
     }
 }
 
+/// Copies `src` to the start of `dst`; `None` (and nothing copied) if it does not fit.
+/// The flight code's one slice copy: `copy_from_slice` checks the lengths again and
+/// panics on a mismatch, and in the size-built flight image that check is not always
+/// inlined next to the one that makes it impossible, so a panic branch would remain.
+#[inline]
+pub fn copy_prefix<T: Copy>(dst: &mut [T], src: &[T]) -> Option<()> {
+    let dst = dst.get_mut(..src.len())?;
+    for (d, s) in dst.iter_mut().zip(src) {
+        *d = *s;
+    }
+    Some(())
+}
+
 /// A checked writer over bytes.
 #[derive(Debug)]
 pub struct Writer<'a> {
@@ -197,9 +210,8 @@ impl<'a> Writer<'a> {
 
     /// Writes raw bytes; `None` (and nothing written) if they do not fit.
     pub fn put(&mut self, bytes: &[u8]) -> Option<()> {
-        let end = self.pos.checked_add(bytes.len())?;
-        self.buf.get_mut(self.pos..end)?.copy_from_slice(bytes);
-        self.pos = end;
+        copy_prefix(self.buf.get_mut(self.pos..)?, bytes)?;
+        self.pos = self.pos.checked_add(bytes.len())?;
         Some(())
     }
 
