@@ -42,12 +42,12 @@ k=$(count "$D/m2selftest"); echo "$k"
 e=$(pick "$k" 1)
 echo "IK (one pose, six strokes, all checks):          $(( $(pick "$k" 2) - e )) instructions (goal <= 600)"
 echo "FK (warm start within 10 um, with residual):     $(( $(pick "$k" 3) - e )) instructions (goal <= 5000)"
-# The same kinematics as the flight image compiles them (profile flight, opt-level s).
+# The same kinematics as the flight image compiles them (profile flight, opt-level z).
 cargo build --profile flight --target thumbv7em-none-eabihf --features firmware --bin m2selftest
 ks=$(count "$F/m2selftest")
 es=$(pick "$ks" 1)
-echo "IK in the flight profile (opt-level s):          $(( $(pick "$ks" 2) - es )) instructions (flight goal <= 1000)"
-echo "FK in the flight profile (opt-level s):          $(( $(pick "$ks" 3) - es )) instructions (flight goal <= 8000)"
+echo "IK in the flight profile (opt-level z):          $(( $(pick "$ks" 2) - es )) instructions (flight goal <= 1000)"
+echo "FK in the flight profile (opt-level z):          $(( $(pick "$ks" 3) - es )) instructions (flight goal <= 8000)"
 read -r text data bss _ < <(sizes "$D/m2selftest")
 stack=$(run_log "$D/m2selftest" | sed -n 's/.*STACK peak_bytes=\([0-9]*\).*/\1/p')
 echo "self-test image flash (text + data):             $((text + data)) bytes (goal <= 65536)"
