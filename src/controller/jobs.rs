@@ -141,15 +141,26 @@ impl JobRequest {
     }
 }
 
-/// A table's working geometry as the worker derived it ([`Geometry::new`] of its
-/// parameters): what [`Controller::job_finished`] runs with.
-pub type DerivedGeometry = Result<Geometry<f32>, GeometryError>;
+/// What the worker derives from a table before the controller runs it, so that
+/// neither is computed under the controller's lock ([`Controller::job_finished`] only
+/// copies them): the f64 geometry derivation and the (bitwise) CRC are most of an
+/// activation's cost.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DerivedGeometry {
+    /// The working geometry ([`Geometry::new`] of the table's parameters).
+    pub geom: Result<Geometry<f32>, GeometryError>,
+    /// The CRC-32 of the table's encoding (what housekeeping and event 0x0010 report).
+    pub crc32: u32,
+}
 
-/// Derives `table`'s working geometry (out of line: its f64 parameters are on the
-/// stack alone).
+/// Derives `table`'s working geometry and CRC (out of line: its f64 parameters and its
+/// encoding are on the stack alone).
 #[inline(never)]
 pub fn derive_geometry(table: &Table) -> DerivedGeometry {
-    Geometry::new(&table.geometry_params())
+    DerivedGeometry {
+        geom: Geometry::new(&table.geometry_params()),
+        crc32: table.crc32(),
+    }
 }
 
 /// What the worker answers.
@@ -422,12 +433,13 @@ impl<M: MechanismIo> Controller<M> {
         geom: &DerivedGeometry,
         source: BootSource,
     ) -> Result<(), super::CommandError> {
-        let geom = geom
+        let g = geom
+            .geom
             .as_ref()
             .map_err(|_| super::CommandError::Store(StoreError::NotExpected))?;
         self.active.table = *table;
-        self.active.crc32 = table.crc32();
-        self.active.geom = *geom;
+        self.active.crc32 = geom.crc32;
+        self.active.geom = *g;
         self.active.source = source;
         self.geometry_ok = true;
         self.generation = self.generation.wrapping_add(1);
