@@ -900,3 +900,18 @@ fn a_selected_bank_that_no_longer_holds_the_selected_record_boots_nominal() {
     assert!(r.fell_back);
     assert_eq!(r.bank_a, BankStatus::Standby { sequence: 3 });
 }
+
+/// The four-bit-table CRC-32 of the table and flash records is the `crc` crate's
+/// CRC-32/ISO-HDLC: the catalogue's check value, and equal results on random inputs of
+/// every length up to two tables (the negative control: a different algorithm differs).
+#[test]
+fn nibble_crc32_equals_the_crc_crate() {
+    let reference = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+    assert_eq!(CRC32.checksum(b"123456789"), crc::CRC_32_ISO_HDLC.check);
+    assert_eq!(CRC32.checksum(&[]), reference.checksum(&[]));
+    let other = m2ctl::table::layout::NibbleCrc32::new(&crc::CRC_32_JAMCRC);
+    assert_ne!(other.checksum(b"123456789"), CRC32.checksum(b"123456789"));
+    proptest!(ProptestConfig::with_cases(2000), |(bytes in proptest::collection::vec(any::<u8>(), 0..1100))| {
+        prop_assert_eq!(CRC32.checksum(&bytes), reference.checksum(&bytes));
+    });
+}
