@@ -565,3 +565,51 @@ fn f32_sin_cosm1_and_asin_beyond_the_small_angles_agree_with_f64() {
     assert!(f32::INFINITY.sin_cosm1().0.is_nan() && f32::NAN.sin_cosm1().1.is_nan());
     assert!(1.5f32.asin().is_nan());
 }
+
+/// The flight image's f64 square root is libm's, bit for bit: special values, the
+/// subnormal range, exact squares (the mantissa-carry case), and 200,000 random bit
+/// patterns over every positive exponent. The negative control: one ulp off is caught.
+#[test]
+fn sqrt_f64_is_libm_bit_for_bit() {
+    use m2ctl::kinematics::real::sqrt_f64;
+    let same = |x: f64| {
+        let (ours, libm) = (sqrt_f64(x), libm::sqrt(x));
+        ours.to_bits() == libm.to_bits() || (ours.is_nan() && libm.is_nan())
+    };
+    for x in [
+        0.0,
+        -0.0,
+        -1.0,
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::MIN_POSITIVE,
+        f64::from_bits(1),
+        f64::from_bits(0x000f_ffff_ffff_ffff),
+        f64::MAX,
+        1.0,
+        2.0,
+        4.0,
+        1.0 - f64::EPSILON / 2.0,
+        (1u64 << 53) as f64 * (1u64 << 53) as f64,
+    ] {
+        assert!(same(x), "sqrt({x:e}): {:e} vs libm {:e}", sqrt_f64(x), libm::sqrt(x));
+    }
+    assert_eq!(sqrt_f64(-0.0).to_bits(), (-0.0f64).to_bits());
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    for _ in 0..200_000 {
+        let x = f64::from_bits(next() & 0x7fff_ffff_ffff_ffff);
+        assert!(same(x), "sqrt({x:e}) = {:e}, libm {:e}", sqrt_f64(x), libm::sqrt(x));
+        // Exact squares of random mantissas (the root must come out exact).
+        let r = f64::from_bits((next() >> 12) | 0x3ff0_0000_0000_0000);
+        assert!(same(r * r), "sqrt({:e})", r * r);
+    }
+    let off = f64::from_bits(sqrt_f64(2.0).to_bits() + 1);
+    assert_ne!(off.to_bits(), libm::sqrt(2.0).to_bits());
+}

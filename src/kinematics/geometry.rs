@@ -225,7 +225,7 @@ impl GeometryParams {
         let mut out = [0.0; LEGS];
         for (o, leg) in out.iter_mut().zip(self.legs.iter()) {
             let d = home_rod(leg, &self.p0_mm);
-            *o = libm::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+            *o = crate::kinematics::real::sqrt_f64(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
         }
         out
     }
@@ -254,7 +254,7 @@ impl<T: Real> Geometry<T> {
                 d0_mm: map3(d0).into(),
                 two_d0_xy_mm: [T::from_f64(2.0 * d0[0]), T::from_f64(2.0 * d0[1])],
                 d0z_sq_mm2: T::from_f64(d0[2] * d0[2]),
-                rod_mm: T::from_f64(libm::sqrt(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2])),
+                rod_mm: T::from_f64(crate::kinematics::real::sqrt_f64(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2])),
                 inv_two_d0z_per_mm: T::from_f64(0.5 / d0[2]),
                 fast_sqrt_delta_mm2: T::from_f64(SQRT_FAST_FRACTION * d0[2] * d0[2]),
             };

@@ -247,7 +247,7 @@ impl Real for f64 {
     }
     #[inline]
     fn sqrt(self) -> Self {
-        libm::sqrt(self)
+        sqrt_f64(self)
     }
     #[inline(always)]
     fn abs(self) -> Self {
@@ -277,6 +277,73 @@ impl Real for f64 {
     fn atan2(self, x: Self) -> Self {
         libm::atan2(self, x)
     }
+}
+
+/// Correctly rounded square root of an `f64` (IEEE-754 round to nearest, bit-identical
+/// to `libm::sqrt`: host test `kinematics::sqrt_f64_is_libm_bit_for_bit`), computed
+/// digit by digit on the integer mantissa: shifts, adds and compares only. The flight
+/// image needs an f64 square root only to derive and check a table's geometry (a few
+/// dozen calls per table); libm's is 776 bytes of flash with its table, this a third
+/// of that, at about 2,000 instructions a call. NaN for NaN and negative input; the
+/// input for +-0 and +infinity.
+pub fn sqrt_f64(x: f64) -> f64 {
+    /// Explicit mantissa bits of an f64.
+    const MANT_BITS: u32 = 52;
+    /// Exponent bias plus the mantissa bits: `x = m * 2^(biased - EXP_OFFSET)`.
+    const EXP_OFFSET: i32 = 1075;
+    /// Exponent bias of an f64.
+    const EXP_BIAS: i32 = 1023;
+    if x.is_nan() || x < 0.0 {
+        return f64::NAN;
+    }
+    if x == 0.0 || x == f64::INFINITY {
+        return x;
+    }
+    let bits = x.to_bits();
+    let biased = ((bits >> MANT_BITS) & 0x7ff) as i32;
+    let frac = bits & ((1u64 << MANT_BITS) - 1);
+    // x = m * 2^e with m in [2^52, 2^53) (subnormals normalised).
+    let (mut m, mut e) = if biased == 0 {
+        let shift = frac.leading_zeros() - (63 - MANT_BITS);
+        (frac << shift, 1 - EXP_OFFSET - shift as i32)
+    } else {
+        (frac | (1u64 << MANT_BITS), biased - EXP_OFFSET)
+    };
+    // An even exponent: m in [2^52, 2^54).
+    if e & 1 != 0 {
+        m <<= 1;
+        e -= 1;
+    }
+    // sqrt(x) = sqrt(R) * 2^(e/2 - 26) with R = m * 2^52 (in [2^104, 2^106)); the
+    // integer root of R, in [2^52, 2^53], one bit per step from the top, bringing down
+    // two bits of R each time (R's low 52 bits are zero). The remainder stays below
+    // 2 root + 1 < 2^54: u64 throughout.
+    let mut rem: u64 = 0;
+    let mut root: u64 = 0;
+    for pair in (0..=MANT_BITS).rev() {
+        let shift = 2 * pair;
+        let two_bits = if shift >= MANT_BITS {
+            (m >> (shift - MANT_BITS)) & 3
+        } else {
+            0
+        };
+        rem = (rem << 2) | two_bits;
+        let trial = (root << 2) | 1;
+        root <<= 1;
+        if rem >= trial {
+            rem -= trial;
+            root |= 1;
+        }
+    }
+    // Round to nearest: (root + 1/2)^2 = root^2 + root + 1/4 is never an integer, so
+    // the root rounds up exactly when the remainder exceeds root (no ties).
+    if rem > root {
+        root += 1;
+    }
+    // root in [2^52, 2^53]: adding it to the exponent field one below carries into the
+    // exponent when root = 2^53.
+    let exp_field = (e / 2 + 26 + EXP_BIAS - 1) as u64;
+    f64::from_bits((exp_field << MANT_BITS) + root)
 }
 
 /// Number of Newton steps after the bit-level first guess: the guess is within 3.5 %,

@@ -283,7 +283,7 @@ fn first_non_finite(v: &[f64], base: u16) -> Option<u16> {
 }
 
 fn norm3(v: [f64; 3]) -> f64 {
-    libm::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    crate::kinematics::real::sqrt_f64(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 }
 
 fn home_rod_mm(leg: &LegParams, p0: &[f64; 3]) -> [f64; 3] {
@@ -423,7 +423,7 @@ fn grid_margins_mm(t: &Table, points_per_axis: u8) -> Result<[f64; LEGS], Valida
     for (i, (m, leg)) in margins.iter_mut().zip(t.legs.iter()).enumerate() {
         let d0 = home_rod_mm(leg, &t.p0_mm);
         let l = norm3(d0);
-        let h0 = libm::sqrt(d0[0] * d0[0] + d0[1] * d0[1]);
+        let h0 = crate::kinematics::real::sqrt_f64(d0[0] * d0[0] + d0[1] * d0[1]);
         let b = norm3(leg.b_mm);
         let h_max = h0 + b * rot_sum + t_max;
         let q2 = l * l - h_max * h_max;
@@ -431,7 +431,7 @@ fn grid_margins_mm(t: &Table, points_per_axis: u8) -> Result<[f64; LEGS], Valida
             bad |= 1 << i;
             continue;
         }
-        let q_min = libm::sqrt(q2);
+        let q_min = crate::kinematics::real::sqrt_f64(q2);
         let hess = l * l / (q_min * q_min * q_min);
         let m_trans = hess;
         let m_rot = b * (1.0 + h_max / q_min) + b * b * hess;
