@@ -66,7 +66,7 @@ pub fn run_row(geom: &Geometry<f32>, row: &GoldenRow) -> RowOutcome {
         .iter()
         .zip(row.strokes_mm.iter())
         .map(|(s, r)| libm::fabs(f64::from(*s) - r))
-        .fold(0.0, f64::max);
+        .fold(0.0, larger);
     let Ok(sol) = fk(geom, &strokes, &Pose::home(), &FkConfig::default()) else {
         return out;
     };
@@ -76,15 +76,26 @@ pub fn run_row(geom: &Geometry<f32>, row: &GoldenRow) -> RowOutcome {
     let mut err_mm = 0.0f64;
     let mut err_as = 0.0f64;
     for k in 0..3 {
-        err_mm = err_mm.max(libm::fabs(f64::from(p[k]) - row.pose[k]));
-        err_as = err_as.max(libm::fabs(
-            f64::from(p[k + 3]) * ARCSEC_PER_RAD - row.pose[k + 3],
-        ));
+        err_mm = larger(err_mm, libm::fabs(f64::from(p[k]) - row.pose[k]));
+        err_as = larger(
+            err_as,
+            libm::fabs(f64::from(p[k + 3]) * ARCSEC_PER_RAD - row.pose[k + 3]),
+        );
     }
     out.fk_err_mm = err_mm;
     out.fk_err_arcsec = err_as;
     out.pass = out.ik_err_mm <= IK_TOL_MM && err_mm <= FK_TOL_MM && err_as <= FK_TOL_ARCSEC;
     out
+}
+
+/// The larger of `a` and `b` (`a` if `b` is NaN): `f64::max` without libm's `fmax`
+/// (its only use in the flight image was the boot self-test).
+fn larger(a: f64, b: f64) -> f64 {
+    if b > a {
+        b
+    } else {
+        a
+    }
 }
 
 /// FNV-1a offset basis (32-bit).
