@@ -126,3 +126,53 @@ fn nominal_controller_on_a_true_mechanism_shows_the_calibration_problem() {
         }
     }
 }
+
+/// The emulated board's f32 encoder rounding is the f64 one, count for count: the
+/// special values, both neighbours of every half count near the strokes, and a million
+/// random f32 bit patterns of every magnitude (saturation included). The negative
+/// control: truncation instead of rounding differs.
+#[test]
+fn nearest_count_f32_equals_the_f64_rounding() {
+    use m2ctl::plant::{nearest_count, nearest_count_f32};
+    let check = |s: f32| {
+        assert_eq!(
+            nearest_count_f32(s),
+            nearest_count::<f32>(s),
+            "stroke {s:e} mm ({:#x})",
+            s.to_bits()
+        );
+    };
+    for s in [
+        0.0f32,
+        -0.0,
+        f32::NAN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::MAX,
+        f32::MIN,
+        1e30,
+        -1e30,
+    ] {
+        check(s);
+    }
+    let per = m2ctl::hw::ENCODER_MM_PER_COUNT as f32;
+    for k in -60_000i32..60_000 {
+        let half = (k as f32 + 0.5) * per;
+        for s in [
+            half,
+            f32::from_bits(half.to_bits() + 1),
+            f32::from_bits(half.to_bits().wrapping_sub(1)),
+        ] {
+            check(s);
+        }
+    }
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    for _ in 0..1_000_000 {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        check(f32::from_bits(state as u32));
+    }
+    let s = 0.75 * per;
+    assert_ne!(nearest_count_f32(s), (s / per) as i32);
+}

@@ -139,3 +139,24 @@ pub fn nearest_count<T: Real>(stroke_mm: T) -> i32 {
     // `as` saturates and maps NaN to 0.
     r as i32
 }
+
+/// [`nearest_count`] for `f32` strokes without f64 arithmetic (the emulated board's
+/// encoders, read every control cycle: there the f64 form was soft-float calls). Equal
+/// to `nearest_count::<f32>` for every stroke (host test
+/// `plant::nearest_count_f32_equals_the_f64_rounding`).
+pub fn nearest_count_f32(stroke_mm: f32) -> i32 {
+    // The same quotient as `nearest_count::<f32>` (computed in f32 there too).
+    let c = stroke_mm / f32::from_f64(ENCODER_MM_PER_COUNT);
+    // Toward zero, saturating, NaN to 0.
+    let t = c as i32;
+    // Exact: below 2^23 by Sterbenz' lemma (t within a factor 2 of c, or 0); beyond,
+    // c is an integer and this is 0 (or, past the i32 range, of c's sign).
+    let frac = c - t as f32;
+    if frac >= 0.5 {
+        t.saturating_add(1)
+    } else if frac <= -0.5 {
+        t.saturating_sub(1)
+    } else {
+        t
+    }
+}

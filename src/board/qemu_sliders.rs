@@ -11,7 +11,7 @@
 
 use crate::hw::{DriveError, EncoderError, SliderDrives, StrokeEncoders};
 use crate::kinematics::LEGS;
-use crate::plant::{nearest_count, Sliders};
+use crate::plant::{nearest_count_f32, Sliders};
 use crate::timing::CYCLE_S;
 
 /// Speed of the model's sliders (mm/s): faster than the flight motion limits, so the
@@ -38,7 +38,7 @@ impl QemuSliders {
 impl StrokeEncoders for QemuSliders {
     fn read_counts(&mut self) -> Result<[i32; LEGS], EncoderError> {
         self.sliders.step(self.max_step_mm, |_| false);
-        Ok(self.sliders.positions_mm().map(nearest_count))
+        Ok(self.sliders.positions_mm().map(nearest_count_f32))
     }
 }
 
