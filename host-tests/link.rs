@@ -1015,3 +1015,65 @@ fn m2ground_tc_cli_writes_frames() {
     let unframed = run(&["tc", "--unframed", "ping"]);
     assert_eq!(unframed.trim(), "18b2c00000062f11010000ee7d");
 }
+
+/// The wire's rounding to whole nm / uas is libm's round-half-away-from-zero then a
+/// saturating conversion, value for value: halves, their neighbours, the i32 range's
+/// ends and 1,000,000 random f64 bit patterns. Negative control: truncation differs.
+#[test]
+fn round_sat_i32_is_libm_round_saturated() {
+    use m2ctl::link::wire::round_sat_i32;
+    let check = |v: f64| {
+        assert_eq!(
+            round_sat_i32(v),
+            libm::round(v) as i32,
+            "{v:e} ({:#x})",
+            v.to_bits()
+        )
+    };
+    let edges = [
+        0.0,
+        -0.0,
+        0.5,
+        -0.5,
+        1.5,
+        -1.5,
+        2.5,
+        -2.5,
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        2147483647.0,
+        2147483647.5,
+        2147483648.0,
+        -2147483648.0,
+        -2147483648.25,
+        -2147483648.5,
+        -2147483649.0,
+        1e300,
+        -1e300,
+        f64::MIN_POSITIVE,
+    ];
+    for v in edges {
+        check(v);
+    }
+    for k in -100_000i64..100_000 {
+        let half = k as f64 + 0.5;
+        for v in [
+            half,
+            f64::from_bits(half.to_bits() + 1),
+            f64::from_bits(half.to_bits() - 1),
+        ] {
+            check(v);
+        }
+    }
+    let mut state = 0x853c_49e6_748f_ea9bu64;
+    for _ in 0..1_000_000 {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        check(f64::from_bits(state));
+        // Magnitudes of the wire's values (up to ~2e9 nm or uas).
+        check((state >> 11) as f64 / (1u64 << 53) as f64 * 4.4e9 - 2.2e9);
+    }
+    assert_ne!(round_sat_i32(2.7), 2.7f64 as i32);
+}

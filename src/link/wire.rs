@@ -13,15 +13,19 @@ use crate::units::{NM_PER_MM, NM_PER_MM_F32, UAS_PER_RAD};
 
 /// Rounds half away from zero to the nearest i32, saturating; NaN gives 0.
 pub fn round_sat_i32(v: f64) -> i32 {
-    let r = libm::round(v);
-    if r.is_nan() {
-        0
-    } else if r >= f64::from(i32::MAX) {
-        i32::MAX
-    } else if r <= f64::from(i32::MIN) {
-        i32::MIN
+    // Toward zero first (`as` saturates and maps NaN to 0), then the fraction decides.
+    let t = v as i32;
+    // Exact within the i32 range (Sterbenz' lemma: t is within a factor 2 of v, or 0).
+    // Beyond it t is saturated, and so is the result (above: frac >= 1, below: the
+    // subtraction saturates). Equal to `libm::round(v) as i32` (host test
+    // `link::round_sat_i32_is_libm_round_saturated`), without libm's f64 round.
+    let frac = v - f64::from(t);
+    if frac >= 0.5 {
+        t.saturating_add(1)
+    } else if frac <= -0.5 {
+        t.saturating_sub(1)
     } else {
-        r as i32
+        t
     }
 }
 
