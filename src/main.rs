@@ -172,9 +172,8 @@ fn build_core(
     &'static mut Controller<board::Sliders>,
     &'static mut Worker<board::TableFlash>,
 )> {
-    let validation = ValidationConfig::flight();
-    let worker = build_worker(worker_slot, flash, validation)?;
-    let (table, boot) = boot_selection(worker.store_mut(), &validation);
+    let worker = build_worker(worker_slot, flash)?;
+    let (table, boot) = boot_selection(worker);
     let ctl = build_controller(ctl_slot, sliders, table, boot, reset);
     // The on-board parameters persisted with the selection record (pivot, limits...).
     ctl.restore_parameters(&worker.store_mut().parameters());
@@ -185,20 +184,18 @@ fn build_core(
 fn build_worker(
     slot: &'static mut MaybeUninit<Worker<board::TableFlash>>,
     flash: board::TableFlash,
-    validation: ValidationConfig,
 ) -> Option<&'static mut Worker<board::TableFlash>> {
     let store = TableStore::new(flash, board::TABLE_LAYOUT).ok()?;
-    Some(slot.write(Worker::new(store, validation)))
+    // Built here, not in build_core: its ~500 bytes are then not on the stack while the
+    // controller is built (the boot path is the image's deepest stack).
+    Some(slot.write(Worker::new(store, ValidationConfig::flight())))
 }
 
 /// The table boot selection (`TableStore::boot`): what the operator last selected, if
 /// it is intact and valid, else the fallback.
 #[inline(never)]
-fn boot_selection(
-    store: &mut TableStore<board::TableFlash>,
-    validation: &ValidationConfig,
-) -> (Table, BootReport) {
-    store.boot(validation)
+fn boot_selection(worker: &mut Worker<board::TableFlash>) -> (Table, BootReport) {
+    worker.boot()
 }
 
 #[inline(never)]

@@ -518,6 +518,11 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
         &mut self.store
     }
 
+    /// The boot selection ([`TableStore::boot`]) with the worker's validation settings.
+    pub fn boot(&mut self) -> (Table, crate::table::BootReport) {
+        self.store.boot(&self.validation)
+    }
+
     /// Gives the store back.
     pub fn into_store(self) -> TableStore<F> {
         self.store
