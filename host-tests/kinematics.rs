@@ -593,7 +593,12 @@ fn sqrt_f64_is_libm_bit_for_bit() {
         1.0 - f64::EPSILON / 2.0,
         (1u64 << 53) as f64 * (1u64 << 53) as f64,
     ] {
-        assert!(same(x), "sqrt({x:e}): {:e} vs libm {:e}", sqrt_f64(x), libm::sqrt(x));
+        assert!(
+            same(x),
+            "sqrt({x:e}): {:e} vs libm {:e}",
+            sqrt_f64(x),
+            libm::sqrt(x)
+        );
     }
     assert_eq!(sqrt_f64(-0.0).to_bits(), (-0.0f64).to_bits());
     let mut state = 0x9e37_79b9_7f4a_7c15u64;
@@ -605,7 +610,12 @@ fn sqrt_f64_is_libm_bit_for_bit() {
     };
     for _ in 0..200_000 {
         let x = f64::from_bits(next() & 0x7fff_ffff_ffff_ffff);
-        assert!(same(x), "sqrt({x:e}) = {:e}, libm {:e}", sqrt_f64(x), libm::sqrt(x));
+        assert!(
+            same(x),
+            "sqrt({x:e}) = {:e}, libm {:e}",
+            sqrt_f64(x),
+            libm::sqrt(x)
+        );
         // Exact squares of random mantissas (the root must come out exact).
         let r = f64::from_bits((next() >> 12) | 0x3ff0_0000_0000_0000);
         assert!(same(r * r), "sqrt({:e})", r * r);

@@ -254,7 +254,9 @@ impl<T: Real> Geometry<T> {
                 d0_mm: map3(d0).into(),
                 two_d0_xy_mm: [T::from_f64(2.0 * d0[0]), T::from_f64(2.0 * d0[1])],
                 d0z_sq_mm2: T::from_f64(d0[2] * d0[2]),
-                rod_mm: T::from_f64(crate::kinematics::real::sqrt_f64(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2])),
+                rod_mm: T::from_f64(crate::kinematics::real::sqrt_f64(
+                    d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2],
+                )),
                 inv_two_d0z_per_mm: T::from_f64(0.5 / d0[2]),
                 fast_sqrt_delta_mm2: T::from_f64(SQRT_FAST_FRACTION * d0[2] * d0[2]),
             };

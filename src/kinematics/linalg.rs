@@ -40,8 +40,9 @@ pub fn mat_vec3<T: Real>(m: &nalgebra::Matrix3<T>, v: &[T; 3]) -> [T; 3] {
 
 /// The product `a b` of two 3x3 matrices (each entry summed over k = 0, 1, 2 in order),
 /// written out like [`mat_vec3`]: nalgebra's generic product has an index check (a
-/// panic branch) that the size-built flight image does not optimise away.
-#[inline(always)]
+/// panic branch) that the size-built flight image does not optimise away. Not forced
+/// inline: the frames use it four times, outside the innermost loop.
+#[inline]
 pub fn mat_mul3<T: Real>(
     a: &nalgebra::Matrix3<T>,
     b: &nalgebra::Matrix3<T>,
