@@ -601,13 +601,8 @@ fn sqrt_f64_is_libm_bit_for_bit() {
         );
     }
     assert_eq!(sqrt_f64(-0.0).to_bits(), (-0.0f64).to_bits());
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    let mut next = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        state
-    };
+    let mut rng = TestRng(0x9e37_79b9_7f4a_7c15);
+    let mut next = || rng.bits();
     for _ in 0..200_000 {
         let x = f64::from_bits(next() & 0x7fff_ffff_ffff_ffff);
         assert!(

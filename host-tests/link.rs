@@ -4,6 +4,8 @@
 //!
 //! `cargo test --features host --test link -- --nocapture` prints the fuzz case counts.
 
+mod common;
+
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use m2ctl::ground::tc::{
@@ -1066,14 +1068,11 @@ fn round_sat_i32_is_libm_round_saturated() {
             check(v);
         }
     }
-    let mut state = 0x853c_49e6_748f_ea9bu64;
+    let mut rng = common::TestRng(0x853c_49e6_748f_ea9b);
     for _ in 0..1_000_000 {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        check(f64::from_bits(state));
-        // Magnitudes of the wire's values (up to ~2e9 nm or uas).
-        check((state >> 11) as f64 / (1u64 << 53) as f64 * 4.4e9 - 2.2e9);
+        check(f64::from_bits(rng.bits()));
+        // Magnitudes of the wire's values (up to ~2.2e9 nm or uas).
+        check(rng.sym() * 2.2e9);
     }
     assert_ne!(round_sat_i32(2.7), 2.7f64 as i32);
 }

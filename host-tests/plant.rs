@@ -2,6 +2,8 @@
 //! encoders, driven through the same traits as the target hardware.
 #![allow(clippy::needless_range_loop)] // index loops over six legs/axes read clearer here
 
+mod common;
+
 use m2ctl::hw::{counts_to_mm, SliderDrives, StrokeEncoders, ENCODER_MM_PER_COUNT};
 use m2ctl::kinematics::{fk, ik, FkConfig, Geometry, Pose};
 use m2ctl::nominal::PROTOTYPE;
@@ -166,12 +168,9 @@ fn nearest_count_f32_equals_the_f64_rounding() {
             check(s);
         }
     }
-    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut rng = common::TestRng(0x2545_f491_4f6c_dd1d);
     for _ in 0..1_000_000 {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        check(f32::from_bits(state as u32));
+        check(f32::from_bits(rng.bits() as u32));
     }
     let s = 0.75 * per;
     assert_ne!(nearest_count_f32(s), (s / per) as i32);

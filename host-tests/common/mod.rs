@@ -10,12 +10,17 @@ use m2ctl::units::{ARCSEC_PER_RAD, NM_PER_UM, UAS_PER_ARCSEC};
 pub struct TestRng(pub u64);
 
 impl TestRng {
-    /// Uniform in [-1, 1).
-    pub fn sym(&mut self) -> f64 {
+    /// The next 64 random bits (also the generator's state).
+    pub fn bits(&mut self) -> u64 {
         self.0 ^= self.0 << 13;
         self.0 ^= self.0 >> 7;
         self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        self.0
+    }
+
+    /// Uniform in [-1, 1).
+    pub fn sym(&mut self) -> f64 {
+        (self.bits() >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
     }
 }
 
