@@ -13,11 +13,21 @@
 //! defines the vector table and the fault handlers; the images define the panic
 //! handler).
 //!
+//! `cortex_m` holds what every board shares because it is the core's, not the board's
+//! (reset record, fault handlers, stack guard and paint, test-image markers); each
+//! board re-exports it.
+//!
 //! `qemu_sliders` is a board part, not a board: the slider/encoder model that the
 //! emulated mps2-an386 board has instead of slider drivers (compiled with it only).
 
+pub mod cortex_m;
 #[cfg(not(feature = "board-netduinoplus2"))]
 pub mod qemu_sliders;
+
+/// The board's memory map (`memory.x`), as build.rs reads it.
+mod memory_x {
+    include!(concat!(env!("OUT_DIR"), "/memory_x.rs"));
+}
 
 #[cfg(not(feature = "board-netduinoplus2"))]
 pub mod mps2_an386;

@@ -16,9 +16,10 @@
 //!   `stm32f4xx-hal`, embedded-hal 1.0): six BiSS-C encoders in one daisy chain on
 //!   SPI1, six step/direction drives (step pulses from [`StepEngine`] on TIM2), and the
 //!   end-of-travel/reference inputs;
-//! * the reset record, the fault handlers (HardFault, MemManage, unexpected
-//!   interrupts) that record their cause and reset, the MPU stack guard, stack
-//!   painting/peak, instruction-count markers and the semihosting exit (test images).
+//! * re-exported from [`super::cortex_m`]: the reset record, the fault handlers
+//!   (HardFault, MemManage, unexpected interrupts) that record their cause and reset,
+//!   the MPU stack guard, stack painting/peak, instruction-count markers and the
+//!   semihosting exit (test images).
 //!
 //! ## Harness (pin map)
 //!
@@ -62,8 +63,7 @@
 #![allow(unsafe_code)] // Board glue: MMIO registers, linker symbols, painted RAM.
 
 use core::cell::RefCell;
-use core::mem::MaybeUninit;
-use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
+use core::ptr::{read_volatile, write_volatile};
 use core::sync::atomic::{AtomicBool, AtomicU16, AtomicU32, Ordering};
 
 use cortex_m::interrupt::{self as irq, Mutex};
@@ -78,7 +78,8 @@ use stm32f4xx_hal::rcc::{Config as RccConfig, Enable, Rcc, Reset};
 use stm32f4xx_hal::serial::{self as hal_serial, Serial};
 use stm32f4xx_hal::spi::{Mode as SpiMode, Phase, Polarity, Spi};
 
-use crate::controller::{ResetCause, ResetInfo};
+use super::memory_x;
+use crate::controller::ResetInfo;
 use crate::drivers::biss::{BissChain, BissConfig, EncoderScale, MaLine};
 use crate::drivers::stepper::{
     StepDirDrives, StepPulses, StepperConfig, StepperLeg, StepperPolarity,
@@ -89,11 +90,6 @@ use crate::kinematics::LEGS;
 use crate::table::{BankLayout, FlashStatus};
 use crate::timing::CYCLE_US;
 use crate::units::US_PER_S;
-
-/// The memory map of `memory.x`, as build.rs reads it.
-mod memory_x {
-    include!(concat!(env!("OUT_DIR"), "/memory_x.rs"));
-}
 
 // ---------------------------------------------------------------------------------
 // Device description for RTIC.
@@ -584,259 +580,15 @@ impl Watchdog {
 }
 
 // ---------------------------------------------------------------------------------
-// Reset record: four words in `.uninit` (cortex-m-rt's section that is not zeroed at
-// boot; SRAM keeps its content across a system or watchdog reset, and so does QEMU).
+// Reset record, fault handlers, stack guard and paint, test-image exit and markers: the
+// Cortex-M core parts both boards share (`super::cortex_m`).
 
-mod reset_record {
-    use super::*;
-
-    /// Marks a record written by this firmware.
-    const MAGIC: u32 = 0x4D32_5253; // "M2RS"
-    /// Cause word while the firmware runs: no reset announced.
-    const CAUSE_NONE: u32 = 0xFF;
-
-    #[link_section = ".uninit.m2_reset_record"]
-    static mut RECORD: MaybeUninit<[u32; 4]> = MaybeUninit::uninit();
-
-    fn word(i: usize) -> *mut u32 {
-        // SAFETY: RECORD is four words; `i < 4` at every call site.
-        unsafe { addr_of_mut!(RECORD).cast::<u32>().add(i) }
-    }
-
-    fn check(cause: u32, count: u32) -> u32 {
-        !(MAGIC ^ cause ^ count.rotate_left(8))
-    }
-
-    fn read() -> Option<(u32, u32)> {
-        // SAFETY: plain RAM words of RECORD; any bit pattern is a valid u32.
-        let [m, c, n, k] = unsafe { [0, 1, 2, 3].map(|i| read_volatile(word(i))) };
-        (m == MAGIC && k == check(c, n)).then_some((c, n))
-    }
-
-    fn write(cause: u32, count: u32) {
-        // SAFETY: as in `read`.
-        unsafe {
-            write_volatile(word(0), MAGIC);
-            write_volatile(word(1), cause);
-            write_volatile(word(2), count);
-            write_volatile(word(3), check(cause, count));
-        }
-    }
-
-    /// At boot: the cause the last reset recorded (no valid record: power-on; a valid
-    /// record without an announced cause: the watchdog, the only reset software does
-    /// not announce), and the boot count; re-arms the record.
-    pub fn on_boot() -> ResetInfo {
-        let (cause, count) = match read() {
-            None => (ResetCause::PowerOn, 1),
-            Some((c, n)) => {
-                let cause = match u8::try_from(c).ok().and_then(ResetCause::from_code) {
-                    Some(cause) => cause,
-                    None => ResetCause::Watchdog,
-                };
-                (cause, n.wrapping_add(1))
-            }
-        };
-        write(CAUSE_NONE, count);
-        ResetInfo {
-            cause,
-            boot_count: (count & 0xFFFF) as u16,
-        }
-    }
-
-    /// Records the cause of the coming reset (keeps the boot count).
-    pub fn announce(cause: ResetCause) {
-        let count = read().map_or(0, |(_, n)| n);
-        write(u32::from(cause.code()), count);
-    }
-}
-
-/// Records `cause` in the reset record and resets the system.
-pub fn record_and_reset(cause: ResetCause) -> ! {
-    reset_record::announce(cause);
-    cortex_m::peripheral::SCB::sys_reset()
-}
-
-/// Entered from the fault trampoline with a fresh stack.
-extern "C" fn fault_reset() -> ! {
-    record_and_reset(ResetCause::HardFault)
-}
-
-// HardFault and MemManage: the stack pointer may be in the guard region (a stack
-// overflow), so the handler pushes nothing: it resets MSP to the top of the stack,
-// then records the cause and resets the system.
-core::arch::global_asm!(
-    ".section .text.m2_fault_entry,\"ax\",%progbits",
-    ".global HardFault",
-    ".type HardFault,%function",
-    ".thumb_func",
-    "HardFault:",
-    ".global MemoryManagement",
-    ".type MemoryManagement,%function",
-    ".thumb_func",
-    "MemoryManagement:",
-    "ldr r0, =_stack_start",
-    "msr msp, r0",
-    "b {reset}",
-    ".ltorg",
-    reset = sym fault_reset,
-);
-
-/// An interrupt or exception without a handler: a defect; record and reset.
-#[cortex_m_rt::exception]
-unsafe fn DefaultHandler(_irqn: i16) {
-    record_and_reset(ResetCause::HardFault)
-}
-
-// ---------------------------------------------------------------------------------
-// Stack: the single stack (RTIC's one shared stack), `memory.x`'s STACK region at the
-// bottom of SRAM; below it an MPU region with no access (reserved space and the system
-// memory, which the firmware never reads), so an overflow faults (MemManage) at once.
-
-extern "C" {
-    static _stack_start: u32;
-    static _stack_end: u32;
-}
-
-/// Size of the stack (bytes), from `memory.x`.
-pub const STACK_BYTES: u32 = memory_x::STACK_LENGTH;
-/// Size of the guard region below the stack (bytes; a power of two, the stack bottom
-/// aligned to it, as the MPU requires).
-pub const STACK_GUARD_BYTES: u32 = 1 << 20;
-const _: () = assert!(STACK_GUARD_BYTES.is_power_of_two() && STACK_GUARD_BYTES >= 32);
-const _: () = assert!(memory_x::STACK_ORIGIN % STACK_GUARD_BYTES == 0);
-const _: () = assert!(memory_x::STACK_ORIGIN >= STACK_GUARD_BYTES);
-
-/// MPU RASR: execute never, region enable; SIZE field is log2(size) - 1; AP 0 = no
-/// access.
-const RASR_XN: u32 = 1 << 28;
-const RASR_ENABLE: u32 = 1;
-/// MPU CTRL: enable, default memory map for privileged code elsewhere.
-const MPU_CTRL_ENABLE: u32 = 1 << 0;
-const MPU_CTRL_PRIVDEFENA: u32 = 1 << 2;
-
-/// Makes the region below the stack fault on any access, and MemManage faults taken
-/// at the highest configurable priority. Call once from init.
-pub fn enable_stack_guard(
-    mpu: &mut cortex_m::peripheral::MPU,
-    scb: &mut cortex_m::peripheral::SCB,
-) {
-    let base = memory_x::STACK_ORIGIN - STACK_GUARD_BYTES;
-    let size_field = STACK_GUARD_BYTES.trailing_zeros() - 1;
-    // SAFETY: region 0 covers only the reserved space and system memory below SRAM; the
-    // default map stays in force everywhere else (PRIVDEFENA).
-    unsafe {
-        mpu.rnr.write(0);
-        mpu.rbar.write(base);
-        mpu.rasr.write(RASR_XN | (size_field << 1) | RASR_ENABLE);
-        mpu.ctrl.write(MPU_CTRL_ENABLE | MPU_CTRL_PRIVDEFENA);
-        scb.set_priority(
-            cortex_m::peripheral::scb::SystemHandler::MemoryManagement,
-            0,
-        );
-    }
-    scb.enable(cortex_m::peripheral::scb::Exception::MemoryManagement);
-    cortex_m::asm::dsb();
-    cortex_m::asm::isb();
-}
-
-/// Value cortex-m-rt's `paint-stack` writes over the stack before `main`.
-const STACK_PAINT: u32 = 0xCCCC_CCCC;
-
-fn stack_bounds() -> (usize, usize) {
-    (
-        addr_of!(_stack_end) as usize,
-        addr_of!(_stack_start) as usize,
-    )
-}
-
-/// Lowest stack address found used so far (`u32::MAX`: not measured yet).
-static STACK_DEEPEST: AtomicU32 = AtomicU32::new(u32::MAX);
-/// Window below the deepest known use where the scan starts (bytes).
-const STACK_SCAN_WINDOW_BYTES: usize = 1024;
-
-fn scan_from() -> usize {
-    let (lo, _) = stack_bounds();
-    match STACK_DEEPEST.load(Ordering::Relaxed) {
-        u32::MAX => lo,
-        d => {
-            let start = (d as usize).saturating_sub(STACK_SCAN_WINDOW_BYTES).max(lo);
-            // SAFETY: inside the stack region (RAM), word aligned.
-            if unsafe { read_volatile(start as *const u32) } == STACK_PAINT {
-                start
-            } else {
-                lo
-            }
-        }
-    }
-}
-
-/// Bytes of stack used so far (since the last [`repaint_stack`]).
-pub fn stack_peak_bytes() -> u32 {
-    let (_, hi) = stack_bounds();
-    let mut p = scan_from();
-    // SAFETY: [lo, hi) is the stack region of the linker script, plain RAM.
-    while p < hi && unsafe { read_volatile(p as *const u32) } == STACK_PAINT {
-        p += 4;
-    }
-    STACK_DEEPEST.fetch_min(p as u32, Ordering::Relaxed);
-    (hi - p) as u32
-}
-
-/// Size of the stack region (bytes) between `_stack_end` and `_stack_start`.
-pub fn stack_region_bytes() -> u32 {
-    let (lo, hi) = stack_bounds();
-    (hi - lo) as u32
-}
-
-/// Bytes of stack in use at the caller (top of the stack minus the stack pointer).
-pub fn stack_depth_bytes() -> u32 {
-    let (_, hi) = stack_bounds();
-    (hi as u32).wrapping_sub(cortex_m::register::msp::read())
-}
-
-/// Margin left unpainted below the stack pointer by [`repaint_stack`] (bytes).
-const REPAINT_MARGIN_BYTES: usize = 64;
-
-/// Paints the unused stack again (benchmark images).
-#[inline(never)]
-pub fn repaint_stack() {
-    let sp = cortex_m::register::msp::read() as usize;
-    let mut p = scan_from();
-    while p + REPAINT_MARGIN_BYTES < sp {
-        // SAFETY: below the stack pointer (minus this frame's margin) the stack region
-        // is unused.
-        unsafe { write_volatile(p as *mut u32, STACK_PAINT) };
-        p += 4;
-    }
-}
-
-// ---------------------------------------------------------------------------------
-// Test images only: semihosting exit and instruction-count markers.
-
-/// Ends the run with an exit code (0 = pass) through semihosting (QEMU's exit code; on
-/// the real board only with a debugger attached). Test images only.
-pub fn exit(code: i32) -> ! {
-    semihosting::process::exit(code)
-}
-
-/// Exit code of a panic in a test image.
-pub const EXIT_PANIC: i32 = 101;
-
-/// Marker for the instruction counter: start of a measured section.
-#[no_mangle]
-#[inline(never)]
-pub extern "C" fn bench_start() {
-    core::sync::atomic::compiler_fence(Ordering::SeqCst);
-}
-
-/// Marker for the instruction counter: end of a measured section.
-#[no_mangle]
-#[inline(never)]
-pub extern "C" fn bench_end() {
-    core::sync::atomic::compiler_fence(Ordering::Release);
-    core::hint::black_box(0u32);
-}
+use super::cortex_m::reset_record;
+pub use super::cortex_m::{
+    bench_end, bench_start, enable_stack_guard, exit, record_and_reset, repaint_stack,
+    stack_depth_bytes, stack_peak_bytes, stack_region_bytes, EXIT_PANIC, STACK_BYTES,
+    STACK_GUARD_BYTES,
+};
 
 // ---------------------------------------------------------------------------------
 // Table flash: sectors 8 to 11 (128 KiB each, 0x0808_0000..0x0810_0000), the TABLE
