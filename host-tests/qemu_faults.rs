@@ -17,14 +17,14 @@ use std::time::{Duration, Instant};
 use common::qemu::{elf_at, Link, Qemu};
 use m2ctl::controller::{event, ResetCause};
 use m2ctl::ground::station::Station;
-use m2ctl::link::tm::Verification;
-use m2ctl::link::Command;
 use m2ctl::supervision::FaultFlags;
 
 /// Where scripts/qemu-fault-test.sh puts the fault-test build of m2fw.
 const FAULT_TEST_ELF: &str = "target/m2fw-fault-test";
 /// Overrunning cycles the fault-test build injects after power-on (main.rs).
 const INJECTED_OVERRUNS: u16 = 5;
+/// How long a one-shot housekeeping request may take to be answered.
+const HK_TIMEOUT: Duration = Duration::from_secs(10);
 
 impl Link {
     /// Boot-detail events so far: (reset cause code, boot count).
@@ -34,18 +34,6 @@ impl Link {
             .iter()
             .map(|aux| (aux[1] & 0xFF, aux[1] >> 16))
             .collect()
-    }
-
-    fn hk(&mut self) -> m2ctl::link::Housekeeping {
-        let (frame, rid) = self.st.frame(&Command::HousekeepingOneShot).unwrap();
-        self.q.send(&frame);
-        assert!(
-            self.until(Duration::from_secs(10), |s| s
-                .reports(rid)
-                .contains(&Verification::CompletionSuccess)),
-            "no housekeeping"
-        );
-        self.st.last_hk().unwrap()
     }
 }
 
@@ -74,7 +62,7 @@ fn overruns_hang_and_overflow_reset_with_their_cause_reported() {
         l.until(t, |s| !s.events(event::DEADLINE_MISSED).is_empty()),
         "no deadline-missed event"
     );
-    let hk = l.hk();
+    let hk = l.housekeeping(HK_TIMEOUT);
     assert!(
         hk.cycle_overruns >= INJECTED_OVERRUNS,
         "overruns counted: {}",
@@ -116,7 +104,7 @@ fn overruns_hang_and_overflow_reset_with_their_cause_reported() {
         (u32::from(ResetCause::HardFault.code()), 3),
         "boot after the overflow"
     );
-    let hk = l.hk();
+    let hk = l.housekeeping(HK_TIMEOUT);
     assert_eq!(
         (hk.reset_cause, hk.boot_count),
         (ResetCause::HardFault.code(), 3)

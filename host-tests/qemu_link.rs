@@ -8,37 +8,14 @@ mod common;
 
 use std::time::{Duration, Instant};
 
-use common::qemu::{Link, Qemu};
+use common::qemu::{Link, Qemu, OK3};
 use m2ctl::controller::{event, State};
-use m2ctl::ground::station::{Station, Tm};
+use m2ctl::ground::station::Tm;
 use m2ctl::link::command::WirePose;
 use m2ctl::link::tm::{dump_chunks, Verification};
-use m2ctl::link::{Command, RequestId, TableChunk};
+use m2ctl::link::{Command, TableChunk};
 use m2ctl::table::Table;
 use m2ctl::units::{NM_PER_UM, UAS_PER_ARCSEC_I32};
-
-impl Link {
-    fn send(&mut self, cmd: &Command) -> RequestId {
-        let (frame, rid) = self.st.frame(cmd).unwrap();
-        self.q.send(&frame);
-        rid
-    }
-
-    fn complete(&mut self, rid: RequestId, timeout: Duration) -> Vec<Verification> {
-        self.until(timeout, |s| {
-            s.reports(rid).iter().any(|v| {
-                matches!(
-                    v,
-                    Verification::CompletionSuccess
-                        | Verification::CompletionFailure { .. }
-                        | Verification::StartFailure { .. }
-                        | Verification::AcceptanceFailure { .. }
-                )
-            })
-        });
-        self.st.reports(rid)
-    }
-}
 
 /// A UART at 115,200 baud, 8N1, carries 11.52 bytes per millisecond.
 const UART_BYTES_PER_MS: usize = 11;
@@ -50,34 +27,18 @@ const HOST_STALL: Duration = Duration::from_millis(1000);
 /// peak over each path stays within it (the STACK region is 12 KiB: the rest is margin).
 const STACK_BUDGET_BYTES: u32 = 8 * 1024;
 
-const OK3: [Verification; 3] = [
-    Verification::AcceptanceSuccess,
-    Verification::StartSuccess,
-    Verification::CompletionSuccess,
-];
-
 #[test]
 #[ignore = "needs QEMU and the firmware image: scripts/qemu-link-test.sh"]
 fn firmware_in_qemu_answers_telecommands() {
-    let mut l = Link {
-        q: Qemu::start(),
-        st: Station::new(),
-    };
     let t = Duration::from_secs(20);
-
     // Boot event, then ping.
-    assert!(
-        l.until(t, |s| !s.events(event::BOOT).is_empty()),
-        "no boot event"
-    );
+    let mut l = Link::booted(Qemu::start(), t);
     let rid = l.send(&Command::Ping);
     assert_eq!(l.complete(rid, t), OK3);
     assert!(l.st.log.contains(&Tm::Ping));
 
     // Housekeeping: nominal table, idle.
-    let rid = l.send(&Command::HousekeepingOneShot);
-    assert_eq!(l.complete(rid, t), OK3);
-    let hk = l.st.last_hk().unwrap();
+    let hk = l.housekeeping(t);
     assert_eq!((hk.state, hk.active_table_id), (State::Idle.code(), 0));
 
     // A malformed packet (bad CRC) is refused with the link's code.
@@ -264,15 +225,8 @@ fn operations_in_qemu_pivot_check_schedule_parameters() {
     const HK_PERIOD: u16 = 0x0020;
     /// The mirror vertex 250 mm above M's origin (nm).
     const PIVOT_Z_NM: i32 = 250_000_000;
-    let mut l = Link {
-        q: Qemu::start(),
-        st: Station::new(),
-    };
     let t = Duration::from_secs(20);
-    assert!(
-        l.until(t, |s| !s.events(event::BOOT).is_empty()),
-        "no boot event"
-    );
+    let mut l = Link::booted(Qemu::start(), t);
 
     // 1. The pivot and a 0.5 s housekeeping period, persisted, then applied.
     let rid = l.send(&Command::SetParameters(

@@ -14,83 +14,22 @@ mod common;
 
 use std::time::Duration;
 
-use common::qemu::{elf_at, Qemu, NETDUINOPLUS2};
+use common::qemu::{elf_at, Link, Qemu, NETDUINOPLUS2, OK3};
 use m2ctl::controller::{event, ResetCause, State};
-use m2ctl::ground::station::{Station, Tm};
+use m2ctl::ground::station::Tm;
 use m2ctl::link::command::WirePose;
 use m2ctl::link::tm::Verification;
-use m2ctl::link::{Command, RequestId};
+use m2ctl::link::Command;
 use m2ctl::supervision::FaultFlags;
 
 /// The flight image for this board, as the script leaves it.
 const ELF: &str = "target/m2fw-netduinoplus2.elf";
 
-const OK3: [Verification; 3] = [
-    Verification::AcceptanceSuccess,
-    Verification::StartSuccess,
-    Verification::CompletionSuccess,
-];
-
-struct Link {
-    q: Qemu,
-    st: Station,
-}
-
-impl Link {
-    fn send(&mut self, cmd: &Command) -> RequestId {
-        let (frame, rid) = self.st.frame(cmd).unwrap();
-        self.q.send(&frame);
-        rid
-    }
-
-    fn until(&mut self, timeout: Duration, mut done: impl FnMut(&Station) -> bool) -> bool {
-        let t0 = std::time::Instant::now();
-        while t0.elapsed() < timeout {
-            let bytes = self.q.read_for(Duration::from_millis(50));
-            self.st.receive(&bytes);
-            if done(&self.st) {
-                return true;
-            }
-        }
-        false
-    }
-
-    /// The verification reports of `rid` once it has a final one (or `timeout`).
-    fn complete(&mut self, rid: RequestId, timeout: Duration) -> Vec<Verification> {
-        self.until(timeout, |s| {
-            s.reports(rid).iter().any(|v| {
-                matches!(
-                    v,
-                    Verification::CompletionSuccess
-                        | Verification::CompletionFailure { .. }
-                        | Verification::StartFailure { .. }
-                        | Verification::AcceptanceFailure { .. }
-                )
-            })
-        });
-        self.st.reports(rid)
-    }
-
-    fn housekeeping(&mut self, timeout: Duration) -> m2ctl::link::hk::Housekeeping {
-        let rid = self.send(&Command::HousekeepingOneShot);
-        assert_eq!(self.complete(rid, timeout), OK3, "housekeeping");
-        self.st.last_hk().unwrap()
-    }
-}
-
 #[test]
 #[ignore = "needs QEMU and the netduinoplus2 image: scripts/qemu-link-test-netduinoplus2.sh"]
 fn netduinoplus2_flight_image_answers_over_usart1() {
-    let mut l = Link {
-        q: Qemu::start_elf_on(&elf_at(ELF), NETDUINOPLUS2),
-        st: Station::new(),
-    };
     let t = Duration::from_secs(20);
-
-    assert!(
-        l.until(t, |s| !s.events(event::BOOT).is_empty()),
-        "no boot event"
-    );
+    let mut l = Link::booted(Qemu::start_elf_on(&elf_at(ELF), NETDUINOPLUS2), t);
     let rid = l.send(&Command::Ping);
     assert_eq!(l.complete(rid, t), OK3);
     assert!(l.st.log.contains(&Tm::Ping));

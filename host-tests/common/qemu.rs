@@ -9,7 +9,11 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+use m2ctl::controller::event;
 use m2ctl::ground::station::Station;
+use m2ctl::link::hk::Housekeeping;
+use m2ctl::link::tm::Verification;
+use m2ctl::link::{Command as Tc, RequestId};
 
 /// The flight image built by `cargo build --profile flight --target thumbv7em-none-eabihf
 /// --features firmware --bin m2fw` (scripts/qemu-link-test.sh builds it).
@@ -262,7 +266,58 @@ pub struct Link {
     pub st: Station,
 }
 
+/// A command's three success reports (acceptance, start, completion).
+pub const OK3: [Verification; 3] = [
+    Verification::AcceptanceSuccess,
+    Verification::StartSuccess,
+    Verification::CompletionSuccess,
+];
+
 impl Link {
+    /// A station on `q`'s UART once the firmware's boot event has arrived (asserted,
+    /// within `timeout`).
+    pub fn booted(q: Qemu, timeout: Duration) -> Link {
+        let mut l = Link {
+            q,
+            st: Station::new(),
+        };
+        assert!(
+            l.until(timeout, |s| !s.events(event::BOOT).is_empty()),
+            "no boot event"
+        );
+        l
+    }
+
+    /// Sends `cmd`; its request ID.
+    pub fn send(&mut self, cmd: &Tc) -> RequestId {
+        let (frame, rid) = self.st.frame(cmd).unwrap();
+        self.q.send(&frame);
+        rid
+    }
+
+    /// The verification reports of `rid` once it has a final one (or `timeout`).
+    pub fn complete(&mut self, rid: RequestId, timeout: Duration) -> Vec<Verification> {
+        self.until(timeout, |s| {
+            s.reports(rid).iter().any(|v| {
+                matches!(
+                    v,
+                    Verification::CompletionSuccess
+                        | Verification::CompletionFailure { .. }
+                        | Verification::StartFailure { .. }
+                        | Verification::AcceptanceFailure { .. }
+                )
+            })
+        });
+        self.st.reports(rid)
+    }
+
+    /// One-shot housekeeping, its three success reports asserted.
+    pub fn housekeeping(&mut self, timeout: Duration) -> Housekeeping {
+        let rid = self.send(&Tc::HousekeepingOneShot);
+        assert_eq!(self.complete(rid, timeout), OK3, "housekeeping");
+        self.st.last_hk().unwrap()
+    }
+
     /// Reads telemetry until `done` holds or `timeout` passes.
     pub fn until(&mut self, timeout: Duration, mut done: impl FnMut(&Station) -> bool) -> bool {
         let t0 = Instant::now();
