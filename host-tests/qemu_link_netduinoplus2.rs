@@ -61,12 +61,7 @@ fn netduinoplus2_flight_image_answers_over_usart1() {
     );
 
     // A malformed packet (bad CRC) is refused with the link's code.
-    let (mut pkt, rid) = l.st.packet(&Command::Ping).unwrap();
-    let n = pkt.len();
-    pkt[n - 1] ^= 0xff;
-    let mut frame = vec![0u8; pkt.len() * 2 + 4];
-    let fl = m2ctl::link::encode_frame(&pkt, &mut frame).unwrap();
-    l.q.send(&frame[..fl]);
+    let rid = l.send_with_bad_crc(&Command::Ping);
     let reps = l.complete(rid, t);
     assert!(
         matches!(

@@ -295,6 +295,19 @@ impl Link {
         rid
     }
 
+    /// Sends `cmd` with its packet's CRC corrupted (last byte inverted), framed; its
+    /// request ID (the firmware refuses it with the link's CRC code, 0x0505).
+    pub fn send_with_bad_crc(&mut self, cmd: &Tc) -> RequestId {
+        let (mut pkt, rid) = self.st.packet(cmd).unwrap();
+        if let Some(last) = pkt.last_mut() {
+            *last ^= 0xff;
+        }
+        let mut frame = vec![0u8; pkt.len() * 2 + 4];
+        let n = m2ctl::link::encode_frame(&pkt, &mut frame).unwrap();
+        self.q.send(&frame[..n]);
+        rid
+    }
+
     /// The verification reports of `rid` once it has a final one (or `timeout`).
     pub fn complete(&mut self, rid: RequestId, timeout: Duration) -> Vec<Verification> {
         self.until(timeout, |s| {
