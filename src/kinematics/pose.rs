@@ -5,7 +5,7 @@
 //! (rad) with `R = Rz(gamma) * Ry(beta) * Rx(alpha)`, exactly as in the source paper.
 //! Telecommands and files carry the angles in arcseconds; [`ARCSEC_PER_RAD`] converts.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Matrix3;
 
 use super::real::Real;
 use crate::units::ARCSEC_PER_RAD;
@@ -103,11 +103,5 @@ impl<T: Real> RotationDelta<T> {
             cmb + cma + cmb * cma,
         );
         Self { w, sg, cg }
-    }
-
-    /// `(R - I) v`.
-    #[inline(always)]
-    pub fn apply_delta(&self, v: &Vector3<T>) -> Vector3<T> {
-        Vector3::from(super::linalg::mat_vec3(&self.w, &v.data.0[0]))
     }
 }
