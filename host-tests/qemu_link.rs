@@ -27,6 +27,21 @@ const HOST_STALL: Duration = Duration::from_millis(1000);
 /// peak over each path stays within it (the STACK region is 12 KiB: the rest is margin).
 const STACK_BUDGET_BYTES: u32 = 8 * 1024;
 
+/// Prints the flight image's painted stack peak so far (`path`: what ran) and asserts
+/// it is within [`STACK_BUDGET_BYTES`].
+fn assert_stack_within_budget(l: &Link, path: &str) {
+    let (stack_bottom, stack_top) = common::qemu::stack_region();
+    let peak = l.q.stack_peak_bytes(stack_bottom, stack_top);
+    println!(
+        "STACK flight image peak_bytes={peak} of {} ({path})",
+        stack_top - stack_bottom
+    );
+    assert!(
+        peak <= STACK_BUDGET_BYTES,
+        "stack peak {peak} bytes over the {STACK_BUDGET_BYTES}-byte budget"
+    );
+}
+
 #[test]
 #[ignore = "needs QEMU and the firmware image: scripts/qemu-link-test.sh"]
 fn firmware_in_qemu_answers_telecommands() {
@@ -42,15 +57,7 @@ fn firmware_in_qemu_answers_telecommands() {
     assert_eq!((hk.state, hk.active_table_id), (State::Idle.code(), 0));
 
     // A malformed packet (bad CRC) is refused with the link's code.
-    let rid = l.send_with_bad_crc(&Command::Ping);
-    let reps = l.complete(rid, t);
-    assert!(
-        matches!(
-            reps[..],
-            [Verification::AcceptanceFailure { code: 0x0505, .. }]
-        ),
-        "{reps:?}"
-    );
+    l.assert_bad_crc_refused(t);
 
     // A TC burst: eight telecommands in one write, every one answered in order.
     let burst = [
@@ -161,16 +168,7 @@ fn firmware_in_qemu_answers_telecommands() {
     );
     // The stack the flight image used on this whole path (boot, TC burst, upload,
     // background commit with flash writes, activation, scrubs, housekeeping, a move).
-    let (stack_bottom, stack_top) = common::qemu::stack_region();
-    let peak = l.q.stack_peak_bytes(stack_bottom, stack_top);
-    println!(
-        "STACK flight image peak_bytes={peak} of {} (memory.x STACK)",
-        stack_top - stack_bottom
-    );
-    assert!(
-        peak <= STACK_BUDGET_BYTES,
-        "stack peak {peak} bytes over the {STACK_BUDGET_BYTES}-byte budget"
-    );
+    assert_stack_within_budget(&l, "memory.x STACK");
 }
 
 /// Fails if the firmware rebooted (more than one boot event), naming the phase.
@@ -388,14 +386,5 @@ fn operations_in_qemu_pivot_check_schedule_parameters() {
     );
     assert_eq!(l.st.bad_frames, 0);
     // The stack on this path (boot, parameters, move checks, scheduled moves released).
-    let (stack_bottom, stack_top) = common::qemu::stack_region();
-    let peak = l.q.stack_peak_bytes(stack_bottom, stack_top);
-    println!(
-        "STACK flight image peak_bytes={peak} of {} (operations: move checks, scheduled moves)",
-        stack_top - stack_bottom
-    );
-    assert!(
-        peak <= STACK_BUDGET_BYTES,
-        "stack peak {peak} bytes over the {STACK_BUDGET_BYTES}-byte budget"
-    );
+    assert_stack_within_budget(&l, "operations: move checks, scheduled moves");
 }

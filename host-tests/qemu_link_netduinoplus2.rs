@@ -61,15 +61,7 @@ fn netduinoplus2_flight_image_answers_over_usart1() {
     );
 
     // A malformed packet (bad CRC) is refused with the link's code.
-    let rid = l.send_with_bad_crc(&Command::Ping);
-    let reps = l.complete(rid, t);
-    assert!(
-        matches!(
-            reps[..],
-            [Verification::AcceptanceFailure { code: 0x0505, .. }]
-        ),
-        "{reps:?}"
-    );
+    l.assert_bad_crc_refused(t);
 
     // A move with faults latched is refused with a code; nothing is commanded.
     let rid = l.send(&Command::MoveAbsolute(WirePose {

@@ -295,6 +295,20 @@ impl Link {
         rid
     }
 
+    /// A ping with its CRC corrupted is refused at acceptance with the link's CRC code
+    /// (ICD: 0x0505) and nothing else: asserted within `timeout`.
+    pub fn assert_bad_crc_refused(&mut self, timeout: Duration) {
+        let rid = self.send_with_bad_crc(&Tc::Ping);
+        let reps = self.complete(rid, timeout);
+        assert!(
+            matches!(
+                reps[..],
+                [Verification::AcceptanceFailure { code: 0x0505, .. }]
+            ),
+            "{reps:?}"
+        );
+    }
+
     /// Sends `cmd` with its packet's CRC corrupted (last byte inverted), framed; its
     /// request ID (the firmware refuses it with the link's CRC code, 0x0505).
     pub fn send_with_bad_crc(&mut self, cmd: &Tc) -> RequestId {
