@@ -324,17 +324,7 @@ impl Link {
 
     /// The verification reports of `rid` once it has a final one (or `timeout`).
     pub fn complete(&mut self, rid: RequestId, timeout: Duration) -> Vec<Verification> {
-        self.until(timeout, |s| {
-            s.reports(rid).iter().any(|v| {
-                matches!(
-                    v,
-                    Verification::CompletionSuccess
-                        | Verification::CompletionFailure { .. }
-                        | Verification::StartFailure { .. }
-                        | Verification::AcceptanceFailure { .. }
-                )
-            })
-        });
+        self.until(timeout, |s| s.finished(rid));
         self.st.reports(rid)
     }
 
