@@ -119,11 +119,9 @@ impl MoveCheckJob {
         });
         let (code, path_refusals, path_sample) = match planned {
             Ok(()) => (0, 0, 0),
-            Err(crate::motion::MotionError::PathRefused { sample, refusals }) => (
-                crate::motion::MotionError::PathRefused { sample, refusals }.code(),
-                refusals.to_bits(),
-                sample,
-            ),
+            Err(e @ crate::motion::MotionError::PathRefused { sample, refusals }) => {
+                (e.code(), refusals.to_bits(), sample)
+            }
             Err(e) => (e.code(), 0, 0),
         };
         MoveCheck {
