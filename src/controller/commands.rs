@@ -139,7 +139,7 @@ impl<M: MechanismIo> Controller<M> {
                 Ok(Outcome::Done)
             }
             Command::HousekeepingOneShot => {
-                self.tm.push(self.cycle, TmRecord::Housekeeping);
+                self.queue_housekeeping();
                 Ok(Outcome::Done)
             }
             Command::MoveAbsolute(target) => self.start_move(target.to_pose()),

@@ -157,12 +157,23 @@ impl LinkService {
     {
         ctl.lock(|c| c.link_pass_start());
         let mut handled = 0;
-        // Time-tagged activities due now (ST[11]) share the pass's budget, first.
-        while handled < MAX_TC_PER_PASS && ctl.lock(|c| c.release_next_due()) {
+        // Time-tagged activities due now (ST[11]) share the pass's budget, first. A
+        // telecommand is taken only while the telemetry queue has room for all it can
+        // report (`telemetry`, "Why replies always find room"); else it waits.
+        while handled < MAX_TC_PER_PASS
+            && ctl.lock(|c| c.tm_queue().admits_telecommand() && c.release_next_due())
+        {
             self.run_move_check(ctl);
             handled += 1;
         }
+        let mut admitted = false;
         while handled < MAX_TC_PER_PASS {
+            if !admitted {
+                admitted = ctl.lock(|c| c.tm_queue().admits_telecommand());
+                if !admitted {
+                    break;
+                }
+            }
             let Some(byte) = rx.pop() else { break };
             match self.deframer.push_byte(byte) {
                 None => {}
@@ -170,6 +181,7 @@ impl LinkService {
                     ctl.lock(|c| c.handle_telecommand(packet));
                     self.run_move_check(ctl);
                     handled += 1;
+                    admitted = false;
                 }
                 Some(Err(_)) => {
                     self.counters.frames_dropped = self.counters.frames_dropped.wrapping_add(1);
@@ -210,7 +222,7 @@ impl LinkService {
                 let stamped = *c.tm_queue().peek()?;
                 let content = match stamped.record {
                     TmRecord::Housekeeping => {
-                        let mut hk = c.housekeeping();
+                        let mut hk = *c.tm_queue().peek_housekeeping()?;
                         hk.tc_frames_dropped = counters.frames_dropped;
                         hk.uart_overruns = counters.uart_overruns;
                         Content::Hk(hk)
@@ -232,10 +244,14 @@ impl LinkService {
                 return;
             };
             let mut frame = [0u8; MAX_TM_FRAME_LEN];
+            // A number is consumed only by a packet that is sent: a frame that does not
+            // fit gives its sequence count and message counter back.
+            let numbers = self.tm.checkpoint();
             let len = self.encode(&stamped, &content, &mut frame);
             match (len, frame.get(..len.unwrap_or(0))) {
                 (Some(n), Some(f)) if n > 0 => {
                     if tx.free() < n {
+                        self.tm.restore(numbers);
                         return;
                     }
                     tx.push(f);

@@ -561,7 +561,7 @@ impl<M: MechanismIo> Controller<M> {
         self.step_motion();
         // 5. Periodic work.
         if self.cycle % self.ops.hk_period_cycles.max(1) == 0 {
-            self.tm.push(self.cycle, TmRecord::Housekeeping);
+            self.queue_housekeeping();
         }
         if self.cycle % SCRUB_PERIOD_CYCLES == 0 && self.jobs.scrub_wanted() {
             self.queue_scrub();
@@ -704,6 +704,13 @@ impl<M: MechanismIo> Controller<M> {
     fn event(&mut self, severity: EventSeverity, id: u16, aux: [u32; 2]) {
         self.tm
             .push(self.cycle, TmRecord::Event { severity, id, aux });
+    }
+
+    /// Queues a housekeeping report with the sample of now (stamped with this cycle,
+    /// whose number it carries).
+    fn queue_housekeeping(&mut self) {
+        let sample = self.housekeeping();
+        self.tm.push_housekeeping(self.cycle, &sample);
     }
 
     /// The housekeeping sample of now (the link service adds its own counters).

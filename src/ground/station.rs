@@ -35,6 +35,17 @@ pub enum Tm {
     ScheduleSummary(Vec<SummaryEntry>),
 }
 
+/// The numbers a TM packet carries besides its content.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TmNumbers {
+    /// Packet sequence count (14 bits).
+    pub seq_count: u16,
+    /// PUS service.
+    pub service: u8,
+    /// Message type counter of its service.
+    pub msg_counter: u16,
+}
+
 /// Sends telecommands, collects telemetry.
 #[derive(Debug)]
 pub struct Station {
@@ -44,6 +55,9 @@ pub struct Station {
     pub log: Vec<Tm>,
     /// The packet time (on-board time) of each entry of `log`.
     pub log_times: Vec<TmTime>,
+    /// The numbers of each entry of `log`: its sequence count, service and message type
+    /// counter (the ground checks them for gaps).
+    pub log_numbers: Vec<TmNumbers>,
     /// Frames that did not deframe or parse (a healthy link keeps this at 0).
     pub bad_frames: usize,
     /// Telecommands encoded so far.
@@ -64,6 +78,7 @@ impl Station {
             deframer: Deframer::new(),
             log: Vec::new(),
             log_times: Vec::new(),
+            log_numbers: Vec::new(),
             bad_frames: 0,
             tc_sent: 0,
         }
@@ -132,12 +147,18 @@ impl Station {
                         Tm::ScheduleSummary(view.entries().collect())
                     }
                 };
-                (report, tm.time)
+                let numbers = TmNumbers {
+                    seq_count: tm.seq_count,
+                    service: tm.service,
+                    msg_counter: tm.msg_counter,
+                };
+                (report, tm.time, numbers)
             });
             match tm {
-                Some((t, time)) => {
+                Some((t, time, numbers)) => {
                     self.log.push(t);
                     self.log_times.push(time);
+                    self.log_numbers.push(numbers);
                 }
                 None => self.bad_frames += 1,
             }

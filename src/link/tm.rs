@@ -357,27 +357,51 @@ const COUNTED_SERVICES: [u8; 9] = [
     service::SCHEDULING,
 ];
 
-/// Emits framed TM packets and counts them. One per link.
-#[derive(Clone, Debug, Default)]
-pub struct TmWriter {
+/// The numbers the next TM packet takes: its sequence count and, per service, its
+/// message type counter ([`TmWriter::checkpoint`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TmCounters {
     /// Sequence count of the next packet (14 bits).
     seq_count: u16,
     /// Message type counter of the next packet, per service of [`COUNTED_SERVICES`].
     msg_counters: [u16; COUNTED_SERVICES.len()],
 }
 
+/// Emits framed TM packets and counts them. One per link.
+///
+/// A number is consumed only by a packet that is sent: a caller that emits a frame and
+/// then finds no room for it restores the [`TmWriter::checkpoint`] it took before, so the
+/// frame emitted again later carries the same numbers.
+#[derive(Clone, Debug, Default)]
+pub struct TmWriter {
+    counters: TmCounters,
+}
+
 impl TmWriter {
     /// Counters at zero.
     pub const fn new() -> TmWriter {
         TmWriter {
-            seq_count: 0,
-            msg_counters: [0; COUNTED_SERVICES.len()],
+            counters: TmCounters {
+                seq_count: 0,
+                msg_counters: [0; COUNTED_SERVICES.len()],
+            },
         }
     }
 
     /// Sequence count the next packet will carry.
     pub const fn next_seq_count(&self) -> u16 {
-        self.seq_count
+        self.counters.seq_count
+    }
+
+    /// The counters now, to be restored if the next emitted frame is not sent.
+    pub const fn checkpoint(&self) -> TmCounters {
+        self.counters
+    }
+
+    /// Takes back every number consumed since `checkpoint`: the frames emitted since were
+    /// not sent.
+    pub fn restore(&mut self, checkpoint: TmCounters) {
+        self.counters = checkpoint;
     }
 
     /// Builds, frames and counts one packet; counters move only on success.
@@ -391,14 +415,14 @@ impl TmWriter {
         let (svc, sub) = message;
         let slot = COUNTED_SERVICES.iter().position(|s| *s == svc);
         let msg_counter = slot
-            .and_then(|i| self.msg_counters.get(i).copied())
+            .and_then(|i| self.counters.msg_counters.get(i).copied())
             .unwrap_or(0);
         let stamp = time.to_bytes();
         let sp = SpHeader::new(
             PacketId::new_for_tm(true, u11::new(M2_APID & APID_MASK)),
             PacketSequenceControl::new(
                 SequenceFlags::Unsegmented,
-                u14::new(self.seq_count & SEQ_COUNT_MASK),
+                u14::new(self.counters.seq_count & SEQ_COUNT_MASK),
             ),
             0,
         );
@@ -410,8 +434,8 @@ impl TmWriter {
             .map_err(|_| EmitError::BufferTooSmall)?;
         let bytes = packet.get(..n).ok_or(EmitError::BufferTooSmall)?;
         let framed = encode_frame(bytes, out)?;
-        self.seq_count = self.seq_count.wrapping_add(1) & SEQ_COUNT_MASK;
-        if let Some(c) = slot.and_then(|i| self.msg_counters.get_mut(i)) {
+        self.counters.seq_count = self.counters.seq_count.wrapping_add(1) & SEQ_COUNT_MASK;
+        if let Some(c) = slot.and_then(|i| self.counters.msg_counters.get_mut(i)) {
             *c = c.wrapping_add(1);
         }
         Ok(framed)
