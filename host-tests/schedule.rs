@@ -585,6 +585,12 @@ fn malformed_inserts_are_refused_with_their_codes_and_change_nothing() {
         104,
     );
     assert!(chunk.len() > MAX_SCHEDULED_TC_LEN);
+    // A 4-byte chunk: a 22-byte TC[6,2], well within a slot.
+    let small_chunk = packet(
+        &Command::LoadTableChunk(TableChunk::new(0, b"M2TB").unwrap()),
+        105,
+    );
+    assert_eq!(small_chunk.len(), 22);
     let mut cut = ping.clone();
     cut.truncate(10);
     let ins = |app: &[u8], seq: u16| {
@@ -615,9 +621,19 @@ fn malformed_inserts_are_refused_with_their_codes_and_change_nothing() {
             (0x050F, 0x0505),
         ),
         (
-            "TC[11,x] inside",
+            "TC[11,x] inside: cannot be scheduled",
             ins(&insert_app(1, &[(t, nested)]), 6),
-            (0x050F, 0x0509),
+            (0x050F, 0x0510),
+        ),
+        (
+            "a table chunk that fits a slot: cannot be scheduled",
+            ins(&insert_app(1, &[(t, small_chunk.clone())]), 13),
+            (0x050F, 0x0510),
+        ),
+        (
+            "a table chunk after a valid activity",
+            ins(&insert_app(2, &[(t, ping.clone()), (t, small_chunk)]), 14),
+            (0x050F, (1 << 16) | 0x0510),
         ),
         (
             "other APID inside",
@@ -1323,4 +1339,105 @@ proptest! {
             prop_assert!(n <= 1, "{id:?} accepted {n} times");
         }
     }
+}
+
+/// Issue 18, item 3: a refused time shift (0x0B05) names the first activity **in
+/// release order** that would leave the clock's range (before now or beyond 2^32
+/// cycles), whatever the order they were inserted in. With activities due at +3700 s
+/// (inserted first), +3650 s and +3800 s, a shift of -7200 s named the +3800 s one.
+#[test]
+fn a_refused_time_shift_names_the_first_activity_in_release_order_that_leaves_the_range() {
+    let mut r = Bench::new();
+    r.run(1);
+    let now = secs(r.ctl.obt());
+    let (a, first) = insert(&mut r, &[(obt(now + 3700.0), Command::Ping)]);
+    assert!(all_ok(&r.st.reports(a)));
+    let (b, rest) = insert(
+        &mut r,
+        &[
+            (obt(now + 3650.0), Command::Ping),
+            (obt(now + 3800.0), Command::HousekeepingOneShot),
+        ],
+    );
+    assert!(all_ok(&r.st.reports(b)));
+    let (at_3700, at_3650, at_3800) = (first[0], rest[0], rest[1]);
+    let before = summary(&mut r);
+    let max_obt_s = secs(m2ctl::controller::schedule::MAX_OBT);
+    for (offset, named, why) in [
+        (ObtOffset::from_parts(-7200, 0), at_3650, "all before now"),
+        (
+            ObtOffset::from_parts(i32::MAX, 0),
+            at_3650,
+            "all beyond the clock",
+        ),
+        (
+            ObtOffset::from_parts(-3675, 0),
+            at_3650,
+            "only the earliest before now",
+        ),
+        (ObtOffset::from_parts(-3720, 0), at_3650, "two before now"),
+        (
+            ObtOffset::from_parts((max_obt_s - now - 3750.0) as i32, 0),
+            at_3800,
+            "only the latest beyond the clock",
+        ),
+        (
+            ObtOffset::from_parts((max_obt_s - now - 3680.0) as i32, 0),
+            at_3700,
+            "the later two beyond the clock",
+        ),
+    ] {
+        let reps = command(&mut r, ScheduleCommand::TimeShiftAll(offset));
+        assert_eq!(
+            start_failure(&reps),
+            Some((0x0B05, request_id_word(named))),
+            "{why}: {reps:?}"
+        );
+        assert_eq!(summary(&mut r), before, "{why}: nothing moved");
+    }
+}
+
+/// Issue 18, item 2, the other side of the rule: every telecommand of this controller
+/// but ST[11] itself and a table chunk TC[6,2] can be scheduled, and runs at release as
+/// a received one.
+#[test]
+fn every_telecommand_but_st11_and_table_chunks_can_be_scheduled() {
+    use m2ctl::link::command::{ParameterIds, ParameterValues};
+    use m2ctl::link::MemoryId;
+    let mut r = Bench::new();
+    r.run(1);
+    let base = secs(r.ctl.obt()) + 1.0;
+    let schedulable = [
+        Command::Ping,
+        Command::HousekeepingOneShot,
+        Command::DumpTable(MemoryId::ActiveTable),
+        Command::ReportParameters(ParameterIds::new(&[0x0010]).unwrap()),
+        Command::SetParameters(ParameterValues::new(&[(0x0010, 150_000)]).unwrap()),
+        Command::SetTimeReportRate(TimeReportRate::Every { exponent: 3 }),
+        Command::CheckMove(wire(5.0, 0.0, 0.0, 0.0, 0.0, 0.0)),
+        Command::MoveAbsolute(wire(5.0, 0.0, 0.0, 0.0, 0.0, 0.0)),
+        Command::Stop,
+        Command::ClearFault,
+    ];
+    let mut ids = Vec::new();
+    for (k, cmd) in schedulable.iter().enumerate() {
+        // One second apart: each finishes before the next is released.
+        let (ins, embedded) = insert(&mut r, &[(obt(base + k as f64), *cmd)]);
+        assert!(
+            all_ok(&r.st.reports(ins)),
+            "{cmd:?}: {:?}",
+            r.st.reports(ins)
+        );
+        ids.push(embedded[0]);
+    }
+    r.run(1_000 * schedulable.len() as u32 + 2_000);
+    for (cmd, id) in schedulable.iter().zip(&ids) {
+        assert!(
+            all_ok(&r.st.reports(*id)),
+            "{cmd:?} at release: {:?}",
+            r.st.reports(*id)
+        );
+    }
+    let released = r.st.events(event::ACTIVITY_RELEASED);
+    assert_eq!(released.len(), schedulable.len());
 }

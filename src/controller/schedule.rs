@@ -299,9 +299,11 @@ impl Schedule {
         Ok(())
     }
 
-    /// TC[11,15]: every release time moved by `offset`, or none.
+    /// TC[11,15]: every release time moved by `offset`, or none. A refusal names the
+    /// first activity in release order that would leave the range.
     pub fn time_shift(&mut self, offset: ObtOffset, now: TmTime) -> Result<(), ScheduleError> {
-        for a in &self.activities {
+        // `activities` is in reverse release order.
+        for a in self.activities.iter().rev() {
             match a.release.checked_offset(offset.ticks()) {
                 Some(t) if t >= now && t <= MAX_OBT => {}
                 _ => {

@@ -77,9 +77,17 @@ pub enum LinkError {
         /// Length of the chunk (bytes).
         length: u16,
     },
+    /// A telecommand that cannot be scheduled: a TC[11,x] or a table chunk TC[6,2]
+    /// inside a TC[11,4] (reported only as the embedded code of [`LinkError::EmbeddedTc`]).
+    NotSchedulable {
+        /// Service of the embedded telecommand.
+        service: u8,
+        /// Its subtype.
+        subtype: u8,
+    },
     /// A telecommand embedded in a TC[11,4] activity is refused (ST[11]): `code` is the
     /// link code the same packet would get on its own (0x0503 also when it is longer
-    /// than a schedule slot, 0x0509 for a TC[11,x] inside).
+    /// than a schedule slot, 0x0510 for a telecommand that cannot be scheduled).
     EmbeddedTc {
         /// Zero-based index of the activity in the TC[11,4].
         index: u8,
@@ -112,6 +120,7 @@ impl LinkError {
             LinkError::InvalidArgument { .. } => 0x050d,
             LinkError::ChunkOutOfRange { .. } => 0x050e,
             LinkError::EmbeddedTc { .. } => 0x050f,
+            LinkError::NotSchedulable { .. } => 0x0510,
         }
     }
 
@@ -132,6 +141,7 @@ impl LinkError {
             LinkError::InvalidArgument { index } => index as u32,
             LinkError::ChunkOutOfRange { offset, length } => pack(offset, length),
             LinkError::EmbeddedTc { index, code } => pack(index as u16, code),
+            LinkError::NotSchedulable { service, subtype } => pack(service as u16, subtype as u16),
         }
     }
 }

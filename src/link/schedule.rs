@@ -8,7 +8,8 @@
 //!   telecommand packet (its own CCSDS length field delimits it; at most
 //!   [`MAX_SCHEDULED_TC_LEN`] bytes). At most [`MAX_INSERT_APP_DATA_LEN`] bytes in all.
 //!   Each embedded packet is checked as a telecommand of this controller (every check
-//!   of `tc::decode_telecommand`); a TC[11,x] inside is refused.
+//!   of `tc::decode_telecommand`); a TC[11,x] or a table chunk TC[6,2] inside cannot be
+//!   scheduled (embedded code 0x0510).
 //! * TC[11,5] delete: N u8 (1..=[`SCHEDULE_CAPACITY`]), then N request IDs (4 bytes:
 //!   the first four bytes of the embedded telecommand).
 //! * TC[11,15] time-shift all: offset (6 bytes): seconds i32, fraction u16; the offset
@@ -34,7 +35,7 @@ use super::{
 /// Activities the on-board schedule holds.
 pub const SCHEDULE_CAPACITY: usize = 16;
 /// Largest embedded telecommand of an activity (bytes, whole packet): a schedule slot.
-/// A move is 39 bytes; a table chunk (up to 146) cannot be scheduled.
+/// A move is 39 bytes. Table chunks (TC[6,2]) cannot be scheduled at any length.
 pub const MAX_SCHEDULED_TC_LEN: usize = 64;
 /// Largest application data of a TC[11,4] (bytes): three moves (136 bytes) with room for
 /// longer embedded commands; bounded so that [`Command`] stays small (it is copied on
@@ -142,15 +143,20 @@ fn embedded_len(rest: &[u8]) -> Result<usize, LinkError> {
     Ok(declared)
 }
 
-/// Every check of a received telecommand on an embedded packet; service 11 refused.
+/// Every check of a received telecommand on an embedded packet, then whether it may be
+/// scheduled: not ST[11] itself, not a table chunk TC[6,2] (an upload is interactive:
+/// its chunks, commit and CRC belong together, and a chunk released later could land
+/// in another upload).
 fn check_embedded(packet: &[u8]) -> Result<(), LinkError> {
     let tc = TcPacket::new_checked(packet)?;
-    if tc.service() == service::SCHEDULING {
-        return Err(LinkError::UnknownService {
+    let command = Command::parse_plain(tc.service(), tc.subtype(), tc.app_data());
+    if tc.service() == service::SCHEDULING || matches!(command, Ok(Command::LoadTableChunk(_))) {
+        return Err(LinkError::NotSchedulable {
             service: tc.service(),
+            subtype: tc.subtype(),
         });
     }
-    Command::parse_plain(tc.service(), tc.subtype(), tc.app_data()).map(|_| ())
+    command.map(|_| ())
 }
 
 impl ActivityBlock {
