@@ -25,6 +25,7 @@ const PIVOT_X: u16 = 0x0001;
 const PIVOT_Z: u16 = 0x0003;
 const USER_GAMMA: u16 = 0x0006;
 const MOVE_SPEED: u16 = 0x0010;
+const MOVE_ACCEL: u16 = 0x0011;
 const HK_PERIOD: u16 = 0x0020;
 const FOLLOWING_WARNING: u16 = 0x0030;
 const FOLLOWING_FAULT: u16 = 0x0031;
@@ -296,6 +297,22 @@ fn a_user_frame_turns_the_translation_axes() {
         (fk_op[0] - 300_000).abs() < 500 && fk_op[1].abs() < 500,
         "{fk_op:?}"
     );
+    // A relative move adds along the user frame's axes too (ICD section 3): +200 nm of
+    // the operator's y is -200 nm of the base's x; its angles add component by component.
+    let mv = r.command(
+        &Command::MoveRelative(wire(0.0, 0.2, 0.0, 0.0, 0.0, 1.0)),
+        60_000,
+    );
+    assert!(all_ok(&mv), "{mv:?}");
+    let hk = r.hk();
+    let op = hk.pose_commanded_operator.to_array();
+    assert_eq!(op[..3], [300_000, 200, 0], "{op:?}");
+    assert!((op[5] - 1_000_000).abs() <= 1, "{op:?}");
+    let internal = hk.pose_commanded.to_array();
+    assert!(
+        (internal[0] + 200).abs() <= 2 && (internal[1] - 300_000).abs() <= 2,
+        "{internal:?}"
+    );
 }
 
 fn check(r: &mut Bench, target: m2ctl::link::WirePose) -> MoveCheckReport {
@@ -450,7 +467,21 @@ fn parameters_report_defaults_then_what_was_set_and_housekeeping_shows_them() {
         r.st.events(event::PARAMETERS_CHANGED).last(),
         Some(&[
             (1 << (index::PIVOT + 2)) | (1 << index::MOVE_SPEED) | (1 << index::FOLLOWING_WARNING),
-            0
+            (1 << (index::PIVOT + 2)) | (1 << index::MOVE_SPEED) | (1 << index::FOLLOWING_WARNING),
+        ])
+    );
+    // Event 0x0040: aux0 the parameters this telecommand set, aux1 every parameter set.
+    assert!(all_ok(
+        &r.command(&set(&[(MOVE_ACCEL, 900_000)]), JOB_CYCLES)
+    ));
+    assert_eq!(
+        r.st.events(event::PARAMETERS_CHANGED).last(),
+        Some(&[
+            1 << index::MOVE_ACCEL,
+            (1 << (index::PIVOT + 2))
+                | (1 << index::MOVE_SPEED)
+                | (1 << index::MOVE_ACCEL)
+                | (1 << index::FOLLOWING_WARNING),
         ])
     );
     let now = reported(&mut r, &[MOVE_SPEED, PIVOT_Z, FOLLOWING_WARNING, PIVOT_X]);
@@ -468,7 +499,10 @@ fn parameters_report_defaults_then_what_was_set_and_housekeeping_shows_them() {
     assert_eq!(hk.pivot_nm, [0, 0, 250_000_000]);
     assert_eq!(
         hk.parameters_set,
-        (1 << (index::PIVOT + 2)) | (1 << index::MOVE_SPEED) | (1 << index::FOLLOWING_WARNING)
+        (1 << (index::PIVOT + 2))
+            | (1 << index::MOVE_SPEED)
+            | (1 << index::MOVE_ACCEL)
+            | (1 << index::FOLLOWING_WARNING)
     );
 }
 
@@ -495,6 +529,12 @@ fn a_bad_parameter_set_is_refused_whole_and_changes_nothing() {
             vec![(FOLLOWING_FAULT, 5_000), (FOLLOWING_WARNING, 6_000)],
             0x0722,
         ),
+        // An ID named twice (even with the same value): 0x0723, data the ID.
+        (
+            vec![(PIVOT_Z, 1_000), (MOVE_SPEED, 90_000), (PIVOT_Z, 1_000)],
+            0x0723,
+        ),
+        (vec![(MOVE_SPEED, 90_000), (MOVE_SPEED, 80_000)], 0x0723),
     ] {
         let reps = r.command(&set(&values), JOB_CYCLES);
         assert_eq!(start_code(&reps), Some(code), "{values:?}: {reps:?}");
@@ -511,13 +551,25 @@ fn a_bad_parameter_set_is_refused_whole_and_changes_nothing() {
             "{values:?} wrote the flash"
         );
     }
-    // Unknown ID in a report: refused, no TM[20,2].
-    let from = r.st.log.len();
-    let reps = r.command(&report(&[0x7777]), 10);
-    assert_eq!(start_code(&reps), Some(0x0720));
-    assert!(!r.st.log[from..]
-        .iter()
-        .any(|t| matches!(t, Tm::Parameters(_))));
+    // Unknown ID, or an ID named twice, in a report: refused, no TM[20,2].
+    for (ids, code) in [
+        (vec![0x7777], 0x0720),
+        (vec![PIVOT_Z, MOVE_SPEED, PIVOT_Z], 0x0723),
+    ] {
+        let from = r.st.log.len();
+        let reps = r.command(&report(&ids), 10);
+        assert_eq!(start_code(&reps), Some(code), "{ids:?}");
+        assert!(
+            reps.iter().any(|v| matches!(
+                v,
+                Verification::StartFailure { data, .. } if *data == u32::from(ids[ids.len() - 1])
+            )),
+            "{reps:?}"
+        );
+        assert!(!r.st.log[from..]
+            .iter()
+            .any(|t| matches!(t, Tm::Parameters(_))));
+    }
     // Not while moving, not while faulted.
     let mv = r.send(&Command::MoveAbsolute(wire(800.0, 0.0, 0.0, 0.0, 0.0, 0.0)));
     r.run(10);

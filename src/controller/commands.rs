@@ -148,13 +148,8 @@ impl<M: MechanismIo> Controller<M> {
                 Ok(Outcome::CheckQueued)
             }
             Command::ReportParameters(ids) => {
-                let mut mask = 0u32;
-                for id in ids.ids() {
-                    let k = super::params::index_of(*id).ok_or(CommandError::Parameter(
-                        super::params::ParamError::UnknownId(*id),
-                    ))?;
-                    mask |= 1 << k;
-                }
+                let mask = super::params::named_mask(ids.ids().iter().copied())
+                    .map_err(CommandError::Parameter)?;
                 self.tm.push(self.cycle, TmRecord::Parameters { mask });
                 Ok(Outcome::Done)
             }
@@ -237,7 +232,11 @@ impl<M: MechanismIo> Controller<M> {
             .params
             .with(entries, &self.active.table)
             .map_err(CommandError::Parameter)?;
-        self.start_job(JobRequest::SaveParameters(new))
+        let named = super::params::named_mask(entries.iter().map(|(id, _)| *id))
+            .map_err(CommandError::Parameter)?;
+        let outcome = self.start_job(JobRequest::SaveParameters(new))?;
+        self.jobs.parameters_named = named;
+        Ok(outcome)
     }
 
     /// Commit of the uploaded table. Commits happen at rest only (a flash erase can

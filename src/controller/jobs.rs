@@ -231,6 +231,9 @@ pub(super) struct JobLane {
     scrub: Option<JobRequest>,
     running: Option<JobKind>,
     scrub_outstanding: bool,
+    /// The parameters the running TC[20,3] names (bit i = parameter index i): event
+    /// 0x0040's aux0 when they are persisted.
+    pub parameters_named: u32,
 }
 
 impl JobLane {
@@ -240,6 +243,7 @@ impl JobLane {
             scrub: None,
             running: None,
             scrub_outstanding: false,
+            parameters_named: 0,
         }
     }
 
@@ -350,7 +354,7 @@ impl<M: MechanismIo> Controller<M> {
                 self.event(
                     EventSeverity::Info,
                     super::event::PARAMETERS_CHANGED,
-                    [params.set_mask(), 0],
+                    [self.jobs.parameters_named, params.set_mask()],
                 );
                 self.complete_pending(Ok(()));
             }

@@ -251,6 +251,8 @@ pub const PARAMETERS: [ParamDef; N_PARAMETERS] = [
 pub enum ParamError {
     /// 0x0720: no parameter with this ID (data: the ID).
     UnknownId(u16),
+    /// 0x0723: the telecommand names this ID more than once (data: the ID).
+    Repeated(u16),
     /// 0x0721: a value outside its range (data: the ID).
     OutOfRange(u16),
     /// 0x0722: the following warning threshold would not be below the fault threshold
@@ -265,13 +267,16 @@ impl ParamError {
             ParamError::UnknownId(_) => 0x0720,
             ParamError::OutOfRange(_) => 0x0721,
             ParamError::WarningNotBelowFault => 0x0722,
+            ParamError::Repeated(_) => 0x0723,
         }
     }
 
     /// Failure datum.
     pub const fn data(&self) -> u32 {
         match self {
-            ParamError::UnknownId(id) | ParamError::OutOfRange(id) => *id as u32,
+            ParamError::UnknownId(id) | ParamError::OutOfRange(id) | ParamError::Repeated(id) => {
+                *id as u32
+            }
             ParamError::WarningNotBelowFault => 0,
         }
     }
@@ -280,6 +285,20 @@ impl ParamError {
 /// The index of parameter `id`.
 pub fn index_of(id: u16) -> Option<usize> {
     PARAMETERS.iter().position(|d| d.id == id)
+}
+
+/// The parameters a TC[20,1] or TC[20,3] names (bit i = parameter index i), checked in
+/// the telecommand's order: an unknown ID is 0x0720, an ID named twice 0x0723.
+pub fn named_mask(ids: impl Iterator<Item = u16>) -> Result<u32, ParamError> {
+    let mut mask = 0u32;
+    for id in ids {
+        let bit = 1u32 << index_of(id).ok_or(ParamError::UnknownId(id))?;
+        if mask & bit != 0 {
+            return Err(ParamError::Repeated(id));
+        }
+        mask |= bit;
+    }
+    Ok(mask)
 }
 
 /// The parameters set on board (a bit and a value per parameter).
@@ -369,9 +388,14 @@ impl Parameters {
     /// These parameters with `updates` (ID, value) applied: all-or-nothing.
     pub fn with(&self, updates: &[(u16, i32)], table: &Table) -> Result<Self, ParamError> {
         let mut p = *self;
+        let mut named = 0u32;
         for (id, v) in updates {
             let k = index_of(*id).ok_or(ParamError::UnknownId(*id))?;
             let def = PARAMETERS.get(k).ok_or(ParamError::UnknownId(*id))?;
+            if named & (1 << k) != 0 {
+                return Err(ParamError::Repeated(*id));
+            }
+            named |= 1 << k;
             if !(def.min..=def.max).contains(v) {
                 return Err(ParamError::OutOfRange(*id));
             }
