@@ -55,17 +55,19 @@ pub(super) mod reset_record {
         }
     }
 
-    /// At boot: the cause the last reset recorded (no valid record: power-on; a valid
-    /// record without an announced cause: the watchdog, whose reset is the only one
-    /// software does not announce (on mps2-an386 when its NMI could not run), and the
-    /// boot count; re-arms the record.
-    pub fn on_boot() -> ResetInfo {
+    /// At boot: the cause the last reset recorded and the boot count; re-arms the
+    /// record. No valid record (the first boot after power-on, also after a power cut:
+    /// no-init RAM does not keep it): power-on, boot count 1. A valid record without an
+    /// announced cause: a reset software did not announce, whose cause the board gives
+    /// (`unannounced`: on mps2-an386 an external reset, the watchdog announcing itself
+    /// from its NMI; on the STM32 what its reset flags say).
+    pub fn on_boot(unannounced: ResetCause) -> ResetInfo {
         let (cause, count) = match read() {
             None => (ResetCause::PowerOn, 1),
             Some((c, n)) => {
                 let cause = match u8::try_from(c).ok().and_then(ResetCause::from_code) {
                     Some(cause) => cause,
-                    None => ResetCause::Watchdog,
+                    None => unannounced,
                 };
                 (cause, n.wrapping_add(1))
             }

@@ -182,7 +182,9 @@ impl Board {
         let mut flash = TableFlash { busy_until: None };
         flash.erase_if_never_written();
         Some(Board {
-            reset: reset_record::on_boot(),
+            // The watchdog announces itself from its NMI: a reset nobody announced
+            // came from outside (the reset button, a debugger, QEMU's system_reset).
+            reset: reset_record::on_boot(ResetCause::External),
             uart0: Uart0(()),
             timer: ControlTimer(()),
             watchdog: Watchdog(()),

@@ -75,6 +75,8 @@ use stm32f4xx_hal::gpio::{AnyPin, Input, Output, PushPull};
 use stm32f4xx_hal::pac::{self, interrupt};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::{Config as RccConfig, Enable, Rcc, Reset};
+
+use crate::controller::ResetCause;
 use stm32f4xx_hal::serial::{self as hal_serial, Serial};
 use stm32f4xx_hal::spi::{Mode as SpiMode, Phase, Polarity, Spi};
 
@@ -231,6 +233,7 @@ impl Board {
         // SAFETY: the first and only take (BOARD_TAKEN); RTIC is built with
         // `peripherals = false`, so nothing else owns the device peripherals.
         let dp = unsafe { pac::Peripherals::steal() };
+        let unannounced = unannounced_reset_cause(&dp.RCC);
         let clocks = configure_clocks(dp.RCC);
         irq::free(|cs| CLOCK_SOURCE.borrow(cs).set(clocks.source));
         let mut rcc = clocks.rcc;
@@ -368,7 +371,7 @@ impl Board {
         StepEngine::install(dp.TIM2, step, clocks.source, clocks.timer_clock_hz);
 
         Some(Board {
-            reset: reset_record::on_boot(),
+            reset: reset_record::on_boot(unannounced),
             uart0: Uart0(()),
             timer: ControlTimer {
                 tim: dp.TIM3,
@@ -556,6 +559,20 @@ const _: () = assert!(IWDG_RELOAD > 0 && IWDG_RELOAD <= 0x0FFF);
 const IWDG_KEY_ACCESS: u16 = 0x5555;
 const IWDG_KEY_RELOAD: u16 = 0xAAAA;
 const IWDG_KEY_START: u16 = 0xCCCC;
+
+/// The cause of a reset software did not announce, from RCC_CSR (RM0090 7.3.21): the
+/// independent watchdog's flag, else an external reset (the NRST pin, a debugger;
+/// QEMU's netduinoplus2 models neither the flags nor the watchdog, so there every
+/// unannounced reset is external). Clears the flags for the next boot.
+fn unannounced_reset_cause(rcc: &pac::RCC) -> ResetCause {
+    let watchdog = rcc.csr().read().wdgrstf().bit_is_set();
+    rcc.csr().modify(|_, w| w.rmvf().set_bit());
+    if watchdog {
+        ResetCause::Watchdog
+    } else {
+        ResetCause::External
+    }
+}
 
 /// The watchdog (owned by the control task: only a completed cycle feeds it).
 pub struct Watchdog(pac::IWDG);

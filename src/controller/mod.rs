@@ -147,6 +147,10 @@ pub enum ResetCause {
     HardFault,
     /// A panic (a defect: the flight image proves at link time it has none).
     Panic,
+    /// A reset from outside that software did not announce: the reset pin, a debugger,
+    /// QEMU's `system_reset` (how a board tells it from a watchdog reset: its
+    /// `reset_record::on_boot` argument).
+    External,
 }
 
 impl ResetCause {
@@ -158,6 +162,7 @@ impl ResetCause {
             ResetCause::Software => 2,
             ResetCause::HardFault => 3,
             ResetCause::Panic => 4,
+            ResetCause::External => 5,
         }
     }
 
@@ -169,6 +174,7 @@ impl ResetCause {
             2 => ResetCause::Software,
             3 => ResetCause::HardFault,
             4 => ResetCause::Panic,
+            5 => ResetCause::External,
             _ => return None,
         })
     }
