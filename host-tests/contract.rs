@@ -653,6 +653,8 @@ fn each_failure_arrives_in_the_report_the_icd_names() {
 fn telemetry_numbers_are_gapless_and_replies_are_never_dropped_under_a_full_downlink() {
     use m2ctl::ground::station::TmNumbers;
     use m2ctl::link::command::ParameterIds;
+    use m2ctl::link::schedule::ScheduleCommand;
+    use m2ctl::link::time::TimeReportRate;
     use m2ctl::link::MemoryId;
     use m2ctl::sim::bench::{BenchConfig, SIM_FLASH_BYTES, UART_115200_BYTES_PER_CYCLE};
     use m2ctl::table::mock_flash::MockFlash;
@@ -668,6 +670,15 @@ fn telemetry_numbers_are_gapless_and_replies_are_never_dropped_under_a_full_down
         };
         let mut r = Bench::with(plant, MockFlash::new(SIM_FLASH_BYTES), cfg);
         r.run(50);
+        // Half the seeds with housekeeping at 10 Hz: reports pile up behind the dumps
+        // beyond the samples the queue keeps, and are dropped (and counted).
+        let hk_period = if seed % 2 == 1 { 100 } else { 1000 };
+        if hk_period != 1000 {
+            let set = m2ctl::link::command::ParameterValues::new(&[(0x0020, hk_period)]).unwrap();
+            assert!(all_ok(&r.command(&Command::SetParameters(set), JOB_CYCLES)));
+        }
+        let hk0 = r.hk();
+        assert_eq!(hk0.tm_dropped, 0);
         let mut rng = common::TestRng(0x9E37_79B9_7F4A_7C15 ^ seed);
         let mut burst = Vec::new();
         let mut sent: Vec<(m2ctl::link::RequestId, Command)> = Vec::new();
@@ -675,7 +686,9 @@ fn telemetry_numbers_are_gapless_and_replies_are_never_dropped_under_a_full_down
             let cmd = if seed == 0 {
                 Command::DumpTable(MemoryId::ActiveTable)
             } else {
-                match rng.bits() % 5 {
+                // Every service that sends telemetry: 1 (all), 3, 5 (the state events of
+                // the moves), 6, 8, 9, 11, 17, 20.
+                match rng.bits() % 9 {
                     0 | 1 => Command::DumpTable(if k % 2 == 0 {
                         MemoryId::ActiveTable
                     } else {
@@ -683,7 +696,11 @@ fn telemetry_numbers_are_gapless_and_replies_are_never_dropped_under_a_full_down
                     }),
                     2 => Command::Ping,
                     3 => Command::HousekeepingOneShot,
-                    _ => Command::ReportParameters(ParameterIds::new(&[0x0010, 0x0031]).unwrap()),
+                    4 => Command::ReportParameters(ParameterIds::new(&[0x0010, 0x0031]).unwrap()),
+                    5 => Command::CheckMove(wire(2.0, 0.0, 0.0, 0.0, 0.0, 0.0)),
+                    6 => Command::SetTimeReportRate(TimeReportRate::Every { exponent: 0 }),
+                    7 => Command::Schedule(ScheduleCommand::SummaryReport),
+                    _ => Command::MoveRelative(wire(0.0, 0.0, 0.1, 0.0, 0.0, 0.0)),
                 }
             };
             let (frame, rid) = r.st.frame(&cmd).unwrap();
@@ -729,18 +746,43 @@ fn telemetry_numbers_are_gapless_and_replies_are_never_dropped_under_a_full_down
             );
             *want = want.wrapping_add(1);
         }
-        // 3. Every telecommand: acceptance, start, completion, and its answer.
+        // 3. Every telecommand: acceptance, then start and completion (a move that
+        //    finds another one running is refused busy: acceptance, start failure).
         for (rid, cmd) in &sent {
             let v = r.st.reports(*rid);
-            assert_eq!(
-                v,
-                vec![
+            let busy = matches!(cmd, Command::MoveRelative(_))
+                && v == [
                     Verification::AcceptanceSuccess,
-                    Verification::StartSuccess,
-                    Verification::CompletionSuccess
-                ],
-                "seed {seed}: reports of {cmd:?}"
+                    Verification::StartFailure {
+                        code: 0x0702,
+                        data: u32::from(State::Moving.code()),
+                    },
+                ];
+            assert!(
+                busy || v
+                    == [
+                        Verification::AcceptanceSuccess,
+                        Verification::StartSuccess,
+                        Verification::CompletionSuccess
+                    ],
+                "seed {seed}: reports of {cmd:?}: {v:?}"
             );
+        }
+        let checks = sent
+            .iter()
+            .filter(|(_, c)| matches!(c, Command::CheckMove(_)))
+            .count();
+        assert_eq!(
+            r.st.log
+                .iter()
+                .filter(|t| matches!(t, Tm::MoveCheck(..)))
+                .count(),
+            checks,
+            "seed {seed}: move check answers"
+        );
+        let services: std::collections::BTreeSet<u8> = numbers.iter().map(|n| n.service).collect();
+        if seed == 1 {
+            eprintln!("services seen in seed 1: {services:?}");
         }
         let answered = |want: &dyn Fn(&Tm) -> bool| r.st.log.iter().filter(|t| want(t)).count();
         let pings = sent
@@ -773,19 +815,147 @@ fn telemetry_numbers_are_gapless_and_replies_are_never_dropped_under_a_full_down
             .count()
             + 1; // the final r.hk()
         let final_cycle = hk.cycle_counter;
-        let periodic = (0..=final_cycle)
-            .filter(|c| c % m2ctl::timing::HK_PERIOD_CYCLES == 0)
+        // Counted from the report before the burst: periodic reports at every multiple
+        // of the period in force.
+        let periodic = (hk0.cycle_counter + 1..=final_cycle)
+            .filter(|c| c % hk_period as u32 == 0)
             .count();
         let chunks = answered(&|t| matches!(t, Tm::Dump(..)));
-        let hks = answered(&|t| matches!(t, Tm::Hk(h) if h.cycle_counter <= final_cycle));
-        let produced = dumps * chunks_per_dump + one_shots + periodic;
-        assert_eq!(
-            chunks + hks + usize::from(hk.tm_dropped),
-            produced,
-            "seed {seed}: {chunks} chunks + {hks} housekeeping received, {} dropped, {produced} made",
-            hk.tm_dropped
+        let hks = answered(
+            &|t| matches!(t, Tm::Hk(h) if h.cycle_counter > hk0.cycle_counter && h.cycle_counter <= final_cycle),
         );
-        worst_dropped = worst_dropped.max(hk.tm_dropped);
+        let summaries = sent
+            .iter()
+            .filter(|(_, c)| matches!(c, Command::Schedule(ScheduleCommand::SummaryReport)))
+            .count();
+        let produced = dumps * chunks_per_dump + one_shots + periodic + summaries;
+        let summaries_received = answered(&|t| matches!(t, Tm::ScheduleSummary(_)));
+        let dropped = hk.tm_dropped - hk0.tm_dropped;
+        assert_eq!(
+            chunks + hks + summaries_received + usize::from(dropped),
+            produced,
+            "seed {seed}: {chunks} chunks + {hks} housekeeping received, {dropped} dropped, {produced} made"
+        );
+        worst_dropped = worst_dropped.max(dropped);
     }
     eprintln!("most records dropped in one burst: {worst_dropped}");
+}
+
+/// ICD section 4, event 0x0011: for a refused commit, aux1 names the uploaded table only
+/// when every byte was loaded since the last commit and the image decodes; bytes left in
+/// the buffer from an earlier upload never name a table (it used to decode them: a
+/// commit refused for missing bytes named the previous upload's table).
+#[test]
+fn a_refused_commit_names_the_uploaded_table_only_when_all_its_bytes_came() {
+    let mut r = Bench::new();
+    r.run(1);
+    let t = calibrated_table(6);
+    assert!(all_ok(&install(&mut r, &t, false)));
+    let rejected = |r: &Bench| r.st.events(event::TABLE_REJECTED).last().copied();
+    // The same table again, its last chunk not re-sent: the buffer still holds it whole.
+    upload(&mut r, &t.to_bytes(), &[0, 1, 2, 3]);
+    let reps = r.command(&Command::CommitTable { crc32: t.crc32() }, 10);
+    assert!(matches!(
+        reps[..],
+        [_, Verification::StartFailure { code: 0x0705, .. }]
+    ));
+    assert_eq!(rejected(&r), Some([0x0705, 0]));
+    // Now complete, but the commit names another CRC: the image decodes, so it is named.
+    upload(&mut r, &t.to_bytes(), &[4]);
+    let reps = r.command(&Command::CommitTable { crc32: 1 }, 10);
+    assert!(matches!(
+        reps[..],
+        [_, Verification::StartFailure { code: 0x0706, .. }]
+    ));
+    assert_eq!(rejected(&r), Some([0x0706, 6]));
+    // A complete upload that does not decode (bad magic): 0.
+    let mut bytes = t.to_bytes();
+    bytes[0] ^= 0xff;
+    upload(&mut r, &bytes, &[0, 1, 2, 3, 4]);
+    let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC).checksum(&bytes[..512]);
+    let reps = r.command(&Command::CommitTable { crc32: crc }, 10);
+    assert!(
+        matches!(
+            reps[..],
+            [_, Verification::StartFailure { code: 0x0402, .. }]
+        ),
+        "{reps:?}"
+    );
+    assert_eq!(rejected(&r), Some([0x0402, 0]));
+}
+
+/// Housekeeping's cycle counter is the control cycle its time stamp names (ICD sections
+/// 6 and 10: cycle c has OBT floor(c ms)), also when a backed-up downlink sends it late:
+/// the sample is taken when the report is made (the report stamped OBT 0 said cycle 1,
+/// and a delayed report carried the state of the cycle it was sent in).
+#[test]
+fn housekeeping_carries_the_cycle_its_time_stamp_names_even_when_sent_late() {
+    use m2ctl::controller::schedule::obt_of_cycle;
+    use m2ctl::link::MemoryId;
+    use m2ctl::sim::bench::{BenchConfig, SIM_FLASH_BYTES, UART_115200_BYTES_PER_CYCLE};
+    use m2ctl::table::mock_flash::MockFlash;
+    let plant = Plant::new(&PROTOTYPE, PlantConfig::default()).unwrap();
+    let cfg = BenchConfig {
+        uart_bytes_per_cycle: Some(UART_115200_BYTES_PER_CYCLE),
+        ..BenchConfig::default()
+    };
+    let mut r = Bench::with(plant, MockFlash::new(SIM_FLASH_BYTES), cfg);
+    r.run(995);
+    // Dumps keep the downlink busy across the report of cycle 1000, and a move changes
+    // the commanded strokes while it waits.
+    for _ in 0..8 {
+        r.queue(&Command::DumpTable(MemoryId::ActiveTable));
+    }
+    r.run(3);
+    r.queue(&Command::MoveAbsolute(wire(20.0, 0.0, 0.0, 0.0, 0.0, 0.0)));
+    let mut strokes_at = std::collections::BTreeMap::new();
+    let mut arrived = None;
+    for _ in 0..3_000 {
+        r.tick();
+        // What the controller commanded at the end of each control cycle.
+        strokes_at.insert(r.ctl.cycle() - 1, r.ctl.strokes_commanded_mm());
+        if arrived.is_none()
+            && r.st
+                .log
+                .iter()
+                .any(|t| matches!(t, Tm::Hk(h) if h.cycle_counter == 1000))
+        {
+            arrived = Some(r.ctl.cycle() - 1);
+        }
+    }
+    let hks: Vec<(usize, m2ctl::link::Housekeeping)> =
+        r.st.log
+            .iter()
+            .enumerate()
+            .filter_map(|(i, t)| match t {
+                Tm::Hk(h) => Some((i, *h)),
+                _ => None,
+            })
+            .collect();
+    assert_eq!(hks.first().map(|(_, h)| h.cycle_counter), Some(0));
+    assert_eq!(r.st.log_times[hks[0].0].to_ticks(), 0);
+    for (i, h) in &hks {
+        assert_eq!(
+            r.st.log_times[*i],
+            obt_of_cycle(h.cycle_counter),
+            "report {i}: stamped {:?}, says cycle {}",
+            r.st.log_times[*i],
+            h.cycle_counter
+        );
+    }
+    // The report of cycle 1000 arrived well after it was made, while the move had
+    // changed the strokes, and carries the state of cycle 1000.
+    let (_, h) = hks.iter().find(|(_, h)| h.cycle_counter == 1000).unwrap();
+    let arrived = arrived.unwrap();
+    let nm = |c: u32| strokes_at[&c].map(m2ctl::link::wire::mm_to_nm_f32);
+    assert!(
+        arrived > 1050,
+        "sent behind the dumps: arrived after cycle {arrived}"
+    );
+    assert_ne!(
+        nm(arrived),
+        nm(1000),
+        "the move changed the strokes meanwhile"
+    );
+    assert_eq!(h.strokes_commanded_nm, nm(1000));
 }

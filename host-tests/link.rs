@@ -1076,3 +1076,56 @@ fn round_sat_i32_is_libm_round_saturated() {
     }
     assert_ne!(round_sat_i32(2.7), 2.7f64 as i32);
 }
+
+/// ICD section 3: the failure data of 0x050D is the argument's 0-based index in the
+/// application data, TC[8,1]'s function ID not counted.
+#[test]
+fn an_argument_out_of_range_names_its_index_not_counting_the_function_id() {
+    let data_of = |p: &[u8]| match decode_telecommand(p) {
+        Ok(tc) => panic!("accepted {tc:?}"),
+        Err(r) => (r.error.code(), r.error.data()),
+    };
+    let edit = |c: &Command, f: &dyn Fn(&mut Vec<u8>)| {
+        let mut p = packet(c, 3);
+        f(&mut p);
+        fix_crc(&mut p);
+        p
+    };
+    // Application data starts at byte 11 (6 primary + 5 secondary header bytes).
+    const AD: usize = 11;
+    let ds = Command::DirectStroke {
+        leg: 1,
+        delta_nm: 5,
+    };
+    // Direct stroke: function ID at AD..AD+2, the leg at AD+2 is argument 0.
+    for leg in [0u8, 7, 255] {
+        assert_eq!(
+            data_of(&edit(&ds, &|p| p[AD + 2] = leg)),
+            (0x050d, 0),
+            "leg {leg}"
+        );
+    }
+    // Memory IDs (TC[6,5], TC[6,2]): argument 0.
+    let dump = Command::DumpTable(MemoryId::ActiveTable);
+    assert_eq!(data_of(&edit(&dump, &|p| p[AD] = 3)), (0x050d, 0));
+    let chunk = Command::LoadTableChunk(TableChunk::new(0, &[1, 2, 3, 4]).unwrap());
+    assert_eq!(data_of(&edit(&chunk, &|p| p[AD] = 2)), (0x050d, 0));
+    // The count N: 0, or above 16 where 16 is the limit.
+    let report = Command::ReportParameters(command::ParameterIds::new(&[0x0010]).unwrap());
+    assert_eq!(data_of(&edit(&report, &|p| p[AD] = 0)), (0x050d, 0));
+    let mut long = packet(&report, 3);
+    long[AD] = 17;
+    let crc_at = long.len() - 2;
+    long.splice(crc_at..crc_at, std::iter::repeat_n(0u8, 16 * 2));
+    let len = (long.len() - 7) as u16;
+    long[4..6].copy_from_slice(&len.to_be_bytes());
+    fix_crc(&mut long);
+    assert_eq!(data_of(&long), (0x050d, 0));
+    let del = Command::Schedule(ScheduleCommand::Delete(
+        RequestIdList::new(&[RequestId::from_bytes([0x18, 0xb2, 0xc0, 0x05])]).unwrap(),
+    ));
+    assert_eq!(data_of(&edit(&del, &|p| p[AD] = 0)), (0x050d, 0));
+    // TC[9,1]'s rate.
+    let rate = Command::SetTimeReportRate(TimeReportRate::Every { exponent: 1 });
+    assert_eq!(data_of(&edit(&rate, &|p| p[AD] = 9)), (0x050d, 0));
+}

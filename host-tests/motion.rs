@@ -446,6 +446,20 @@ fn a_path_leaving_the_workspace_between_accepted_ends_is_refused() {
     };
     assert!(sample > 0 && (sample as usize) < m2ctl::motion::trajectory::PATH_SAMPLE_INTERVALS);
     assert_eq!(refusals.legs_below_min, 0b1);
+    // Where the points lie (ICD section 3, "Check move"): point k (1..15) is the pose
+    // start + (k/16)(target - start), component by component; the refused one reported
+    // is the first such point whose leg 1 is below its limit (independent f64 IK).
+    let n = m2ctl::motion::trajectory::PATH_SAMPLE_INTERVALS;
+    assert_eq!(n, 16);
+    let point = |k: usize| {
+        let s = k as f64 / n as f64;
+        let (pa, pb) = (end(-1.0).to_array(), end(1.0).to_array());
+        Pose::<f64>::from_array(std::array::from_fn(|i| pa[i] + s * (pb[i] - pa[i])))
+    };
+    let first_below = (1..n)
+        .find(|&k| ik(&g64, &point(k)).unwrap()[0] < f64::from(lim.min_mm[0] as f32))
+        .unwrap();
+    assert_eq!(usize::from(sample), first_below);
     // Either end alone is fine.
     assert!(Trajectory::plan(&g, &a, &a, &MotionLimits::default()).is_ok());
 }

@@ -915,3 +915,35 @@ fn nibble_crc32_equals_the_crc_crate() {
         prop_assert_eq!(CRC32.checksum(&bytes), reference.checksum(&bytes));
     });
 }
+
+/// ICD section 5, the order of the 36 joint values: leg-major, leg i (1..6) at byte
+/// 32 + 48 (i - 1): `a.x a.y a.z` (frame B, zero stroke) then `b.x b.y b.z` (frame M),
+/// each an f64 little-endian.
+#[test]
+fn the_joint_values_are_leg_major_a_then_b() {
+    let mut t = Table::nominal();
+    for (i, leg) in t.legs.iter_mut().enumerate() {
+        for k in 0..3 {
+            leg.a_mm[k] = 100.0 * (i as f64 + 1.0) + k as f64;
+            leg.b_mm[k] = 100.0 * (i as f64 + 1.0) + 10.0 + k as f64;
+        }
+    }
+    let bytes = t.to_bytes();
+    let f64_at = |o: usize| f64::from_le_bytes(bytes[o..o + 8].try_into().unwrap());
+    for leg in 1..=6usize {
+        let base = 32 + 48 * (leg - 1);
+        for k in 0..3 {
+            assert_eq!(
+                f64_at(base + 8 * k),
+                100.0 * leg as f64 + k as f64,
+                "leg {leg} a[{k}]"
+            );
+            assert_eq!(
+                f64_at(base + 24 + 8 * k),
+                100.0 * leg as f64 + 10.0 + k as f64,
+                "leg {leg} b[{k}]"
+            );
+        }
+    }
+    assert_eq!(32 + 48 * 6, 320, "p0 follows at 320");
+}

@@ -1312,7 +1312,7 @@ pub fn housekeeping_fields() -> Vec<(Field, Option<HkGetter>)> {
                 "reset_cause",
                 149,
                 Wire::U8,
-                "reset cause: 0 power-on, 1 watchdog, 2 software, 3 HardFault, 4 panic",
+                "reset cause: 0 power-on, 1 watchdog, 2 software, 3 HardFault, 4 panic, 5 external",
             ),
             Some(|h| i64::from(h.reset_cause)),
         ),
@@ -1922,6 +1922,10 @@ pub fn failure_samples() -> Vec<(&'static str, u16, String)> {
             length: 0,
         },
         LinkError::EmbeddedTc { index: 0, code: 0 },
+        LinkError::NotSchedulable {
+            service: 0,
+            subtype: 0,
+        },
     ] {
         push("LINK", e.code(), format!("{e:?}"));
     }
@@ -2042,6 +2046,7 @@ pub fn failure_samples() -> Vec<(&'static str, u16, String)> {
         ParamError::UnknownId(0),
         ParamError::OutOfRange(0),
         ParamError::WarningNotBelowFault,
+        ParamError::Repeated(0),
     ] {
         push("CONTROLLER", e.code(), format!("{e:?}"));
     }
@@ -2226,9 +2231,9 @@ pub fn events() -> Vec<Event> {
             id: event_id::PARAMETERS_CHANGED,
             name: "PARAMETERS_CHANGED",
             severities: sev(&[info]),
-            aux0: "parameters set (bit i = parameter index i)",
-            aux1: "0",
-            message: "on-board parameters changed: set mask {aux0}",
+            aux0: "the parameters this telecommand set (bit i = parameter index i)",
+            aux1: "every parameter set now (bit i = parameter index i; HK offset 213)",
+            message: "on-board parameters changed: {aux0} set (all set: {aux1})",
         },
         Event {
             id: event_id::ACTIVITY_RELEASED,

@@ -310,8 +310,8 @@ pub mod event_id {
     /// 8..15, selection bits 16..18); aux1: reset cause (bits 0..7), boot count (bits
     /// 16..31).
     pub const BOOT_DETAIL: u16 = 0x0021;
-    /// On-board parameters changed (persisted and applied). aux0: the set-parameter
-    /// mask, aux1: 0.
+    /// On-board parameters changed (persisted and applied). aux0: the parameters the
+    /// TC[20,3] set, aux1: every parameter set now (bit i = parameter index i).
     pub const PARAMETERS_CHANGED: u16 = 0x0040;
     /// Control cycles overran their period several times in a row: motion stopped.
     /// aux0: consecutive overruns, aux1: overruns since boot.

@@ -72,8 +72,13 @@ impl UploadBuffer {
         &self.bytes
     }
 
-    /// The table ID of the bytes, if they decode (for events naming a refused table).
+    /// The table ID of the upload, for events naming a refused table: `None` unless
+    /// every byte was loaded since the last commit that passed its first checks and the
+    /// image decodes (bytes left from an earlier upload never name a table).
     pub fn table_id(&self) -> Option<u32> {
+        if self.missing() > 0 {
+            return None;
+        }
         Table::decode(&self.bytes).ok().map(|t| t.table_id)
     }
 
