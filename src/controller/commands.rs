@@ -150,6 +150,7 @@ impl<M: MechanismIo> Controller<M> {
             Command::ReportParameters(ids) => {
                 let mask = super::params::named_mask(ids.ids().iter().copied())
                     .map_err(CommandError::Parameter)?;
+                self.intact_parameters()?;
                 self.tm.push(self.cycle, TmRecord::Parameters { mask });
                 Ok(Outcome::Done)
             }
@@ -196,15 +197,18 @@ impl<M: MechanismIo> Controller<M> {
                         pending_id: p.table_id,
                     });
                 }
-                self.start_job(JobRequest::ActivatePending(p.report))
+                let params = self.intact_parameters()?;
+                self.start_job(JobRequest::ActivatePending(p.report, params))
             }
             Command::SwitchBank => {
                 self.require_idle()?;
-                self.start_job(JobRequest::SwitchBank)
+                let params = self.intact_parameters()?;
+                self.start_job(JobRequest::SwitchBank(params))
             }
             Command::RevertToNominal => {
                 self.require_idle()?;
-                self.start_job(JobRequest::RevertToNominal)
+                let params = self.intact_parameters()?;
+                self.start_job(JobRequest::RevertToNominal(params))
             }
             // Time-based schedule (ST[11]) and time reports (ST[9]).
             Command::Schedule(ref op) => self.execute_schedule(op),
@@ -229,7 +233,7 @@ impl<M: MechanismIo> Controller<M> {
     fn set_parameters(&mut self, entries: &[(u16, i32)]) -> Result<Outcome, CommandError> {
         self.require_idle()?;
         let new = self
-            .params
+            .intact_parameters()?
             .with(entries, &self.active.table)
             .map_err(CommandError::Parameter)?;
         let named = super::params::named_mask(entries.iter().map(|(id, _)| *id))
@@ -253,6 +257,19 @@ impl<M: MechanismIo> Controller<M> {
         Ok(Outcome::JobStarted)
     }
 
+    /// The parameters in force, checked against their check word: a flipped bit is a
+    /// RAM upset (fault 0x100 latched, the repair queued) and the telecommand is refused
+    /// with 0x0701, so an upset value is never built on, reported or persisted.
+    fn intact_parameters(&mut self) -> Result<super::Parameters, CommandError> {
+        match self.params.checked() {
+            Some(p) => Ok(*p),
+            None => {
+                self.ram_upset();
+                Err(CommandError::Faulted(self.supervisor.latched()))
+            }
+        }
+    }
+
     fn start_job(&mut self, request: JobRequest) -> Result<Outcome, CommandError> {
         self.jobs
             .submit(request)
@@ -269,7 +286,7 @@ impl<M: MechanismIo> Controller<M> {
         let mut out = heapless::Vec::new();
         for (k, def) in super::params::PARAMETERS.iter().enumerate() {
             if mask & (1 << k) != 0 {
-                let _ = out.push((def.id, self.params.value(k, &self.active.table)));
+                let _ = out.push((def.id, self.params.params().value(k, &self.active.table)));
             }
         }
         out

@@ -27,8 +27,13 @@
 //!   run it. A pending table in that bank is thereby activated.
 //! * **Revert to nominal**: persist the nominal selection, run the nominal table; it
 //!   stays selected across resets.
-//! * **Reload**: re-read the running table from its bank (after a RAM upset); CRC-checked,
-//!   it is the validated table byte for byte.
+//! * **Reload**: re-read the running table from its bank and the parameters from their
+//!   persisted record (after a RAM upset); CRC-checked, they are the validated table
+//!   byte for byte and the persisted set. An upset found while another job runs is
+//!   repaired as soon as that job ends (its result is applied first).
+//! * Activate, switch bank and revert to nominal fail with 0x0437 before anything is
+//!   persisted if the table's following-error thresholds and the overrides in force
+//!   would leave the warning not below the fault threshold.
 
 use super::{ActiveTable, Controller};
 use crate::hw::MechanismIo;
@@ -76,24 +81,26 @@ pub struct ScrubImage {
     pub active: ActiveTable,
     /// The supervisor's thresholds.
     pub supervision: SupervisionConfig,
-    /// The on-board parameters.
-    pub params: super::Parameters,
+    /// The on-board parameters and their check word.
+    pub params: super::params::InForce,
     /// What they and the table make of the settings.
     pub ops: super::Ops,
 }
 
 impl ScrubImage {
     /// True when the image is self-consistent: the table's CRC is the recorded one, the
-    /// geometry, thresholds and settings are exactly what the table and the parameters
-    /// derive, and the parameters are in range (they re-encode to themselves).
+    /// parameters agree with their check word (any flipped bit of either is found), and
+    /// the geometry, thresholds and settings are exactly what the table and the
+    /// parameters derive.
     #[inline(never)]
     pub fn consistent(&self) -> bool {
         let a = &self.active;
         a.table.crc32() == a.crc32
             && geometry_matches(a)
-            && super::Parameters::decode(&self.params.encode()) == self.params
-            && self.params.supervision(&a.table) == self.supervision
-            && super::Ops::derive(&self.params, &a.table) == self.ops
+            && self.params.checked().is_some_and(|p| {
+                p.supervision(&a.table) == self.supervision
+                    && super::Ops::derive(p, &a.table) == self.ops
+            })
     }
 }
 
@@ -112,12 +119,13 @@ fn geometry_matches(a: &ActiveTable) -> bool {
 pub enum JobRequest {
     /// Validate and write the table (pending afterwards).
     Commit(Table),
-    /// Select the pending table committed as in this report.
-    ActivatePending(CommitReport),
-    /// Select the other bank's table.
-    SwitchBank,
-    /// Select the nominal table.
-    RevertToNominal,
+    /// Select the pending table committed as in this report (with the parameters in
+    /// force, against which its thresholds are checked).
+    ActivatePending(CommitReport, super::Parameters),
+    /// Select the other bank's table (thresholds checked against the parameters).
+    SwitchBank(super::Parameters),
+    /// Select the nominal table (thresholds checked against the parameters).
+    RevertToNominal(super::Parameters),
     /// Re-read the running table from its source.
     Reload,
     /// Persist these on-board parameters (with the selection record).
@@ -131,9 +139,9 @@ impl JobRequest {
     pub const fn kind(&self) -> Option<JobKind> {
         match self {
             JobRequest::Commit(_) => Some(JobKind::Commit),
-            JobRequest::ActivatePending(_)
-            | JobRequest::SwitchBank
-            | JobRequest::RevertToNominal => Some(JobKind::Select),
+            JobRequest::ActivatePending(..)
+            | JobRequest::SwitchBank(_)
+            | JobRequest::RevertToNominal(_) => Some(JobKind::Select),
             JobRequest::Reload => Some(JobKind::Reload),
             JobRequest::SaveParameters(_) => Some(JobKind::Parameters),
             JobRequest::Scrub(_) => None,
@@ -185,7 +193,7 @@ pub enum JobResult {
     },
     /// The on-board parameters were persisted: run with them.
     ParametersSaved(super::Parameters),
-    /// The running table, re-read from its source.
+    /// The running table, re-read from its source, and the persisted parameters.
     Reloaded {
         /// The table.
         table: Table,
@@ -193,6 +201,8 @@ pub enum JobResult {
         geom: DerivedGeometry,
         /// Its source.
         source: BootSource,
+        /// The parameters of the newest selection record, as persisted.
+        params: [u8; crate::table::store::PARAMETERS_LEN],
     },
     /// An operator job failed; nothing in RAM changed (a failed commit leaves the
     /// target bank without a valid record, never the running one).
@@ -234,6 +244,8 @@ pub(super) struct JobLane {
     /// The parameters the running TC[20,3] names (bit i = parameter index i): event
     /// 0x0040's aux0 when they are persisted.
     pub parameters_named: u32,
+    /// A RAM upset was found while a job ran: reload when it ends.
+    reload_wanted: bool,
 }
 
 impl JobLane {
@@ -244,6 +256,7 @@ impl JobLane {
             running: None,
             scrub_outstanding: false,
             parameters_named: 0,
+            reload_wanted: false,
         }
     }
 
@@ -362,8 +375,10 @@ impl<M: MechanismIo> Controller<M> {
                 ref table,
                 ref geom,
                 source,
+                ref params,
             } => {
                 self.jobs.running = None;
+                self.restore_parameters_for(params, table);
                 if self.run_table(table, geom, source).is_ok() {
                     self.supervisor
                         .set_external_condition(FaultFlags::TABLE_CORRUPT, false);
@@ -404,12 +419,24 @@ impl<M: MechanismIo> Controller<M> {
                 );
             }
         }
+        // An upset found while a job ran is repaired now that it has ended.
+        if self.jobs.reload_wanted && self.jobs.running.is_none() {
+            self.queue_reload();
+        }
         self.publish_state();
     }
 
-    /// The RAM image of the running table is corrupt: latch the fault, hold at once (no
-    /// ramp computed with a corrupt geometry), and reload the table from its source.
-    fn ram_upset(&mut self) {
+    /// Queues the reload of the running table and the persisted parameters.
+    fn queue_reload(&mut self) {
+        self.jobs.reload_wanted = false;
+        self.jobs.running = Some(JobKind::Reload);
+        self.jobs.outbox = Some(JobRequest::Reload);
+    }
+
+    /// The RAM image of the running table or of the parameters is corrupt: latch the
+    /// fault, hold at once (no ramp computed with a corrupt geometry), and reload both
+    /// from flash (now, or when the job that runs ends).
+    pub(super) fn ram_upset(&mut self) {
         self.supervisor
             .raise_external(FaultFlags::TABLE_CORRUPT, true);
         self.event(
@@ -422,8 +449,9 @@ impl<M: MechanismIo> Controller<M> {
         );
         self.hold_now();
         if self.jobs.running.is_none() {
-            self.jobs.running = Some(JobKind::Reload);
-            self.jobs.outbox = Some(JobRequest::Reload);
+            self.queue_reload();
+        } else {
+            self.jobs.reload_wanted = true;
         }
     }
 
@@ -448,9 +476,15 @@ impl<M: MechanismIo> Controller<M> {
         self.geometry_ok = true;
         self.generation = self.generation.wrapping_add(1);
         self.jobs.scrub_outstanding = false;
-        self.ops = super::Ops::derive(&self.params, &self.active.table);
+        // Derived from the parameters only if they are intact; else the repair
+        // re-derives everything from flash (the drives hold meanwhile).
+        let params = *self.params.params();
+        if self.params.checked().is_none() {
+            self.ram_upset();
+        }
+        self.ops = super::Ops::derive(&params, &self.active.table);
         self.supervisor
-            .set_config(self.params.supervision(&self.active.table));
+            .set_config(params.supervision(&self.active.table));
         // The same strokes are a (slightly) different pose under the new geometry:
         // hold and re-derive the commanded pose.
         self.hold_here();
@@ -601,24 +635,28 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
     /// line: their table reads are alternatives, never on the stack together.
     fn start_selection(&mut self, request: &JobRequest) {
         match request {
-            JobRequest::ActivatePending(report) => self.select_pending(report),
-            JobRequest::SwitchBank => self.select_other_bank(),
-            JobRequest::RevertToNominal => {
-                self.begin_select(JobKind::Select, Selection::nominal(), &Table::nominal())
-            }
+            JobRequest::ActivatePending(report, params) => self.select_pending(report, params),
+            JobRequest::SwitchBank(params) => self.select_other_bank(params),
+            JobRequest::RevertToNominal(params) => self.begin_select(
+                JobKind::Select,
+                Selection::nominal(),
+                &Table::nominal(),
+                params,
+            ),
             JobRequest::Reload => self.reload(),
             _ => self.fail_later(JobKind::Select, StoreError::NotExpected),
         }
     }
 
     #[inline(never)]
-    fn select_pending(&mut self, report: &CommitReport) {
+    fn select_pending(&mut self, report: &CommitReport, params: &super::Parameters) {
         match self.pending_table {
             Some((r, t)) if r == *report && self.store.pending() == Some(*report) => self
                 .begin_select(
                     JobKind::Select,
                     Selection::bank(r.bank, r.sequence, r.table_crc),
                     &t,
+                    params,
                 ),
             _ => self.fail_later(JobKind::Select, StoreError::NotExpected),
         }
@@ -627,7 +665,7 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
     /// Switch bank: the table of the bank not running (with nominal running, the bank
     /// with the newest record), read and validated, then its selection persisted.
     #[inline(never)]
-    fn select_other_bank(&mut self) {
+    fn select_other_bank(&mut self, params: &super::Parameters) {
         let kind = JobKind::Select;
         let bank = match self.other_bank() {
             Ok(b) => b,
@@ -637,9 +675,12 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
             Err(s) => self.fail_later(kind, StoreError::NoRecord(s)),
             Ok((h, t)) => match validate(&t, &self.validation) {
                 Err(v) => self.fail_later(kind, StoreError::Invalid(v)),
-                Ok(()) => {
-                    self.begin_select(kind, Selection::bank(bank, h.sequence, h.table_crc), &t)
-                }
+                Ok(()) => self.begin_select(
+                    kind,
+                    Selection::bank(bank, h.sequence, h.table_crc),
+                    &t,
+                    params,
+                ),
             },
         }
     }
@@ -653,9 +694,19 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
         }
     }
 
-    /// Persists `sel`; `table` runs when that is done.
+    /// Persists `sel`; `table` runs when that is done. Refused (0x0437) if `table`'s
+    /// following-error thresholds conflict with the overrides in `params`.
     #[inline(never)]
-    fn begin_select(&mut self, kind: JobKind, sel: Selection, table: &Table) {
+    fn begin_select(
+        &mut self,
+        kind: JobKind,
+        sel: Selection,
+        table: &Table,
+        params: &super::Parameters,
+    ) {
+        if params.following_conflict(table) {
+            return self.fail_later(kind, StoreError::ThresholdConflict);
+        }
         match self.store.start_select(&sel) {
             Ok(()) => self.op = Some(Op::Select { table: *table }),
             Err(e) => self.fail_later(kind, e),
@@ -663,16 +714,16 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
     }
 
     /// The bank switch-bank selects: the bank not running (with nominal running, the
-    /// bank with the newest record).
+    /// bank with the newest record that reads back complete and valid: a corrupt bank
+    /// is skipped).
     #[inline(never)]
     fn other_bank(&mut self) -> Result<Bank, StoreError> {
         Ok(match self.store.running().bank() {
             Some(b) => b.other(),
-            None => match (
-                self.store.read_header(Bank::A),
-                self.store.read_header(Bank::B),
-            ) {
-                (Ok(ha), Ok(hb)) if crate::table::store::seq_newer(hb.sequence, ha.sequence) => {
+            None => match (self.store.read_bank(Bank::A), self.store.read_bank(Bank::B)) {
+                (Ok((ha, _)), Ok((hb, _)))
+                    if crate::table::store::seq_newer(hb.sequence, ha.sequence) =>
+                {
                     Bank::B
                 }
                 (Ok(_), _) => Bank::A,
@@ -721,11 +772,13 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
     /// The reload's result (out of line: the table is copied once, into the result).
     #[inline(never)]
     fn take_reloaded(&mut self) -> Option<JobResult> {
+        let params = self.store.reread_parameters();
         let (table, source) = self.reloaded.as_ref()?;
         let result = JobResult::Reloaded {
             table: *table,
             geom: derive_geometry(table),
             source: *source,
+            params,
         };
         self.reloaded = None;
         Some(result)

@@ -256,8 +256,9 @@ pub struct Controller<M> {
     /// on the host); owned: nothing else commands them.
     mech: M,
     active: ActiveTable,
-    /// The on-board parameters (ST[20]) and what they make of the settings.
-    params: Parameters,
+    /// The on-board parameters (ST[20]) with their check word, and what they make of
+    /// the settings.
+    params: params::InForce,
     ops: Ops,
     /// The running geometry is usable; `false` only after a defect (the compiled-in
     /// nominal table failed to derive): every motion is refused.
@@ -322,6 +323,8 @@ pub struct Controller<M> {
     /// Flash-bank health from the background scrub: bit 0 bank A, bit 1 bank B corrupt.
     bank_health: u8,
     boot_event_sent: bool,
+    /// Persisted parameters not applied at boot (event 0x0041 after the boot events).
+    params_ignored_at_boot: u32,
     /// A stop or a fault ended a move while it was being planned.
     plan_aborted: bool,
     // Time-based schedule (ST[11]) and time reports (ST[9]): not persisted, empty and
@@ -354,9 +357,9 @@ impl<M: MechanismIo> Controller<M> {
                 Err(_) => (nominal_placeholder(), false),
             },
         };
-        let params = Parameters::none();
-        let supervisor = Supervisor::new(params.supervision(&active.table));
-        let ops = Ops::derive(&params, &active.table);
+        let params = params::InForce::new(Parameters::none());
+        let supervisor = Supervisor::new(params.params().supervision(&active.table));
+        let ops = Ops::derive(params.params(), &active.table);
         Self {
             mech,
             active,
@@ -401,6 +404,7 @@ impl<M: MechanismIo> Controller<M> {
             consecutive_overruns: 0,
             bank_health: 0,
             boot_event_sent: false,
+            params_ignored_at_boot: 0,
             plan_aborted: false,
             schedule: schedule::Schedule::new(),
             time_reports: time::TimeReports::new(),
@@ -444,13 +448,39 @@ impl<M: MechanismIo> Controller<M> {
 
     /// Restores the on-board parameters persisted with the selection record
     /// ([`crate::table::TableStore::parameters`]); call once after [`Controller::new`].
+    /// What is not applied (out of range, or the following-error overrides that would
+    /// conflict with the booted table: [`Parameters::from_persisted`]) is reported by
+    /// event 0x0041 after the boot events.
     pub fn restore_parameters(&mut self, persisted: &[u8; crate::table::store::PARAMETERS_LEN]) {
-        self.apply_parameters(Parameters::decode(persisted));
+        let table = self.active.table;
+        self.restore_parameters_for(persisted, &table);
+    }
+
+    /// [`Controller::restore_parameters`] for `table` (the one about to run).
+    fn restore_parameters_for(
+        &mut self,
+        persisted: &[u8; crate::table::store::PARAMETERS_LEN],
+        table: &Table,
+    ) {
+        let (params, ignored) = Parameters::from_persisted(persisted, table);
+        self.apply_parameters(params);
+        if ignored != 0 {
+            if self.boot_event_sent {
+                self.report_parameters_ignored(ignored);
+            } else {
+                self.params_ignored_at_boot = ignored;
+            }
+        }
+    }
+
+    /// Event 0x0041: persisted parameters not applied.
+    fn report_parameters_ignored(&mut self, ignored: u32) {
+        self.event(EventSeverity::Low, event::PARAMETERS_IGNORED, [ignored, 0]);
     }
 
     /// Runs with `params`: derived settings and the supervision thresholds follow.
     fn apply_parameters(&mut self, params: Parameters) {
-        self.params = params;
+        self.params = params::InForce::new(params);
         self.ops = Ops::derive(&params, &self.active.table);
         self.supervisor
             .set_config(params.supervision(&self.active.table));
@@ -458,9 +488,9 @@ impl<M: MechanismIo> Controller<M> {
         self.jobs.scrub_done();
     }
 
-    /// The on-board parameters.
+    /// The on-board parameters (as they are in RAM).
     pub fn parameters(&self) -> &Parameters {
-        &self.params
+        self.params.params()
     }
 
     /// Records the board's reset cause and boot counter (call once, before the first
@@ -671,6 +701,9 @@ impl<M: MechanismIo> Controller<M> {
                 u32::from(self.reset.cause.code()) | (u32::from(self.reset.boot_count) << 16),
             ],
         );
+        if self.params_ignored_at_boot != 0 {
+            self.report_parameters_ignored(self.params_ignored_at_boot);
+        }
     }
 
     /// The state as derived from the motion and the latched faults.
@@ -772,7 +805,7 @@ impl<M: MechanismIo> Controller<M> {
             pose_commanded_operator: crate::link::wire::pose_to_wire_f32(
                 &self.ops.frames.to_operator(&self.pose_commanded),
             ),
-            parameters_set: self.params.set_mask(),
+            parameters_set: self.params.params().set_mask(),
             schedule: self.schedule_hk(),
             limit_lower_legs: self.switches.lower,
             limit_upper_legs: self.switches.upper,
@@ -784,7 +817,7 @@ impl<M: MechanismIo> Controller<M> {
     /// The pivot (M's coordinates, nm), as set.
     fn pivot_nm(&self) -> [i32; 3] {
         let k = params::index::PIVOT;
-        [0, 1, 2].map(|i| self.params.value(k + i, &self.active.table))
+        [0, 1, 2].map(|i| self.params.params().value(k + i, &self.active.table))
     }
 
     /// Control cycles since boot.
@@ -835,6 +868,20 @@ impl<M: MechanismIo> Controller<M> {
     /// The telemetry records waiting for the link service.
     pub fn tm_queue(&mut self) -> &mut TmQueue {
         &mut self.tm
+    }
+
+    /// Test hook (host): flips a bit of the parameters in force or of their check word
+    /// ([`params::InForce::upset`]), as a radiation upset would.
+    #[cfg(feature = "host")]
+    pub fn upset_parameters(&mut self, word: usize, bit: u32) {
+        self.params.upset(word, bit);
+    }
+
+    /// Test hook (host): flips bits of the derived settings (frames, limits), as a
+    /// radiation upset would.
+    #[cfg(feature = "host")]
+    pub fn upset_ops(&mut self, f: impl FnOnce(&mut Ops)) {
+        f(&mut self.ops);
     }
 
     /// Test hook (host): flips RAM bits of the running table, its derived geometry or

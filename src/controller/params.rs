@@ -10,6 +10,24 @@
 //! selection record (power-cut safe, two slots, `table::store`) by the background
 //! worker and applied when it is written (the telecommand completes then). Report
 //! (TC[20,1]) answers TM[20,2] with the effective values.
+//!
+//! ## Protection against upsets
+//! The parameters in force are kept with a check word ([`InForce`]: the CRC-32 of their
+//! persisted form), so that any flipped bit of a value, of the set mask or of the check
+//! word itself is found: by the RAM scrub every second, and before the parameters are
+//! used to build a new set, a report or a table's settings. The repair re-reads them
+//! from their persisted record (the one the next boot reads), never from RAM, so an
+//! upset value is neither adopted nor written back to flash.
+//!
+//! ## Warning below fault, whichever side changes
+//! The following-error warning threshold in force must stay below the fault threshold
+//! in force (each an override here, or the running table's). The combination is checked
+//! whenever either side changes: a set is refused (0x0722); a table job (activate,
+//! switch bank, revert to nominal) whose table would conflict with the overrides fails
+//! with 0x0722 before anything is persisted ([`Parameters::following_conflict`]); and a
+//! persisted set that conflicts with the table that boots (or is out of range) is not
+//! applied as it stands ([`Parameters::from_persisted`]): the conflicting overrides are
+//! left out, event 0x0041 names them, and the table's thresholds run.
 
 use crate::kinematics::{Frames, LEGS};
 use crate::motion::{
@@ -309,6 +327,51 @@ pub struct Parameters {
     values: [i32; N_PARAMETERS],
 }
 
+/// The parameters in force and their check word (module documentation, "Protection
+/// against upsets").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct InForce {
+    params: Parameters,
+    /// CRC-32 (ISO-HDLC) of `params.encode()`.
+    check: u32,
+}
+
+impl InForce {
+    /// `params` with their check word.
+    pub fn new(params: Parameters) -> Self {
+        Self {
+            check: params.check_word(),
+            params,
+        }
+    }
+
+    /// The parameters as they are in RAM (for telemetry; unchecked).
+    pub const fn params(&self) -> &Parameters {
+        &self.params
+    }
+
+    /// The parameters if they still agree with their check word.
+    pub fn checked(&self) -> Option<&Parameters> {
+        (self.params.check_word() == self.check).then_some(&self.params)
+    }
+
+    /// Test hook (host): flips bit `bit` of the RAM word `word` (0: the set mask, 1..=19
+    /// the values, 20: the check word), as a radiation upset would.
+    #[cfg(feature = "host")]
+    pub fn upset(&mut self, word: usize, bit: u32) {
+        let m = 1u32.checked_shl(bit).unwrap_or(0);
+        match word {
+            0 => self.params.set ^= m,
+            w if w <= N_PARAMETERS => {
+                if let Some(v) = self.params.values.get_mut(w - 1) {
+                    *v ^= m as i32;
+                }
+            }
+            _ => self.check ^= m,
+        }
+    }
+}
+
 /// Byte offsets in the persisted payload.
 const PAYLOAD_SET_MASK: usize = 0;
 const PAYLOAD_VALUES: usize = 4;
@@ -326,6 +389,36 @@ impl Parameters {
     /// The set-bit mask (housekeeping).
     pub const fn set_mask(&self) -> u32 {
         self.set
+    }
+
+    /// CRC-32 of the persisted form: [`InForce`]'s check word.
+    pub fn check_word(&self) -> u32 {
+        crate::table::layout::CRC32.checksum(&self.encode())
+    }
+
+    /// What runs from a persisted set with `table` (at boot, and when the repair of an
+    /// upset re-reads them): [`Parameters::decode`], then the following-error overrides
+    /// left out if they would leave the warning not below the fault threshold (module
+    /// documentation). Also returns the set bits not applied (event 0x0041's aux0).
+    pub fn from_persisted(bytes: &[u8; PARAMETERS_LEN], table: &Table) -> (Self, u32) {
+        let mut p = Self::decode(bytes);
+        if p.following_conflict(table) {
+            p.set &= !((1 << index::FOLLOWING_WARNING) | (1 << index::FOLLOWING_FAULT));
+        }
+        let stored = u32::from_le_bytes(
+            bytes
+                .get(PAYLOAD_SET_MASK..PAYLOAD_SET_MASK + 4)
+                .and_then(|b| b.try_into().ok())
+                .unwrap_or([0; 4]),
+        );
+        let known = (1u32 << N_PARAMETERS) - 1;
+        (p, stored & known & !p.set)
+    }
+
+    /// The following warning threshold in force would not be below the fault threshold
+    /// in force with `table` running.
+    pub fn following_conflict(&self, table: &Table) -> bool {
+        self.value(index::FOLLOWING_WARNING, table) >= self.value(index::FOLLOWING_FAULT, table)
     }
 
     /// The persisted form (little-endian: set mask, then each value).
@@ -404,7 +497,7 @@ impl Parameters {
                 *dst = *v;
             }
         }
-        if p.value(index::FOLLOWING_WARNING, table) >= p.value(index::FOLLOWING_FAULT, table) {
+        if p.following_conflict(table) {
             return Err(ParamError::WarningNotBelowFault);
         }
         Ok(p)

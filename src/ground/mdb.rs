@@ -1996,6 +1996,7 @@ pub fn failure_samples() -> Vec<(&'static str, u16, String)> {
         StoreError::NoRecord(crate::table::BankStatus::Blank),
         StoreError::Busy,
         StoreError::NotExpected,
+        StoreError::ThresholdConflict,
     ] {
         push("STORE", e.code(), format!("{e:?}"));
     }
@@ -2234,6 +2235,14 @@ pub fn events() -> Vec<Event> {
             aux0: "the parameters this telecommand set (bit i = parameter index i)",
             aux1: "every parameter set now (bit i = parameter index i; HK offset 213)",
             message: "on-board parameters changed: {aux0} set (all set: {aux1})",
+        },
+        Event {
+            id: event_id::PARAMETERS_IGNORED,
+            name: "PARAMETERS_IGNORED",
+            severities: sev(&[EventSeverity::Low]),
+            aux0: "persisted parameters not applied (bit i = parameter index i): out of range, or following-error overrides conflicting with the running table",
+            aux1: "0",
+            message: "persisted parameters {aux0} not applied: the defaults or the table's thresholds run",
         },
         Event {
             id: event_id::ACTIVITY_RELEASED,

@@ -313,6 +313,11 @@ pub mod event_id {
     /// On-board parameters changed (persisted and applied). aux0: the parameters the
     /// TC[20,3] set, aux1: every parameter set now (bit i = parameter index i).
     pub const PARAMETERS_CHANGED: u16 = 0x0040;
+    /// Persisted on-board parameters not applied (at boot, or when the repair of an
+    /// upset re-read them): out of range, or following-error overrides that would leave
+    /// the warning not below the running table's fault threshold. aux0: the parameters
+    /// not applied (bit i = parameter index i), aux1: 0.
+    pub const PARAMETERS_IGNORED: u16 = 0x0041;
     /// Control cycles overran their period several times in a row: motion stopped.
     /// aux0: consecutive overruns, aux1: overruns since boot.
     pub const DEADLINE_MISSED: u16 = 0x0030;

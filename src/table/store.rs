@@ -327,6 +327,10 @@ pub enum StoreError {
     Busy,
     /// The bank's record is not the one expected (sequence or CRC differ).
     NotExpected,
+    /// The table's following-error thresholds, with the on-board overrides in force
+    /// (parameters 0x0030, 0x0031), would leave the warning not below the fault
+    /// threshold: the table is not selected, nothing was written.
+    ThresholdConflict,
 }
 
 impl StoreError {
@@ -340,6 +344,7 @@ impl StoreError {
             StoreError::NoRecord(_) => 0x0434,
             StoreError::Busy => 0x0435,
             StoreError::NotExpected => 0x0436,
+            StoreError::ThresholdConflict => 0x0437,
         }
     }
 
@@ -592,12 +597,16 @@ enum Slot {
 enum WriteKind {
     /// A table record into `bank`.
     Commit(CommitReport),
-    /// A selection record into `slot` with selection sequence `sequence`.
+    /// A selection record into `slot` with selection sequence `sequence`; `runs`: the
+    /// selection becomes what runs (activate, switch bank, revert), or the record only
+    /// carries new parameters and what runs does not change (after a boot that fell
+    /// back, the selected bank is not what runs).
     Select {
         selection: Selection,
         parameters: [u8; PARAMETERS_LEN],
         slot: Slot,
         sequence: u32,
+        runs: bool,
     },
 }
 
@@ -856,6 +865,14 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
         }
     }
 
+    /// Re-reads both selection slots from flash and returns the parameters of the newest
+    /// valid one (the repair of a RAM upset: what the next boot would read, not the RAM
+    /// copy).
+    pub fn reread_parameters(&mut self) -> [u8; PARAMETERS_LEN] {
+        self.load_selection();
+        self.parameters
+    }
+
     /// The operations parameters persisted with the newest selection record (all zero
     /// when none were ever stored).
     pub fn parameters(&self) -> [u8; PARAMETERS_LEN] {
@@ -1053,11 +1070,13 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
     /// holding the newest selection.
     pub fn start_select(&mut self, selection: &Selection) -> Result<(), StoreError> {
         let parameters = self.parameters;
-        self.start_record(selection, &parameters)
+        self.start_record(selection, &parameters, true)
     }
 
     /// Starts persisting new operations `parameters` with the current selection (with
     /// none yet: the selection of the running table, so what boots does not change).
+    /// What runs does not change either: after a boot that fell back to nominal, the
+    /// selection record still names the bank that could not boot.
     pub fn start_parameters(
         &mut self,
         parameters: &[u8; PARAMETERS_LEN],
@@ -1066,7 +1085,7 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
             Some(s) => s,
             None => self.running_selection(),
         };
-        self.start_record(&selection, parameters)
+        self.start_record(&selection, parameters, false)
     }
 
     /// The selection describing the running table.
@@ -1084,6 +1103,7 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
         &mut self,
         selection: &Selection,
         parameters: &[u8; PARAMETERS_LEN],
+        runs: bool,
     ) -> Result<(), StoreError> {
         if self.write.is_some() {
             return Err(StoreError::Busy);
@@ -1107,6 +1127,7 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
                 parameters: *parameters,
                 slot,
                 sequence,
+                runs,
             },
             base,
             erase_end: base.saturating_add(F::ERASE_SIZE as u32),
@@ -1212,14 +1233,17 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
                 parameters,
                 slot,
                 sequence,
+                runs,
             } => {
                 self.selection = Some((selection, slot, sequence));
                 self.parameters = parameters;
-                self.running = selection.source;
-                self.running_sequence = selection.record_sequence;
-                if let (Some(p), Some(bank)) = (self.pending, selection.source.bank()) {
-                    if p.bank == bank {
-                        self.pending = None;
+                if runs {
+                    self.running = selection.source;
+                    self.running_sequence = selection.record_sequence;
+                    if let (Some(p), Some(bank)) = (self.pending, selection.source.bank()) {
+                        if p.bank == bank {
+                            self.pending = None;
+                        }
                     }
                 }
                 WriteDone::Selected(selection)
