@@ -491,6 +491,7 @@ fn fault_flag_bits_are_stable() {
         (FaultFlags::TABLE_CORRUPT, 1 << 8),
         (FaultFlags::DEADLINE_MISSED, 1 << 9),
         (FaultFlags::LIMIT_SWITCH, 1 << 10),
+        (FaultFlags::OUTPUT_LIMITED, 1 << 11),
         (FaultFlags::FOLLOWING_WARNING, 1 << 16),
         (FaultFlags::ENCODER_WARNING, 1 << 17),
     ];

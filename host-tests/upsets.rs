@@ -372,3 +372,121 @@ fn warning_below_fault_is_checked_whichever_side_changes() {
     assert_eq!(r.hk().parameters_set & (1 << index::FOLLOWING_WARNING), 0);
     assert!(all_ok(&r.command(&set(&[(PIVOT_Z, 8)]), JOB_CYCLES)));
 }
+
+/// Issue 19, item 5: an upset geometry during a move commanded up to 0.10 mm in one
+/// cycle (500 times the speed limit) before the following error caught it 4 cycles
+/// later. The output stage clamps every step to the limits in force, latches
+/// OUTPUT_LIMITED naming the leg, and the drives hold at once.
+#[test]
+fn no_upset_geometry_commands_a_step_beyond_the_limits() {
+    use m2ctl::motion::limiter::STEP_TOLERANCE_MM;
+    let speed_mm_per_cycle = 0.2 * m2ctl::motion::CYCLE_S; // 200,000 nm/s, the default
+                                                           // The IK's strokes depend on the geometry through the rod's home vector: a change
+                                                           // of 2 d0_x by `delta` moves a stroke by about u_x delta / (2 d0_z) (u_x the
+                                                           // platform's x travel, ~0.2 mm here; 2 d0_z ~ 160 mm): an exponent or high mantissa
+                                                           // bit of it flipped.
+    for (what, delta_mm) in [("0.1 mm", 80.0f32), ("15 um", 12.0), ("1 um", 0.8)] {
+        let mut r = Bench::new();
+        r.run(2);
+        let mv = r.send(&Command::MoveAbsolute(wire(
+            400.0, -300.0, 100.0, 20.0, 0.0, 0.0,
+        )));
+        r.run(500);
+        assert_eq!(r.ctl.state(), State::Moving);
+        // Leg 3's platform joint moves in RAM: IK puts its stroke off by about `delta`.
+        r.ctl
+            .upset(|a, _| a.geom.legs[2].two_d0_xy_mm[0] += delta_mm);
+        let step = max_step_mm(&mut r, 50);
+        assert!(
+            step <= speed_mm_per_cycle + STEP_TOLERANCE_MM,
+            "{what}: a step of {step} mm"
+        );
+        assert!(
+            r.ctl.faults().contains(FaultFlags::OUTPUT_LIMITED),
+            "{what}"
+        );
+        let latched = r.st.events(event::FAULT_LATCHED);
+        let named = latched
+            .iter()
+            .find(|a| a[1] & FaultFlags::OUTPUT_LIMITED.bits() != 0)
+            .expect("event 0x0002 for OUTPUT_LIMITED");
+        assert_eq!(named[1] >> 24, 1 << 2, "{what}: leg 3 named");
+        assert_eq!(r.ctl.state(), State::Faulted);
+        assert!(
+            matches!(
+                r.st.reports(mv).last(),
+                Some(Verification::CompletionFailure { code: 0x0709, .. })
+            ),
+            "{what}"
+        );
+        // The scrub then finds the geometry upset; the repair makes the clear possible.
+        until_reloaded(&mut r, 3 * SCRUB_PERIOD_CYCLES);
+        assert!(all_ok(&r.command(&Command::ClearFault, 20)), "{what}");
+    }
+}
+
+/// The output stage's own limits are checked storage: an upset of them is found at
+/// their next use (a RAM upset: fault 0x100, the repair re-derives them).
+#[test]
+fn an_upset_of_the_output_limits_is_found_and_repaired() {
+    for word in [0usize, 1, 2, 3, 5] {
+        let mut r = Bench::new();
+        r.run(2);
+        r.ctl.upset_output_limits(word, 21);
+        let mv = r.send(&Command::MoveAbsolute(wire(50.0, 0.0, 0.0, 0.0, 0.0, 0.0)));
+        r.run(50);
+        assert!(table_corrupt_latched(&r), "word {word}");
+        assert!(!r.st.reports(mv).contains(&Verification::CompletionSuccess));
+        // The repair (no flash write: only reads) is done within these cycles.
+        assert_eq!(r.st.events(event::TABLE_RELOADED).len(), 1, "word {word}");
+        assert!(all_ok(&r.command(&Command::ClearFault, 20)), "word {word}");
+        let mv = r.command(
+            &Command::MoveAbsolute(wire(50.0, 0.0, 0.0, 0.0, 0.0, 0.0)),
+            60_000,
+        );
+        assert!(all_ok(&mv), "word {word}: {mv:?}");
+    }
+}
+
+/// The output stage alone: steps within the limits pass unchanged, a step or a change
+/// of step beyond them is clamped to them, a NaN keeps the previous command.
+#[test]
+fn the_output_stage_clamps_speed_and_acceleration_and_nothing_else() {
+    use m2ctl::motion::limiter::STEP_TOLERANCE_MM;
+    use m2ctl::motion::{LimitKind, OutputLimiter, StepLimits, CYCLE_S};
+    let limits = StepLimits {
+        coordinated: (0.2, 1.0),
+        direct: (0.05, 0.5),
+    };
+    let v = 0.2 * CYCLE_S;
+    let a = 1.0 * CYCLE_S * CYCLE_S;
+    let mut l = OutputLimiter::new(&limits, [1.0; 6]);
+    // Accelerate at the limit: passes.
+    let mut s = [1.0f32; 6];
+    let mut step = 0.0f32;
+    for _ in 0..300 {
+        step = (step + a).min(v);
+        s = s.map(|x| x + step);
+        let out = l.limit(LimitKind::Coordinated, s);
+        assert_eq!(out.legs, 0);
+        assert_eq!(out.strokes_mm, s);
+    }
+    // A jump of leg 2: clamped to one step within the limits, leg 2 named.
+    let mut jump = s.map(|x| x + step);
+    jump[1] += 0.1;
+    let out = l.limit(LimitKind::Coordinated, jump);
+    assert_eq!(out.legs, 1 << 1);
+    assert!(out.strokes_mm[1] - s[1] <= v + STEP_TOLERANCE_MM);
+    // A NaN: that leg keeps its command (its step is limited by the acceleration bound).
+    let prev = out.strokes_mm;
+    let mut nan = prev.map(|x| x + step);
+    nan[4] = f32::NAN;
+    let out = l.limit(LimitKind::Coordinated, nan);
+    assert_eq!(out.legs, 1 << 4);
+    assert!(out.strokes_mm[4].is_finite());
+    // A direct stroke is held to the direct limits.
+    l.rest(out.strokes_mm);
+    let out = l.limit(LimitKind::Direct, out.strokes_mm.map(|x| x + 0.001));
+    assert_eq!(out.legs, 0b11_1111);
+    assert!(out.limits_ok);
+}

@@ -30,7 +30,7 @@ use super::{Controller, JobRequest, JobResult};
 use crate::hw::MechanismIo;
 use crate::link::framing::{max_cobs_len, Deframer};
 use crate::link::tm::TmWriter;
-use crate::link::{Housekeeping, MAX_TC_PACKET_LEN, MAX_TM_FRAME_LEN};
+use crate::link::{MAX_TC_PACKET_LEN, MAX_TM_FRAME_LEN};
 
 /// Telecommands handled per pass (per control cycle): a table upload's five chunks and
 /// its commit arrive within two cycles; the budget per telecommand is measured by the
@@ -106,7 +106,7 @@ impl Default for LinkService {
 /// What one record needs from the controller to be encoded.
 enum Content {
     Plain(TmRecord),
-    Hk(Housekeeping),
+    Hk(super::telemetry::HkSample),
     Params(heapless::Vec<(u16, i32), { super::params::N_PARAMETERS }>),
     Dump(crate::link::MemoryId, u16, super::commands::DumpChunk),
     Summary(super::schedule::ScheduleSummary),
@@ -223,8 +223,8 @@ impl LinkService {
                 let content = match stamped.record {
                     TmRecord::Housekeeping => {
                         let mut hk = *c.tm_queue().peek_housekeeping()?;
-                        hk.tc_frames_dropped = counters.frames_dropped;
-                        hk.uart_overruns = counters.uart_overruns;
+                        hk.words.tc_frames_dropped = counters.frames_dropped;
+                        hk.words.uart_overruns = counters.uart_overruns;
                         Content::Hk(hk)
                     }
                     TmRecord::DumpChunk {
@@ -283,7 +283,7 @@ impl LinkService {
                 self.tm.emit_time_report(time, *rate, out).ok()
             }
             Content::Summary(entries) => self.tm.emit_schedule_summary(time, entries, out).ok(),
-            Content::Hk(hk) => self.tm.emit_housekeeping(time, hk, out).ok(),
+            Content::Hk(sample) => self.tm.emit_housekeeping(time, &sample.report(), out).ok(),
             Content::Dump(memory, offset, chunk) => self
                 .tm
                 .emit_table_dump_chunk(time, *memory, *offset, chunk.bytes(), out)

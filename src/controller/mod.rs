@@ -293,6 +293,8 @@ pub struct Controller<M> {
     /// The strokes commanded to the drives in the last cycle, or (at rest) the strokes
     /// they hold.
     strokes_commanded_mm: [f32; LEGS],
+    /// The output stage every command passes (`motion::limiter`).
+    limiter: crate::motion::OutputLimiter,
     /// Last encoder reading and whether it is this cycle's.
     encoders_mm: [f32; LEGS],
     encoders_valid: bool,
@@ -384,6 +386,10 @@ impl<M: MechanismIo> Controller<M> {
             fk_iterations: 0,
             pose_commanded: Pose::home(),
             strokes_commanded_mm: [0.0; LEGS],
+            limiter: crate::motion::OutputLimiter::new(
+                &params.params().step_limits(&active.table),
+                [0.0; LEGS],
+            ),
             encoders_mm: [0.0; LEGS],
             encoders_valid: false,
             last_drive: Ok(()),
@@ -482,6 +488,8 @@ impl<M: MechanismIo> Controller<M> {
     fn apply_parameters(&mut self, params: Parameters) {
         self.params = params::InForce::new(params);
         self.ops = Ops::derive(&params, &self.active.table);
+        self.limiter
+            .set_limits(&params.step_limits(&self.active.table));
         self.supervisor
             .set_config(params.supervision(&self.active.table));
         self.generation = self.generation.wrapping_add(1);
@@ -748,12 +756,30 @@ impl<M: MechanismIo> Controller<M> {
     /// Queues a housekeeping report with the sample of now (stamped with this cycle,
     /// whose number it carries).
     fn queue_housekeeping(&mut self) {
-        let sample = self.housekeeping();
+        let sample = self.housekeeping_sample();
         self.tm.push_housekeeping(self.cycle, &sample);
     }
 
-    /// The housekeeping sample of now (the link service adds its own counters).
+    /// The housekeeping report of now (the link service adds its own counters).
     pub fn housekeeping(&self) -> Housekeeping {
+        self.housekeeping_sample().report()
+    }
+
+    /// The housekeeping sample of now: the words, the poses and strokes still in
+    /// working units (a copy: the conversions are done when the report is encoded).
+    pub fn housekeeping_sample(&self) -> telemetry::HkSample {
+        telemetry::HkSample {
+            words: self.housekeeping_words(),
+            pose_fk: self.pose_fk,
+            pose_commanded: self.pose_commanded,
+            strokes_commanded_mm: self.strokes_commanded_mm,
+            encoders_mm: self.encoders_mm,
+            frames: self.ops.frames,
+        }
+    }
+
+    /// Every housekeeping word but the poses, strokes and encoders (zero here).
+    fn housekeeping_words(&self) -> Housekeeping {
         let moving_legs = match &self.motion {
             Motion::Hold | Motion::Planning(_) => 0,
             Motion::Path { .. } => crate::supervision::ALL_LEGS,
@@ -772,12 +798,10 @@ impl<M: MechanismIo> Controller<M> {
             refusal_bits: self.refusal_bits,
             active_table_id: self.active.table.table_id,
             active_table_crc32: self.active.crc32,
-            pose_fk: crate::link::wire::pose_to_wire_f32(&self.pose_fk),
-            pose_commanded: crate::link::wire::pose_to_wire_f32(&self.pose_commanded),
-            strokes_commanded_nm: self
-                .strokes_commanded_mm
-                .map(crate::link::wire::mm_to_nm_f32),
-            encoders_nm: self.encoders_mm.map(crate::link::wire::mm_to_nm_f32),
+            pose_fk: crate::link::WirePose::default(),
+            pose_commanded: crate::link::WirePose::default(),
+            strokes_commanded_nm: [0; LEGS],
+            encoders_nm: [0; LEGS],
             tc_accepted: self.tc_accepted,
             tc_rejected: self.tc_rejected,
             last_failure_code: self.last_failure_code,
@@ -799,12 +823,8 @@ impl<M: MechanismIo> Controller<M> {
             boot_count: self.reset.boot_count,
             bank_health: self.bank_health,
             pivot_nm: self.pivot_nm(),
-            pose_fk_operator: crate::link::wire::pose_to_wire_f32(
-                &self.ops.frames.to_operator(&self.pose_fk),
-            ),
-            pose_commanded_operator: crate::link::wire::pose_to_wire_f32(
-                &self.ops.frames.to_operator(&self.pose_commanded),
-            ),
+            pose_fk_operator: crate::link::WirePose::default(),
+            pose_commanded_operator: crate::link::WirePose::default(),
             parameters_set: self.params.params().set_mask(),
             schedule: self.schedule_hk(),
             limit_lower_legs: self.switches.lower,
@@ -875,6 +895,13 @@ impl<M: MechanismIo> Controller<M> {
     #[cfg(feature = "host")]
     pub fn upset_parameters(&mut self, word: usize, bit: u32) {
         self.params.upset(word, bit);
+    }
+
+    /// Test hook (host): flips bit `bit` of word `word` of the output stage's limits
+    /// ([`crate::motion::OutputLimiter::upset`]).
+    #[cfg(feature = "host")]
+    pub fn upset_output_limits(&mut self, word: usize, bit: u32) {
+        self.limiter.upset(word, bit);
     }
 
     /// Test hook (host): flips bits of the derived settings (frames, limits), as a

@@ -10,10 +10,10 @@ use crate::kinematics::{fk, ik, FkConfig, Frames, Geometry, Pose, LEGS};
 use crate::link::tc::{AckFlags, RequestId};
 use crate::link::tm::EventSeverity;
 use crate::link::tm::Verification;
-use crate::motion::MotionLimits;
 use crate::motion::{
     DirectStrokeLimits, PlanStart, StrokeMove, Trajectory, TrajectoryPlanner, PATH_SAMPLE_INTERVALS,
 };
+use crate::motion::{LimitKind, MotionLimits};
 use crate::supervision::FaultFlags;
 
 /// The motion in progress.
@@ -300,14 +300,32 @@ impl<M: MechanismIo> Controller<M> {
         };
         if matches!(self.motion, Motion::Hold | Motion::Planning(_)) {
             // Nothing is commanded at rest: poll the drives' health instead. The next
-            // motion's end-of-travel clamp starts from its own first cycle's switches.
+            // motion's end-of-travel clamp starts from its own first cycle's switches,
+            // its output stage from where the drives hold, at rest.
             self.last_drive = self.mech.status();
             self.clamp_negative = 0;
             self.clamp_positive = 0;
+            self.limiter.rest(self.strokes_commanded_mm);
         } else {
-            let strokes = self.clamp_to_switches(strokes);
+            let kind = if matches!(self.motion, Motion::Stroke { .. }) {
+                LimitKind::Direct
+            } else {
+                LimitKind::Coordinated
+            };
+            let limited = self.limiter.limit(kind, strokes);
+            let strokes = self.clamp_to_switches(limited.strokes_mm);
             self.strokes_commanded_mm = strokes;
             self.last_drive = self.mech.command_strokes_mm(&strokes);
+            if !limited.limits_ok {
+                // The output stage's own limits are upset: no command is trusted; the
+                // repair re-derives them.
+                self.ram_upset();
+                return;
+            }
+            if limited.legs != 0 {
+                self.output_limited(limited.legs);
+                return;
+            }
         }
         self.moving_prev = moving;
         if done {
@@ -324,6 +342,25 @@ impl<M: MechanismIo> Controller<M> {
             }
             self.end_pending_move(stopping);
         }
+    }
+
+    /// The output stage clamped a step of `legs`: latch [`FaultFlags::OUTPUT_LIMITED`]
+    /// (event 0x0002 naming the legs) and hold at once where the clamped command left
+    /// the drives (the geometry or the planner is wrong: no ramp computed by them can be
+    /// trusted).
+    #[inline(never)]
+    fn output_limited(&mut self, legs: u8) {
+        let flag = FaultFlags::OUTPUT_LIMITED;
+        self.supervisor.raise_external_on(flag, legs);
+        self.event(
+            EventSeverity::High,
+            event::FAULT_LATCHED,
+            [
+                self.supervisor.latched().bits(),
+                flag.bits() | (u32::from(legs) << 24),
+            ],
+        );
+        self.hold_now();
     }
 
     /// The end-of-travel clamp, applied to every stroke command just before it goes to

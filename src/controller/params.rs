@@ -533,6 +533,16 @@ impl Parameters {
         )
     }
 
+    /// The output stage's limits (`motion::limiter`): coordinated and direct-stroke
+    /// speed and acceleration (mm/s, mm/s^2).
+    pub fn step_limits(&self, table: &Table) -> crate::motion::StepLimits {
+        let mm = |k: usize| (f64::from(self.value(k, table)) / NM_PER_MM) as f32;
+        crate::motion::StepLimits {
+            coordinated: (mm(index::MOVE_SPEED), mm(index::MOVE_ACCEL)),
+            direct: (mm(index::DIRECT_SPEED), mm(index::DIRECT_ACCEL)),
+        }
+    }
+
     /// Housekeeping period (cycles).
     pub fn hk_period_cycles(&self, table: &Table) -> u32 {
         self.value(index::HK_PERIOD, table).unsigned_abs().max(1)

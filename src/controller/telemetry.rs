@@ -34,6 +34,7 @@
 
 use heapless::Deque;
 
+use crate::kinematics::{Frames, Pose, LEGS};
 use crate::link::command::TABLE_CHUNK_MAX_LEN;
 use crate::link::tc::RequestId;
 use crate::link::time::TimeReportRate;
@@ -65,6 +66,45 @@ const _: () = assert!(ADMISSION_FREE_SLOTS <= TM_QUEUE_LEN);
 /// Housekeeping samples the queue keeps waiting to be sent (a backed-up downlink's
 /// periodic and one-shot reports beyond them are dropped and counted).
 pub const HK_SAMPLES: usize = 4;
+
+/// A housekeeping report as sampled in the cycle its record was made in: the words in
+/// wire units, and the poses, strokes and encoder readings still in working units
+/// with the frames in force, so the control cycle only copies them and the link
+/// service converts them when it encodes the report ([`HkSample::report`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HkSample {
+    /// Every word of the report but the six below (zero there).
+    pub words: Housekeeping,
+    /// Pose from FK of the encoders (internal frames, mm, rad).
+    pub pose_fk: Pose<f32>,
+    /// Commanded pose (internal frames, mm, rad).
+    pub pose_commanded: Pose<f32>,
+    /// Commanded (or held) strokes (mm).
+    pub strokes_commanded_mm: [f32; LEGS],
+    /// Encoder readings (mm).
+    pub encoders_mm: [f32; LEGS],
+    /// The pivot and user frame in force (for the poses in the operator's frames).
+    pub frames: Frames<f32>,
+}
+
+impl HkSample {
+    /// The report: the sample's words with its poses, strokes and readings converted
+    /// to wire units.
+    pub fn report(&self) -> Housekeeping {
+        use crate::link::wire::{mm_to_nm_f32, pose_to_wire_f32};
+        Housekeeping {
+            pose_fk: pose_to_wire_f32(&self.pose_fk),
+            pose_commanded: pose_to_wire_f32(&self.pose_commanded),
+            strokes_commanded_nm: self.strokes_commanded_mm.map(mm_to_nm_f32),
+            encoders_nm: self.encoders_mm.map(mm_to_nm_f32),
+            pose_fk_operator: pose_to_wire_f32(&self.frames.to_operator(&self.pose_fk)),
+            pose_commanded_operator: pose_to_wire_f32(
+                &self.frames.to_operator(&self.pose_commanded),
+            ),
+            ..self.words
+        }
+    }
+}
 
 /// Which records yield to which when the queue fills (module documentation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -179,7 +219,7 @@ pub struct Stamped {
 pub struct TmQueue {
     queue: Deque<Stamped, TM_QUEUE_LEN>,
     /// The samples of the queued housekeeping records, in queue order.
-    hk: Deque<Housekeeping, HK_SAMPLES>,
+    hk: Deque<HkSample, HK_SAMPLES>,
     dropped: u16,
 }
 
@@ -214,7 +254,7 @@ impl TmQueue {
     /// Queues a housekeeping report made in `cycle` with its sample, or drops and
     /// counts it when the bulk reserve or the [`HK_SAMPLES`] are used up. Returns
     /// whether it was queued.
-    pub fn push_housekeeping(&mut self, cycle: u32, sample: &Housekeeping) -> bool {
+    pub fn push_housekeeping(&mut self, cycle: u32, sample: &HkSample) -> bool {
         let record = TmRecord::Housekeeping;
         if self.free() > record.class().reserve() && !self.hk.is_full() {
             let queued = self.hk.push_back(*sample).is_ok()
@@ -233,7 +273,7 @@ impl TmQueue {
     }
 
     /// The sample of the oldest housekeeping record.
-    pub fn peek_housekeeping(&self) -> Option<&Housekeeping> {
+    pub fn peek_housekeeping(&self) -> Option<&HkSample> {
         self.hk.front()
     }
 
@@ -357,9 +397,16 @@ mod tests {
 
     #[test]
     fn housekeeping_samples_leave_with_their_records() {
-        let sample = |cycle: u32| Housekeeping {
-            cycle_counter: cycle,
-            ..Housekeeping::default()
+        let sample = |cycle: u32| HkSample {
+            words: Housekeeping {
+                cycle_counter: cycle,
+                ..Housekeeping::default()
+            },
+            pose_fk: Pose::home(),
+            pose_commanded: Pose::home(),
+            strokes_commanded_mm: [0.0; LEGS],
+            encoders_mm: [0.0; LEGS],
+            frames: Frames::identity(),
         };
         let mut q = TmQueue::new();
         for c in 0..HK_SAMPLES as u32 {
@@ -371,7 +418,10 @@ mod tests {
         assert!(!q.push(0, TmRecord::Housekeeping), "only with a sample");
         for c in 0..HK_SAMPLES as u32 {
             assert_eq!(q.peek().map(|s| s.cycle), Some(c));
-            assert_eq!(q.peek_housekeeping().map(|h| h.cycle_counter), Some(c));
+            assert_eq!(
+                q.peek_housekeeping().map(|h| h.words.cycle_counter),
+                Some(c)
+            );
             assert!(matches!(
                 q.pop().map(|s| s.record),
                 Some(TmRecord::Housekeeping)

@@ -2332,7 +2332,7 @@ pub fn fault_flag_bits() -> Vec<(u32, String, String)> {
         (
             FaultFlags::TABLE_CORRUPT,
             "TABLE_CORRUPT",
-            "fault: the running table, geometry or thresholds in RAM failed the scrub",
+            "fault: the running table, geometry, thresholds or parameters in RAM failed the scrub or their check",
         ),
         (
             FaultFlags::DEADLINE_MISSED,
@@ -2343,6 +2343,11 @@ pub fn fault_flag_bits() -> Vec<(u32, String, String)> {
             FaultFlags::LIMIT_SWITCH,
             "LIMIT_SWITCH",
             "fault: an end-of-travel switch active, or a switch input unreadable",
+        ),
+        (
+            FaultFlags::OUTPUT_LIMITED,
+            "OUTPUT_LIMITED",
+            "fault: the output stage clamped a stroke step beyond the speed or acceleration limit (geometry or planner wrong); the drives held at once",
         ),
         (
             FaultFlags::FOLLOWING_WARNING,

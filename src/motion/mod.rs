@@ -8,6 +8,8 @@
 //!   profile's rate and acceleration are derived from per-slider speed and acceleration
 //!   limits through the strokes sampled along the path.
 //! * [`stroke`]: one slider by a stroke, no kinematics (recovery).
+//! * [`limiter`]: the output stage, every command's per-cycle step bounded by the speed
+//!   and acceleration limits in force, independent of the geometry and the planner.
 //!
 //! Per cycle the controller calls `setpoint(cycle)` with the cycle count since the move
 //! began (a few tens of instructions), turns the pose into strokes by IK and commands
@@ -25,10 +27,12 @@
 // `!(x > 0.0)` also refuses NaN, deliberately.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod limiter;
 pub mod ramp;
 pub mod stroke;
 pub mod trajectory;
 
+pub use limiter::{LimitKind, OutputLimiter, StepLimits};
 pub use ramp::{Ramp, RampError, RampSample, CYCLE_S, MAX_MOVE_CYCLES};
 pub use stroke::{
     DirectStrokeLimits, StrokeMove, StrokeMoveError, StrokeSetpoint,

@@ -13,7 +13,8 @@
 //! | 8 | [`FaultFlags::TABLE_CORRUPT`] | fault (raised by the RAM scrub) |
 //! | 9 | [`FaultFlags::DEADLINE_MISSED`] | fault (raised by consecutive cycle overruns) |
 //! | 10 | [`FaultFlags::LIMIT_SWITCH`] | fault (an end-of-travel switch active, or its input unreadable) |
-//! | 11..15 | reserved for faults | |
+//! | 11 | [`FaultFlags::OUTPUT_LIMITED`] | fault (the output stage clamped a stroke step) |
+//! | 12..15 | reserved for faults | |
 //! | 16 | [`FaultFlags::FOLLOWING_WARNING`] | warning (not latched) |
 //! | 17 | [`FaultFlags::ENCODER_WARNING`] | warning (the encoder's own warning bit) |
 //! | 18..31 | reserved for warnings | |
@@ -51,18 +52,22 @@ impl FaultFlags {
     /// Bit 10: an end-of-travel switch of a slider is active, or one of its switch
     /// inputs cannot be read (`hw::TravelSwitches::end_of_travel`).
     pub const LIMIT_SWITCH: Self = Self(1 << 10);
+    /// Bit 11: a stroke command stepped beyond the speed or acceleration limit in force and was
+    /// clamped by the output stage (`motion::limiter`): the geometry or the planner is
+    /// wrong; the drives hold at once.
+    pub const OUTPUT_LIMITED: Self = Self(1 << 11);
     /// Bit 16 (warning): following error above the warning threshold.
     pub const FOLLOWING_WARNING: Self = Self(1 << 16);
     /// Bit 17 (warning): an encoder reports its warning bit (position still valid;
     /// maintenance asked for, e.g. a dirty scale).
     pub const ENCODER_WARNING: Self = Self(1 << 17);
 
-    /// Every fault bit in use (bits 0..10).
-    pub const ALL_FAULTS: Self = Self(0x0000_07FF);
+    /// Every fault bit in use (bits 0..11).
+    pub const ALL_FAULTS: Self = Self(0x0000_0FFF);
     /// Every warning bit in use (bits 16, 17).
     pub const ALL_WARNINGS: Self = Self(0x0003_0000);
     /// Bit positions of the faults, in bit order (index = bit).
-    pub const FAULT_BITS: usize = 11;
+    pub const FAULT_BITS: usize = 12;
 
     /// No flag.
     pub const fn empty() -> Self {

@@ -261,6 +261,17 @@ impl Supervisor {
         new
     }
 
+    /// [`Supervisor::raise_external`] of a fault that names `legs` (bit i = leg i+1;
+    /// housekeeping `fault_legs`), its condition gone at once (clearable at rest).
+    pub fn raise_external_on(&mut self, flag: FaultFlags, legs: u8) -> bool {
+        let new = self.raise_external(flag, false);
+        let bit = flag.bits().trailing_zeros() as usize;
+        if let Some(l) = self.latched_legs.get_mut(bit) {
+            *l |= legs;
+        }
+        new
+    }
+
     /// Whether the condition of an externally raised fault is still present (a latched
     /// fault can only be cleared once it is not).
     pub fn set_external_condition(&mut self, flag: FaultFlags, present: bool) {
