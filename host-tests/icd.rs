@@ -64,10 +64,10 @@ fn hex(cell: &str) -> Option<u32> {
 /// the flight sources by `host-tests/mdb.rs`), without the nested families (geometry,
 /// IK, FK codes appear only inside another code's data).
 fn code_side_codes() -> BTreeSet<u16> {
-    m2ctl::ground::mdb::failure_samples()
+    m2ctl::ground::mdb::failure_codes()
         .into_iter()
-        .filter(|(family, _, _)| !matches!(*family, "GEOMETRY" | "IK" | "FK"))
-        .map(|(_, code, _)| code)
+        .filter(|c| !matches!(c.family, "GEOMETRY" | "IK" | "FK"))
+        .map(|c| c.code)
         .collect()
 }
 
