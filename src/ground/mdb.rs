@@ -2516,7 +2516,8 @@ pub fn failure_codes() -> Vec<FailureCode> {
             LinkError::InvalidArgument { index: 0 },
             d(
                 Acc,
-                "argument out of range (leg, memory ID)",
+                "argument out of range (leg, memory ID, a count of parameters or activities, the \
+                 time report rate)",
                 "argument index (0-based)",
             ),
         ),
