@@ -1008,8 +1008,8 @@ pub fn drift(doc: &str) -> Result<Vec<Drift>, String> {
 pub fn drift_report(path: &str, drift: &[Drift]) -> String {
     let names: Vec<&str> = drift.iter().map(|d| d.name).collect();
     let mut out = format!(
-        "{path}: generated table(s) {} differ from the code; regenerate with \
-         `cargo run --features host --bin m2ground -- icd-tables --write {path}` ({REGENERATE})\n",
+        "{path}: generated table(s) {} differ from the code; regenerate them with \
+         `cargo run --features host --bin m2ground -- icd-tables --write {path}`\n",
         names.join(", ")
     );
     for d in drift {
@@ -1044,12 +1044,12 @@ pub fn line_diff(a: &str, b: &str) -> String {
             ops.push((' ', a[i]));
             i += 1;
             j += 1;
-        } else if j < m && (i == n || lcs[i][j + 1] >= lcs[i + 1][j]) {
-            ops.push(('+', b[j]));
-            j += 1;
-        } else {
+        } else if i < n && (j == m || lcs[i + 1][j] >= lcs[i][j + 1]) {
             ops.push(('-', a[i]));
             i += 1;
+        } else {
+            ops.push(('+', b[j]));
+            j += 1;
         }
     }
     const CONTEXT: usize = 2;
