@@ -1,142 +1,159 @@
-//! `docs/icd.md` against the code, table by table: failure codes, event IDs and their
-//! severities, function IDs and lengths, the housekeeping layout and the table layout.
-//! Any drift between the document and the implementation fails here.
+//! `docs/icd.md` against the code. Its tables that restate the code (codes, IDs,
+//! offsets, lengths, units, ranges, severities) are generated from the mission
+//! database (`m2ctl::ground::icd`, `m2ground icd-tables`): the checked-in document must
+//! be what the generator writes, so a code or a description that changes without the
+//! document, or a hand edit inside a generated block, fails here with the diff and the
+//! command that regenerates it. The description itself is checked against the flight
+//! code in `host-tests/mdb.rs`; here also what a run of the controller sends.
 
 mod common;
 
 use std::collections::BTreeSet;
+use std::process::Command as Process;
 
 use common::{all_ok, calibrated_table, install, wire, JOB_CYCLES};
 use m2ctl::controller::event;
+use m2ctl::ground::icd;
 use m2ctl::ground::station::Tm;
-use m2ctl::link::command::{FunctionId, WirePose, FUNCTION_ID_LEN};
-use m2ctl::link::hk::{ScheduleHk, HK_REPORT_LEN};
-use m2ctl::link::tm::EventSeverity;
-use m2ctl::link::tm::TmTime;
-use m2ctl::link::{Command, Housekeeping};
+use m2ctl::link::Command;
 use m2ctl::sim::{Bench, InjectedFault, SwitchEnd};
-use m2ctl::table::{Table, TABLE_LEN};
+
+const ICD: &str = "docs/icd.md";
 
 fn icd() -> String {
     std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/icd.md")).unwrap()
 }
 
-/// The rows of the markdown table that follows the heading line containing `heading`:
-/// cells trimmed, the header and separator rows skipped.
-fn table_after(text: &str, heading: &str) -> Vec<Vec<String>> {
-    let mut lines = text.lines().skip_while(|l| !l.contains(heading)).skip(1);
-    let mut rows = Vec::new();
-    let mut started = false;
-    for l in lines.by_ref() {
-        let l = l.trim();
-        if l.starts_with('|') {
-            started = true;
-            let cells: Vec<String> = l
-                .trim_matches('|')
-                .split('|')
-                .map(|c| c.trim().to_string())
-                .collect();
-            if cells
-                .iter()
-                .all(|c| c.chars().all(|ch| ch == '-' || ch == ':'))
-            {
-                continue;
-            }
-            rows.push(cells);
-        } else if started {
-            break;
-        }
-    }
-    // Drop the header row.
-    if !rows.is_empty() {
-        rows.remove(0);
-    }
-    rows
-}
-
-fn hex(cell: &str) -> Option<u32> {
-    cell.strip_prefix("0x")
-        .and_then(|h| u32::from_str_radix(h, 16).ok())
-}
-
-/// Every failure code the controller can report in a service-1 report: the mission
-/// database's one sample of each variant (itself checked against every `code()` arm of
-/// the flight sources by `host-tests/mdb.rs`), without the nested families (geometry,
-/// IK, FK codes appear only inside another code's data).
-fn code_side_codes() -> BTreeSet<u16> {
-    m2ctl::ground::mdb::failure_samples()
-        .into_iter()
-        .filter(|(family, _, _)| !matches!(*family, "GEOMETRY" | "IK" | "FK"))
-        .map(|(_, code, _)| code)
-        .collect()
+/// docs/icd.md as the generator writes it (the checked-in one unless it drifted).
+fn generated_icd() -> String {
+    icd::regenerate(&icd()).unwrap_or_else(|e| panic!("{ICD}: {e}"))
 }
 
 #[test]
-fn failure_code_table_lists_exactly_the_codes_of_the_code() {
-    let rows = table_after(&icd(), "## 7. Failure codes");
-    let documented: BTreeSet<u16> = rows
-        .iter()
-        .filter_map(|r| r.first().and_then(|c| hex(c)))
-        .map(|c| c as u16)
-        .collect();
-    let code = code_side_codes();
-    let missing: Vec<_> = code
-        .difference(&documented)
-        .map(|c| format!("{c:#06x}"))
-        .collect();
-    let stale: Vec<_> = documented
-        .difference(&code)
-        .map(|c| format!("{c:#06x}"))
-        .collect();
+fn the_icd_tables_are_the_ones_generated_from_the_code() {
+    let drift = icd::drift(&icd()).unwrap_or_else(|e| panic!("{ICD}: {e}"));
+    assert!(drift.is_empty(), "{}", icd::drift_report(ICD, &drift));
+    let names: Vec<&str> = icd::blocks().unwrap().iter().map(|b| b.name).collect();
+    println!(
+        "{} generated blocks up to date: {}",
+        names.len(),
+        names.join(", ")
+    );
+}
+
+/// The document with the first line of block `name` that contains `from` changed to
+/// contain `to`.
+fn edit_in_block(doc: &str, name: &str, from: &str, to: &str) -> String {
+    let begin = icd::begin_marker(name);
+    let start = doc.find(&begin).unwrap() + begin.len();
+    let end = start + doc[start..].find(&icd::end_marker(name)).unwrap();
+    let at = start + doc[start..end].find(from).unwrap();
+    format!("{}{to}{}", &doc[..at], &doc[at + from.len()..])
+}
+
+#[test]
+fn a_hand_edit_of_a_generated_cell_is_drift_and_regenerating_undoes_only_it() {
+    // From the generated document, so that only the test above fails on drift.
+    let doc = generated_icd();
+    // A wrong failure code, a wrong housekeeping offset, and prose added outside any
+    // block (the generator leaves prose alone).
+    let edited = edit_in_block(&doc, "failure-codes", "| 0x0604 |", "| 0x0640 |");
+    let edited = edit_in_block(&edited, "housekeeping", "| 143 | 2 |", "| 144 | 2 |");
+    let prose = "\nA paragraph added after the last block.\n";
+    let edited = format!("{edited}{prose}");
+    assert_ne!(edited, doc);
+    let drift = icd::drift(&edited).unwrap();
+    let names: Vec<&str> = drift.iter().map(|d| d.name).collect();
+    assert_eq!(names, ["housekeeping", "failure-codes"]);
+    let report = icd::drift_report(ICD, &drift);
     assert!(
-        missing.is_empty(),
-        "codes missing from the ICD: {missing:?}"
+        report.contains("housekeeping, failure-codes")
+            && report.contains("icd-tables --write docs/icd.md"),
+        "{report}"
     );
     assert!(
-        stale.is_empty(),
-        "ICD codes the code does not have: {stale:?}"
+        report.contains("- | 0x0640 |") && report.contains("+ | 0x0604 |"),
+        "{report}"
     );
-    // Every row says which report carries the code.
-    for r in &rows {
-        assert!(
-            r.get(3)
-                .is_some_and(|c| c.contains("TM[1,") || c.contains('—') || c.contains("no report")),
-            "row without a report type: {r:?}"
-        );
-    }
-}
-
-/// The event table's IDs and severities.
-fn documented_events() -> Vec<(u16, String)> {
-    table_after(&icd(), "### Events (service 5)")
-        .into_iter()
-        .filter_map(|r| {
-            let id = hex(r.first()?)? as u16;
-            Some((id, r.get(2)?.clone()))
-        })
-        .collect()
+    assert!(
+        report.contains("- | 144 | 2 |") && report.contains("+ | 143 | 2 |"),
+        "{report}"
+    );
+    let fixed = icd::regenerate(&edited).unwrap();
+    assert_eq!(
+        fixed,
+        format!("{doc}{prose}"),
+        "the blocks restored, the prose kept"
+    );
+    assert_eq!(
+        icd::regenerate(&fixed).unwrap(),
+        fixed,
+        "regenerating is idempotent"
+    );
 }
 
 #[test]
-fn event_table_lists_exactly_the_event_ids_of_the_code() {
-    // The mission database's events, each checked against the flight constants and the
-    // emitting code by host-tests/mdb.rs.
-    let code: BTreeSet<u16> = m2ctl::ground::mdb::events().iter().map(|e| e.id).collect();
-    let doc: BTreeSet<u16> = documented_events().into_iter().map(|(id, _)| id).collect();
-    assert_eq!(doc, code);
-}
-
-fn severity_name(s: EventSeverity) -> &'static str {
-    match s {
-        EventSeverity::Info => "info",
-        EventSeverity::Low => "low",
-        EventSeverity::Medium => "medium",
-        EventSeverity::High => "high",
-    }
+fn a_missing_or_unknown_block_is_refused() {
+    let doc = generated_icd();
+    let gone = doc.replace(&icd::begin_marker("events"), "");
+    let e = icd::drift(&gone).unwrap_err();
+    assert!(e.contains("events"), "{e}");
+    let unknown = doc.replacen(
+        &icd::begin_marker("events"),
+        &format!(
+            "{}\n{}\n{}",
+            icd::begin_marker("no-such-table"),
+            icd::end_marker("no-such-table"),
+            icd::begin_marker("events")
+        ),
+        1,
+    );
+    let e = icd::drift(&unknown).unwrap_err();
+    assert!(e.contains("no-such-table"), "{e}");
 }
 
 #[test]
-fn every_event_arrives_with_the_severity_the_icd_names() {
+fn m2ground_icd_tables_checks_and_writes() {
+    let exe = env!("CARGO_BIN_EXE_m2ground");
+    let dir = std::env::temp_dir().join(format!("m2-icd-tables-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("icd.md");
+    let run = |args: &[&str]| {
+        Process::new(exe)
+            .arg("icd-tables")
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let doc = generated_icd();
+    std::fs::write(&path, &doc).unwrap();
+    let p = path.to_str().unwrap();
+    assert!(
+        run(&["--check", p]).status.success(),
+        "the generated text passes"
+    );
+    std::fs::write(
+        &path,
+        edit_in_block(&doc, "events", "| 0x0021 |", "| 0x0022 |"),
+    )
+    .unwrap();
+    let out = run(&["--check", p]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "drift must fail --check");
+    assert!(
+        err.contains("events") && err.contains("+ | 0x0021 |"),
+        "{err}"
+    );
+    assert!(run(&["--write", p]).status.success());
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), doc);
+    assert!(run(&["--check", p]).status.success());
+    let printed = run(&[]);
+    assert!(String::from_utf8_lossy(&printed.stdout).contains(&icd::end_marker("failure-codes")));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn every_event_arrives_with_a_severity_the_description_names() {
     // A scenario that raises most events: boot, moves, a refusal, a fault and its
     // clear, a warning, table commit/activation/rejection.
     let mut r = Bench::new();
@@ -189,17 +206,23 @@ fn every_event_arrives_with_the_severity_the_icd_names() {
     r.run(3);
     r.plant.with(|p| p.clear_faults());
     r.run(3);
-    let documented = documented_events();
+    // The description's severities (the ICD's event table is generated from them;
+    // host-tests/mdb.rs checks them against the emitting statements, this against what
+    // the controller sends in a run).
+    let described = m2ctl::ground::mdb::events();
     let mut seen = BTreeSet::new();
     for tm in &r.st.log {
         if let Tm::Event(sev, id, _) = tm {
-            let (_, doc) = documented
+            let e = described
                 .iter()
-                .find(|(d, _)| d == id)
-                .unwrap_or_else(|| panic!("event {id:#06x} not in the ICD"));
+                .find(|e| e.id == *id)
+                .unwrap_or_else(|| panic!("event {id:#06x} not described"));
             assert!(
-                doc.contains(severity_name(*sev)),
-                "event {id:#06x} came as {sev:?}, the ICD says {doc:?}"
+                e.severities
+                    .iter()
+                    .any(|s| s.severity == m2ctl::ground::mdb::severity_name(*sev)),
+                "event {id:#06x} came as {sev:?}, the description says {:?}",
+                e.severities
             );
             seen.insert(*id);
         }
@@ -220,155 +243,6 @@ fn every_event_arrives_with_the_severity_the_icd_names() {
     ] {
         assert!(seen.contains(&id), "the scenario did not raise {id:#06x}");
     }
-}
-
-#[test]
-fn function_table_matches_the_function_ids_and_lengths() {
-    let rows = table_after(&icd(), "### TC[8,1] functions");
-    let doc: Vec<(u16, usize)> = rows
-        .iter()
-        .filter_map(|r| Some((hex(r.first()?)? as u16, r.get(3)?.parse().ok()?)))
-        .collect();
-    let code: Vec<(u16, usize)> = FunctionId::ALL
-        .iter()
-        .map(|f| (f.code(), FUNCTION_ID_LEN + f.args_len()))
-        .collect();
-    assert_eq!(doc, code);
-}
-
-/// Parses a layout table (offset, size, ...) and checks it is contiguous from 0 to
-/// `total`; returns (offset, size) per row.
-fn contiguous_layout(heading: &str, total: usize) -> Vec<(usize, usize)> {
-    let rows = table_after(&icd(), heading);
-    let mut at = 0;
-    let mut out = Vec::new();
-    for r in &rows {
-        let off: usize = r[0].parse().unwrap_or_else(|_| panic!("{r:?}"));
-        let size: usize = r[1].parse().unwrap_or_else(|_| panic!("{r:?}"));
-        assert_eq!(
-            off, at,
-            "{heading}: row {r:?} does not follow the previous one"
-        );
-        at += size;
-        out.push((off, size));
-    }
-    assert_eq!(at, total, "{heading}: the rows end at {at}");
-    out
-}
-
-#[test]
-fn housekeeping_table_matches_the_emitted_bytes() {
-    let rows = contiguous_layout("## 6. Housekeeping TM[3,25]", HK_REPORT_LEN);
-    // Each field set to a marker, found at its documented offset (fields in row order).
-    let mut hk = Housekeeping {
-        state: 0x11,
-        boot_source: 0x12,
-        active_bank: 0x13,
-        fk_iterations: 0x14,
-        fk_valid: true,
-        cycle_counter: 0x1616_1616,
-        fault_flags: 0x1717_1717,
-        warning_flags: 0x1818_1818,
-        refusal_bits: 0x1919_1919,
-        active_table_id: 0x1a1a_1a1a,
-        active_table_crc32: 0x1b1b_1b1b,
-        pose_fk: WirePose::from_array([0x1c1c_1c1c; 6]),
-        pose_commanded: WirePose::from_array([0x1d1d_1d1d; 6]),
-        strokes_commanded_nm: [0x1e1e_1e1e; 6],
-        encoders_nm: [0x1f1f_1f1f; 6],
-        tc_accepted: 0x2020,
-        tc_rejected: 0x2121,
-        last_failure_code: 0x2222,
-        moving_legs: 0x23,
-        fault_legs: 0x24,
-        pending_bank: 0x25,
-        pending_table_id: 0x2626_2626,
-        job: 0x27,
-        selected_source: 0x28,
-        tm_dropped: 0x2929,
-        tc_frames_dropped: 0x2a2a,
-        uart_overruns: 0x2b2b,
-        cycle_overruns: 0x2c2c,
-        reset_cause: 0x2d,
-        boot_count: 0x2e2e,
-        bank_health: 0x2f,
-        pivot_nm: [0x3030_3030; 3],
-        pose_fk_operator: WirePose::from_array([0x3131_3131; 6]),
-        pose_commanded_operator: WirePose::from_array([0x3232_3232; 6]),
-        parameters_set: 0x3333_3333,
-        schedule: ScheduleHk {
-            activities: 0x34,
-            release_enabled: true,
-            released: 0x3636,
-            failed: 0x3737,
-            next_release: TmTime {
-                seconds: 0x3838_3838,
-                fraction: 0x3838,
-            },
-            time_report_rate: 0x39,
-        },
-        limit_lower_legs: 0x3a,
-        limit_upper_legs: 0x3b,
-        reference_legs: 0x3c,
-        switch_unreadable_legs: 0x3d,
-    };
-    let mut bytes = [0u8; HK_REPORT_LEN];
-    hk.emit(&mut bytes);
-    assert_eq!(bytes[0], 1, "structure ID");
-    for (k, (off, size)) in rows.iter().enumerate().skip(1) {
-        // Rows 5 (FK valid) and 33 (release enabled) are booleans.
-        let marker = if k == 5 || k == 37 { 1 } else { 0x10 + k as u8 };
-        assert!(
-            bytes[*off..off + size].iter().all(|b| *b == marker),
-            "row {k} at {off}+{size}: {:02x?}",
-            &bytes[*off..off + size]
-        );
-    }
-    hk.fk_valid = false;
-    hk.emit(&mut bytes);
-    assert_eq!(Housekeeping::parse(&bytes), Some(hk));
-}
-
-#[test]
-fn table_layout_matches_the_encoded_image() {
-    let rows = contiguous_layout("### The table image", TABLE_LEN);
-    let mut t = Table::nominal();
-    t.table_id = 0xA1A2_A3A4;
-    t.provenance.calibration_id = 0xB1B2_B3B4;
-    t.p0_mm = [1.25, -2.5, 3.75];
-    t.supervision.following_error_warning_mm = 0.125;
-    t.supervision.stuck_detection_cycles = 0x1234;
-    let b = t.to_bytes();
-    let at = |field: usize| rows[field].0;
-    assert_eq!(&b[at(0)..at(0) + 4], b"M2TB");
-    assert_eq!(
-        u32::from_le_bytes(b[at(3)..at(3) + 4].try_into().unwrap()),
-        t.table_id
-    );
-    assert_eq!(
-        u32::from_le_bytes(b[at(4)..at(4) + 4].try_into().unwrap()),
-        t.provenance.calibration_id
-    );
-    assert_eq!(
-        f64::from_le_bytes(b[at(7)..at(7) + 8].try_into().unwrap()),
-        1.25
-    );
-    assert_eq!(
-        f64::from_le_bytes(b[at(7) + 16..at(7) + 24].try_into().unwrap()),
-        3.75
-    );
-    assert_eq!(
-        f32::from_le_bytes(b[at(12)..at(12) + 4].try_into().unwrap()),
-        0.125
-    );
-    assert_eq!(
-        u16::from_le_bytes(b[at(16)..at(16) + 2].try_into().unwrap()),
-        0x1234
-    );
-    assert_eq!(
-        u32::from_le_bytes(b[at(20)..at(20) + 4].try_into().unwrap()),
-        t.crc32()
-    );
 }
 
 #[test]
@@ -394,33 +268,4 @@ fn activate_of_a_pending_table_reports_each_stage_and_the_boot_follows() {
     );
     r.run(JOB_CYCLES);
     assert!(all_ok(&r.st.reports(rid)));
-}
-
-/// "1,000..500,000" / "±648,000,000" / "0" -> (min, max) or a single value.
-fn icd_number(cell: &str) -> Option<i64> {
-    cell.replace(',', "").trim().parse().ok()
-}
-
-#[test]
-fn parameter_table_matches_the_parameters_of_the_code() {
-    use m2ctl::controller::params::{Default, PARAMETERS};
-    let rows = table_after(&icd(), "## 5a. On-board parameters");
-    assert_eq!(rows.len(), PARAMETERS.len(), "one row per parameter");
-    for (r, d) in rows.iter().zip(PARAMETERS.iter()) {
-        assert_eq!(hex(&r[0]), Some(u32::from(d.id)), "{r:?}");
-        let unit = r[2].replace('²', "^2");
-        assert!(unit.starts_with(d.unit), "{r:?}: unit {}", d.unit);
-        let (lo, hi) = if let Some(m) = r[3].strip_prefix('±') {
-            let m = icd_number(m).unwrap();
-            (-m, m)
-        } else {
-            let (a, b) = r[3].split_once("..").unwrap_or_else(|| panic!("{r:?}"));
-            (icd_number(a).unwrap(), icd_number(b).unwrap())
-        };
-        assert_eq!((lo, hi), (i64::from(d.min), i64::from(d.max)), "{r:?}");
-        match d.default {
-            Default::Fixed(v) => assert_eq!(icd_number(&r[4]), Some(i64::from(v)), "{r:?}"),
-            Default::Table => assert!(r[4].contains("table"), "{r:?}"),
-        }
-    }
 }

@@ -18,6 +18,7 @@ use m2ctl::link::tm::{parse_tm, EventSeverity, TmTime, TmWriter, Verification};
 use m2ctl::link::{
     AckFlags, Command, Deframer, Housekeeping, LinkError, MemoryId, RequestId, M2_APID,
 };
+use m2ctl::table::{Table, TABLE_LEN};
 
 fn src(path: &str) -> String {
     let p = Path::new(env!("CARGO_MANIFEST_DIR")).join(path);
@@ -316,6 +317,11 @@ fn housekeeping_fields_are_read_back_by_the_description() {
         covered.iter().all(|&c| c == 1),
         "fields must tile the {HK_REPORT_LEN} bytes exactly once: {covered:?}"
     );
+    assert_eq!(
+        Housekeeping::parse(&bytes),
+        Some(hk),
+        "the link reads its own report back"
+    );
     // Units and calibrations of the poses: the FK pose x is -1.5 um, rx is 4 arcsec.
     let by_name: BTreeMap<&str, &Field> =
         fields.iter().map(|(f, _)| (f.name.as_str(), f)).collect();
@@ -531,7 +537,11 @@ fn every_event_is_described_with_its_id_and_severities() {
         }
     }
     for e in mdb::events() {
-        let want: BTreeSet<String> = e.severities.iter().map(|s| s.to_string()).collect();
+        let want: BTreeSet<String> = e
+            .severities
+            .iter()
+            .map(|s| s.severity.to_string())
+            .collect();
         assert_eq!(seen.get(e.name), Some(&want), "severities of {}", e.name);
     }
 }
@@ -669,5 +679,78 @@ fn the_json_export_holds_the_whole_description() {
                 f.name
             );
         }
+    }
+}
+
+#[test]
+fn every_parameter_is_described_with_its_unit_range_and_default() {
+    use m2ctl::controller::params::PARAMETERS;
+    let m = mdb();
+    let ids = &m
+        .enums
+        .iter()
+        .find(|e| e.name == "parameter_id")
+        .unwrap()
+        .values;
+    assert_eq!(ids.len(), PARAMETERS.len());
+    for (d, (id, label, meaning)) in PARAMETERS.iter().zip(ids) {
+        let text = mdb::parameter_description(d.name)
+            .unwrap_or_else(|| panic!("parameter {} ({:#06x}) has no description", d.name, d.id));
+        assert_eq!(
+            (*id, label.as_str()),
+            (i64::from(d.id), d.name.to_ascii_uppercase().as_str())
+        );
+        assert!(
+            meaning.starts_with(&text) && meaning.contains(d.unit),
+            "{meaning}"
+        );
+    }
+}
+
+/// A table whose every field differs from the nominal one's and from its neighbours'.
+fn distinct_table() -> Table {
+    let mut t = Table::nominal();
+    t.table_id = 0xA1A2_A3A4;
+    t.provenance.calibration_id = 0xB1B2_B3B4;
+    t.provenance.tag = *b"ICD-LAYOUT-CHECK";
+    for (i, leg) in t.legs.iter_mut().enumerate() {
+        leg.a_mm[0] += 0.001 * (i + 1) as f64;
+        leg.b_mm[2] -= 0.002 * (i + 1) as f64;
+    }
+    t.p0_mm = [1.25, -2.5, 3.75];
+    t.stroke_limits.min_mm[2] = -4.5;
+    t.stroke_limits.max_mm[4] = 4.25;
+    t.workspace.translation_mm[1] = 1.5;
+    t.workspace.rotation_rad[2] = 1e-3;
+    t.supervision.following_error_warning_mm = 0.125;
+    t.supervision.following_error_fault_mm = 0.25;
+    t.supervision.encoder_jump_mm_per_cycle = 0.0625;
+    t.supervision.stuck_min_progress_mm = 0.003;
+    t.supervision.stuck_detection_cycles = 0x1234;
+    t.supervision.warning_debounce_cycles = 7;
+    t.supervision.fault_debounce_cycles = 9;
+    t
+}
+
+#[test]
+fn table_image_rows_are_where_the_encoder_puts_them() {
+    let rows = mdb::table_image();
+    for t in [Table::nominal(), distinct_table()] {
+        let bytes = t.to_bytes();
+        let mut at = 0;
+        for r in &rows {
+            assert_eq!(r.offset, at, "{}", r.field);
+            assert_eq!(
+                &bytes[r.offset..r.offset + r.size],
+                (r.bytes_of)(&t).as_slice(),
+                "{} at {}+{}",
+                r.field,
+                r.offset,
+                r.size
+            );
+            at += r.size;
+        }
+        assert_eq!(at, TABLE_LEN, "the rows tile the image");
+        assert_eq!(Table::decode(&bytes), Ok(t), "the image decodes back");
     }
 }

@@ -75,6 +75,59 @@ enum Cmd {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// The tables of docs/icd.md that restate the code (codes, IDs, offsets, units,
+    /// ranges), generated from the mission database: printed, checked against the
+    /// document's marked blocks, or written into them (nothing outside the markers
+    /// changes).
+    IcdTables(IcdTablesCli),
+}
+
+#[derive(clap::Args)]
+#[group(multiple = false)]
+struct IcdTablesCli {
+    /// Exit 1 with a diff if this document's generated blocks differ from the code.
+    #[arg(long, value_name = "ICD")]
+    check: Option<PathBuf>,
+    /// Rewrite this document's generated blocks from the code.
+    #[arg(long, value_name = "ICD")]
+    write: Option<PathBuf>,
+}
+
+/// `m2ground icd-tables`: Ok(true) when the document is (now) as generated.
+fn icd_tables_cmd(a: &IcdTablesCli) -> Result<bool, String> {
+    use m2ctl::ground::icd;
+    let read =
+        |p: &PathBuf| std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()));
+    match (&a.check, &a.write) {
+        (Some(p), _) => {
+            let drift = icd::drift(&read(p)?).map_err(|e| format!("{}: {e}", p.display()))?;
+            if drift.is_empty() {
+                return Ok(true);
+            }
+            eprint!("{}", icd::drift_report(&p.display().to_string(), &drift));
+            Ok(false)
+        }
+        (None, Some(p)) => {
+            let doc = read(p)?;
+            let new = icd::regenerate(&doc).map_err(|e| format!("{}: {e}", p.display()))?;
+            if new != doc {
+                std::fs::write(p, &new).map_err(|e| format!("{}: {e}", p.display()))?;
+                eprintln!("{}: generated tables rewritten", p.display());
+            }
+            Ok(true)
+        }
+        (None, None) => {
+            for b in icd::blocks()? {
+                println!(
+                    "{}\n{}{}\n",
+                    icd::begin_marker(b.name),
+                    b.text,
+                    icd::end_marker(b.name)
+                );
+            }
+            Ok(true)
+        }
+    }
 }
 
 #[derive(clap::Args)]
@@ -971,6 +1024,11 @@ fn main() -> ExitCode {
             Cmd::Mission(a) => mission_cmd(a),
             Cmd::Gateway(a) => gateway_cmd(a),
             Cmd::MdbJson { out } => write_out(out.as_ref(), &m2ctl::ground::mdb::mdb().to_json()),
+            Cmd::IcdTables(a) => match icd_tables_cmd(a) {
+                Ok(true) => Ok(()),
+                Ok(false) => return ExitCode::FAILURE,
+                Err(e) => Err(e),
+            },
             Cmd::Bench(a) => {
                 bench(&table_config(&a.solver_cli, None), a.repeats).map(|t| print!("{t}"))
             }

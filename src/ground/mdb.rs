@@ -25,20 +25,24 @@
 
 use serde::Serialize;
 
+use crate::controller::jobs::JobKind;
 use crate::controller::params::{ParamError, PARAMETERS};
 use crate::controller::schedule::ScheduleError;
 use crate::controller::{CommandError, State};
 use crate::kinematics::{FkError, GeometryError, IkError, Refusals, LEGS};
 use crate::link::command::{
     FunctionId, MemoryId, ParameterIds, ParameterValues, TableChunk, WirePose, FUNCTION_ID_LEN,
-    TABLE_CHUNK_MAX_LEN,
+    MAX_PARAMETERS_PER_TC, TABLE_CHUNK_MAX_LEN,
 };
-use crate::link::hk::{HK_REPORT_LEN, HK_STRUCTURE_ID};
+use crate::link::hk::{HK_REPORT_LEN, HK_STRUCTURE_ID, NO_SELECTION};
 use crate::link::schedule::{
     ActivityBlock, ObtOffset, RequestIdList, ScheduleCommand, ACTIVITY_COUNT_LEN,
-    MAX_SCHEDULED_TC_LEN, RELEASE_TIME_LEN, SCHEDULE_CAPACITY, SUMMARY_ENTRY_LEN,
+    MAX_INSERT_APP_DATA_LEN, MAX_SCHEDULED_TC_LEN, RELEASE_TIME_LEN, SCHEDULE_CAPACITY,
+    SUMMARY_ENTRY_LEN,
 };
-use crate::link::tc::{RequestId, TcHeader, APID_MASK, MIN_TC_PACKET_LEN, SEQ_COUNT_MASK};
+use crate::link::tc::{
+    RequestId, TcHeader, APID_MASK, MIN_TC_PACKET_LEN, REQUEST_ID_LEN, SEQ_COUNT_MASK,
+};
 use crate::link::time::{TimeReportRate, MAX_TIME_REPORT_EXPONENT, TIME_REPORT_LEN};
 use crate::link::tm::TmTime;
 use crate::link::tm::MOVE_CHECK_REPORT_LEN;
@@ -50,7 +54,7 @@ use crate::link::{
 };
 use crate::motion::{MotionError, StrokeMoveError};
 use crate::supervision::FaultFlags;
-use crate::table::{BootSource, StoreError, TableError, ValidationError, TABLE_LEN};
+use crate::table::{BootSource, StoreError, Table, TableError, ValidationError, TABLE_LEN};
 use crate::timing::{CYCLE_S_F64, HK_PERIOD_CYCLES};
 use crate::units::{ARCSEC_PER_UAS, UM_PER_NM};
 
@@ -208,6 +212,13 @@ pub struct Telecommand {
     pub fields: Vec<Field>,
     /// What it does.
     pub description: String,
+    /// Its short name in docs/icd.md (section 3: the telecommand list, or the TC[8,1]
+    /// function table).
+    pub title: String,
+    /// Its application data as the flight link takes it (docs/icd.md section 3; after
+    /// the function ID for a TC[8,1] function). The description's `fields` may restrict
+    /// it (one parameter per TC[20,x], one activity per TC[11,4]).
+    pub app_data_layout: String,
     /// Seconds within which the completion report must come.
     pub completion_timeout_s: f64,
     /// Raw arguments -> flight command.
@@ -232,6 +243,28 @@ pub struct TmPacket {
     pub description: String,
     /// A repeated group after the fields (e.g. the activities of TM[11,13]).
     pub repeated: Option<Repeated>,
+    /// Its rows in docs/icd.md's telemetry list (section 4): which subtypes, what they
+    /// mean, their source data (together they cover `subtypes` once each).
+    pub kinds: Vec<TmKind>,
+}
+
+/// One row of docs/icd.md's telemetry list: one or more subtypes of a TM packet layout.
+#[derive(Clone, Debug, Serialize)]
+pub struct TmKind {
+    /// PUS subtypes of the row.
+    pub subtypes: Vec<u8>,
+    /// What they are.
+    pub title: String,
+    /// Their source data, as docs/icd.md shows it.
+    pub data_layout: String,
+}
+
+fn tm_kind(subtypes: &[u8], title: &str, data_layout: &str) -> TmKind {
+    TmKind {
+        subtypes: subtypes.to_vec(),
+        title: title.into(),
+        data_layout: data_layout.into(),
+    }
 }
 
 /// A group of fields repeated `count_field` times at the end of a TM packet.
@@ -276,14 +309,27 @@ pub struct Event {
     pub id: u16,
     /// Label (upper snake case, the `event_id` constant's name).
     pub name: &'static str,
-    /// Severities the controller sends it with (TM[5,x] subtype).
-    pub severities: Vec<&'static str>,
+    /// What it reports.
+    pub description: String,
+    /// Severities the controller sends it with (TM[5,x] subtype), each with when.
+    pub severities: Vec<SeverityUse>,
     /// Meaning of aux0.
-    pub aux0: &'static str,
+    pub aux0: String,
     /// Meaning of aux1.
-    pub aux1: &'static str,
+    pub aux1: String,
     /// One-line text for the operator (`{aux0}`, `{aux1}` are replaced).
     pub message: &'static str,
+}
+
+/// One severity an event is sent with.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct SeverityUse {
+    /// [`severity_name`].
+    pub severity: &'static str,
+    /// TM[5,x] subtype.
+    pub subtype: u8,
+    /// When (empty: whenever the event is not sent with another severity).
+    pub when: &'static str,
 }
 
 /// One verification stage: TM[1,`success`] or TM[1,`success`+1].
@@ -343,6 +389,11 @@ pub struct Mdb {
     pub events: Vec<Event>,
     /// Service-1 stages, in order.
     pub verification: Vec<VerificationStage>,
+    /// Failure codes with where they are reported and what their data holds (the
+    /// `failure_code` enumeration's values).
+    pub failure_codes: Vec<FailureCode>,
+    /// The parameter table image's layout (what TC[6,2] loads, TM[6,6] dumps).
+    pub table_image: Vec<TableImageRow>,
 }
 
 // ---------------------------------------------------------------------------------
@@ -618,6 +669,7 @@ fn schedule_telecommands() -> Vec<Telecommand> {
               sub: u8,
               fields: Vec<Field>,
               description: &str,
+              (title, app_data_layout): (&str, String),
               build: BuildFn|
      -> Telecommand {
         Telecommand {
@@ -627,17 +679,20 @@ fn schedule_telecommands() -> Vec<Telecommand> {
             function_id: None,
             fields,
             description: description.into(),
+            title: title.into(),
+            app_data_layout,
             completion_timeout_s: QUICK_COMPLETION_S,
             build,
         }
     };
+    let none = || "none".to_string();
     let n1 = |what: &str| {
         fixed(
             "count",
             0,
             Wire::U8,
             1,
-            &format!("N: one {what} (the flight link takes 1..16)"),
+            &format!("N: one {what} (the flight link takes 1..{SCHEDULE_CAPACITY})"),
         )
     };
     let mut insert = vec![n1("activity")];
@@ -677,12 +732,39 @@ fn schedule_telecommands() -> Vec<Telecommand> {
         "offset: fraction of a second added to the seconds (s; wire u16 in 1/65536 s)",
     ));
     vec![
+        Telecommand {
+            name: "SET_TIME_REPORT_RATE".into(),
+            service: service::TIME,
+            subtype: subtype::SET_TIME_REPORT_RATE,
+            function_id: None,
+            fields: vec![field(
+                "rate",
+                0,
+                Wire::U8,
+                Meaning::Enum {
+                    enumeration: "time_report_rate",
+                },
+                "a TM[9,2] every 2^N s of on-board time, or off",
+            )],
+            description: "Set the time report (TM[9,2]) generation rate.".into(),
+            title: "set the time report rate".into(),
+            app_data_layout: format!(
+                "rate u8: N = 0..{MAX_TIME_REPORT_EXPONENT} (a TM[{},{}] every 2^N s), {} off \
+                 (section 10)",
+                service::TIME,
+                subtype::TIME_REPORT,
+                TimeReportRate::Off.code()
+            ),
+            completion_timeout_s: QUICK_COMPLETION_S,
+            build: build_time_report_rate,
+        },
         tc(
             "SCHEDULE_ENABLE_RELEASE",
             subtype::SCHEDULE_ENABLE,
             Vec::new(),
             "Release activities when their time comes; those whose time passed while \
              release was disabled are deleted (event ACTIVITY_EXPIRED).",
+            ("enable the release of time-tagged activities", none()),
             |_| schedule(ScheduleCommand::EnableRelease),
         ),
         tc(
@@ -690,6 +772,7 @@ fn schedule_telecommands() -> Vec<Telecommand> {
             subtype::SCHEDULE_DISABLE,
             Vec::new(),
             "Release nothing; activities stay in the schedule.",
+            ("disable the release", none()),
             |_| schedule(ScheduleCommand::DisableRelease),
         ),
         tc(
@@ -697,6 +780,7 @@ fn schedule_telecommands() -> Vec<Telecommand> {
             subtype::SCHEDULE_RESET,
             Vec::new(),
             "Delete every activity; release is disabled afterwards.",
+            ("reset the schedule (delete all; release disabled)", none()),
             |_| schedule(ScheduleCommand::Reset),
         ),
         tc(
@@ -705,6 +789,13 @@ fn schedule_telecommands() -> Vec<Telecommand> {
             insert,
             "Insert a time-tagged telecommand (refused if the schedule is full, the time \
              is past or the request ID is already scheduled).",
+            (
+                "insert time-tagged activities",
+                format!(
+                    "N u8 (1..), N × (release time CUC {CUC_COARSE_BYTES}+{CUC_FINE_BYTES}, a \
+                     whole TC packet); at most {MAX_INSERT_APP_DATA_LEN} bytes (section 10)"
+                ),
+            ),
             build_schedule_insert,
         ),
         tc(
@@ -726,6 +817,10 @@ fn schedule_telecommands() -> Vec<Telecommand> {
                 ),
             ],
             "Delete the activity with this request ID.",
+            (
+                "delete activities by request ID",
+                format!("N u8 (1..{SCHEDULE_CAPACITY}), N × request ID ({REQUEST_ID_LEN} bytes)"),
+            ),
             build_schedule_delete,
         ),
         tc(
@@ -733,6 +828,10 @@ fn schedule_telecommands() -> Vec<Telecommand> {
             subtype::SCHEDULE_TIME_SHIFT_ALL,
             shift,
             "Move every release time by the offset (refused if one would be in the past).",
+            (
+                "time-shift all activities",
+                "offset: seconds i32, fraction u16 (section 10)".into(),
+            ),
             build_schedule_shift,
         ),
         tc(
@@ -740,82 +839,133 @@ fn schedule_telecommands() -> Vec<Telecommand> {
             subtype::SCHEDULE_SUMMARY_ALL,
             Vec::new(),
             "Report every activity (TM[11,13]).",
+            (
+                "summary report of all activities",
+                format!(
+                    "none → TM[{},{}]",
+                    service::SCHEDULING,
+                    subtype::SCHEDULE_SUMMARY_REPORT
+                ),
+            ),
             |_| schedule(ScheduleCommand::SummaryReport),
         ),
-        Telecommand {
-            name: "SET_TIME_REPORT_RATE".into(),
-            service: service::TIME,
-            subtype: subtype::SET_TIME_REPORT_RATE,
-            function_id: None,
-            fields: vec![field(
-                "rate",
-                0,
-                Wire::U8,
-                Meaning::Enum {
-                    enumeration: "time_report_rate",
-                },
-                "a TM[9,2] every 2^N s of on-board time, or off",
-            )],
-            description: "Set the time report (TM[9,2]) generation rate.".into(),
-            completion_timeout_s: QUICK_COMPLETION_S,
-            build: build_time_report_rate,
-        },
     ]
 }
 
-/// The TC[8,1] arguments and builder of a function (an exhaustive match: a new function
-/// ID does not compile until it is described).
-fn function_args(f: FunctionId) -> (Vec<Field>, BuildFn, &'static str, f64) {
+/// What the description says of one TC[8,1] function.
+struct FunctionDesc {
+    fields: Vec<Field>,
+    build: BuildFn,
+    description: &'static str,
+    title: String,
+    app_data_layout: String,
+    completion_timeout_s: f64,
+}
+
+/// The TC[8,1] row of docs/icd.md's telecommand list (section 3): its title and
+/// application data; each function's own are in [`Telecommand::title`] and
+/// [`Telecommand::app_data_layout`].
+pub const PERFORM_FUNCTION: (&str, &str) = (
+    "perform function",
+    "function ID u16, then the function's arguments (table below)",
+);
+
+/// The TC[8,1] arguments, builder and texts of a function (an exhaustive match: a new
+/// function ID does not compile until it is described).
+fn function_args(f: FunctionId) -> FunctionDesc {
     let at = FUNCTION_ID_LEN;
-    let none = |b: BuildFn, d: &'static str| (Vec::new(), b, d, QUICK_COMPLETION_S);
+    let d = |fields: Vec<Field>,
+             build: BuildFn,
+             description: &'static str,
+             (title, layout): (&str, &str),
+             completion_timeout_s: f64| FunctionDesc {
+        fields,
+        build,
+        description,
+        title: title.into(),
+        app_data_layout: layout.into(),
+        completion_timeout_s,
+    };
+    let none = |b: BuildFn, d: &'static str, title: &str| FunctionDesc {
+        fields: Vec::new(),
+        build: b,
+        description: d,
+        title: title.into(),
+        app_data_layout: "—".into(),
+        completion_timeout_s: QUICK_COMPLETION_S,
+    };
     match f {
-        FunctionId::MoveAbsolute => (
+        FunctionId::MoveAbsolute => d(
             pose_fields("", at, "target pose"),
             build_move_absolute,
             "Move to an absolute pose (all-or-nothing workspace and path check).",
+            ("move absolute", "pose (below)"),
             MOVE_COMPLETION_S,
         ),
-        FunctionId::MoveRelative => (
+        FunctionId::MoveRelative => d(
             pose_fields("", at, "increment from the commanded pose"),
             build_move_relative,
             "Move by an increment added component-wise to the commanded pose.",
+            ("move relative", "pose increment (below)"),
             MOVE_COMPLETION_S,
         ),
-        FunctionId::CheckMove => (
-            pose_fields("", at, "target pose (as MOVE_ABSOLUTE)"),
-            build_check_move,
-            "Check a move without moving: TM[8,130] gives the code MOVE_ABSOLUTE would get now and the refusal bits of the target and of the first refused path point.",
-            QUICK_COMPLETION_S,
+        FunctionId::CheckMove => FunctionDesc {
+            title: format!(
+                "check a move without moving → TM[{},{}]",
+                service::FUNCTION,
+                subtype::MOVE_CHECK_REPORT
+            ),
+            ..d(
+                pose_fields("", at, "target pose (as MOVE_ABSOLUTE)"),
+                build_check_move,
+                "Check a move without moving: TM[8,130] gives the code MOVE_ABSOLUTE would get now and the refusal bits of the target and of the first refused path point.",
+                ("", "target pose (below), as move absolute"),
+                QUICK_COMPLETION_S,
+            )
+        },
+        FunctionId::Stop => none(
+            |_| Ok(Command::Stop),
+            "Stop any motion (ramp down).",
+            "stop (ramp down)",
         ),
-        FunctionId::Stop => none(|_| Ok(Command::Stop), "Stop any motion (ramp down)."),
-        FunctionId::ClearFault => none(|_| Ok(Command::ClearFault), "Clear latched faults."),
-        FunctionId::DirectStroke => (
-            vec![
-                field(
-                    "leg",
-                    at,
-                    Wire::U8,
-                    Meaning::Number {
-                        unit: None,
-                        scale: 1.0,
-                        range: Some((1.0, LEGS as f64)),
-                    },
-                    "slider 1..6",
-                ),
-                calibrated(
-                    "delta",
-                    at + 1,
-                    Wire::I32,
-                    UNIT_UM,
-                    UM_PER_NM,
-                    "stroke increment along base z (um; wire i32 in nm)",
-                ),
-            ],
-            build_direct_stroke,
-            "Move one slider by a stroke increment (recovery).",
-            MOVE_COMPLETION_S,
+        FunctionId::ClearFault => none(
+            |_| Ok(Command::ClearFault),
+            "Clear latched faults.",
+            "clear latched faults",
         ),
-        FunctionId::CommitTable => (
+        FunctionId::DirectStroke => FunctionDesc {
+            app_data_layout: format!(
+                "leg u8 (1..{LEGS}); delta i32 (nm, slider stroke along base z)"
+            ),
+            ..d(
+                vec![
+                    field(
+                        "leg",
+                        at,
+                        Wire::U8,
+                        Meaning::Number {
+                            unit: None,
+                            scale: 1.0,
+                            range: Some((1.0, LEGS as f64)),
+                        },
+                        "slider 1..6",
+                    ),
+                    calibrated(
+                        "delta",
+                        at + 1,
+                        Wire::I32,
+                        UNIT_UM,
+                        UM_PER_NM,
+                        "stroke increment along base z (um; wire i32 in nm)",
+                    ),
+                ],
+                build_direct_stroke,
+                "Move one slider by a stroke increment (recovery).",
+                ("direct stroke move (recovery)", ""),
+                MOVE_COMPLETION_S,
+            )
+        },
+        FunctionId::CommitTable => d(
             vec![count(
                 "crc32",
                 at,
@@ -824,9 +974,13 @@ fn function_args(f: FunctionId) -> (Vec<Field>, BuildFn, &'static str, f64) {
             )],
             build_commit,
             "Commit the uploaded table (checked, validated, written to the inactive bank).",
+            (
+                "commit the uploaded table",
+                "CRC-32 u32 of the table (section 5)",
+            ),
             QUICK_COMPLETION_S,
         ),
-        FunctionId::ActivateTable => (
+        FunctionId::ActivateTable => d(
             vec![
                 count(
                     "table_id",
@@ -843,15 +997,21 @@ fn function_args(f: FunctionId) -> (Vec<Field>, BuildFn, &'static str, f64) {
             ],
             build_activate,
             "Activate the pending (committed) table named by its ID and CRC (at rest only).",
+            (
+                "activate the pending table",
+                "expected table ID u32; expected CRC-32 u32",
+            ),
             QUICK_COMPLETION_S,
         ),
         FunctionId::SwitchBank => none(
             |_| Ok(Command::SwitchBank),
             "Switch to the other flash bank's table.",
+            "switch to the other bank's table",
         ),
         FunctionId::RevertToNominal => none(
             |_| Ok(Command::RevertToNominal),
             "Revert to the compiled-in nominal table.",
+            "revert to the compiled-in nominal table",
         ),
     }
 }
@@ -865,6 +1025,8 @@ fn telecommands() -> Vec<Telecommand> {
             function_id: None,
             fields: Vec::new(),
             description: "Are-you-alive: the controller answers TM[17,2].".into(),
+            title: "are-you-alive".into(),
+            app_data_layout: format!("none → TM[{},{}]", service::TEST, subtype::PING_REPLY),
             completion_timeout_s: QUICK_COMPLETION_S,
             build: |_| Ok(Command::Ping),
         },
@@ -875,6 +1037,12 @@ fn telecommands() -> Vec<Telecommand> {
             function_id: None,
             fields: Vec::new(),
             description: "Send one housekeeping report TM[3,25] now.".into(),
+            title: "one-shot housekeeping report".into(),
+            app_data_layout: format!(
+                "none → TM[{},{}]",
+                service::HOUSEKEEPING,
+                subtype::HK_REPORT
+            ),
             completion_timeout_s: QUICK_COMPLETION_S,
             build: |_| Ok(Command::HousekeepingOneShot),
         },
@@ -914,6 +1082,12 @@ fn telecommands() -> Vec<Telecommand> {
                 ),
             ],
             description: "Load one table chunk into the upload buffer.".into(),
+            title: "load one table chunk into the upload buffer".into(),
+            app_data_layout: format!(
+                "memory ID u8 = {}; offset u16 (bytes); length u16 (1..{TABLE_CHUNK_MAX_LEN}); \
+                 `length` bytes",
+                MemoryId::UploadBuffer.code()
+            ),
             completion_timeout_s: QUICK_COMPLETION_S,
             build: build_load_chunk,
         },
@@ -932,9 +1106,37 @@ fn telecommands() -> Vec<Telecommand> {
                 "memory area to dump as TM[6,6] chunks",
             )],
             description: "Dump a table as TM[6,6] chunks.".into(),
+            title: format!(
+                "dump a table as TM[{},{}] chunks",
+                service::MEMORY,
+                subtype::MEMORY_DUMP_REPORT
+            ),
+            app_data_layout: format!(
+                "memory ID u8: {} = running table, {} = upload buffer",
+                MemoryId::ActiveTable.code(),
+                MemoryId::UploadBuffer.code()
+            ),
             completion_timeout_s: QUICK_COMPLETION_S,
             build: build_dump,
         },
+    ];
+    // docs/icd.md's order: the TC[8,1] functions after the memory services.
+    for f in FunctionId::ALL {
+        let d = function_args(f);
+        v.push(Telecommand {
+            name: upper_snake(&format!("{f:?}")),
+            service: service::FUNCTION,
+            subtype: subtype::PERFORM_FUNCTION,
+            function_id: Some(f.code()),
+            fields: d.fields,
+            description: d.description.into(),
+            title: d.title,
+            app_data_layout: d.app_data_layout,
+            completion_timeout_s: d.completion_timeout_s,
+            build: d.build,
+        });
+    }
+    v.extend([
         Telecommand {
             name: "REPORT_PARAMETER".into(),
             service: service::PARAMETER,
@@ -953,6 +1155,14 @@ fn telecommands() -> Vec<Telecommand> {
                 ),
             ],
             description: "Report an on-board parameter's effective value as TM[20,2] (the link takes up to 16 IDs).".into(),
+            title: format!(
+                "report on-board parameters → TM[{},{}]",
+                service::PARAMETER,
+                subtype::PARAMETER_REPORT
+            ),
+            app_data_layout: format!(
+                "count u8 (1..{MAX_PARAMETERS_PER_TC}); that many parameter IDs u16 (section 5a)"
+            ),
             completion_timeout_s: QUICK_COMPLETION_S,
             build: build_report_parameter,
         },
@@ -980,23 +1190,14 @@ fn telecommands() -> Vec<Telecommand> {
                 ),
             ],
             description: "Set an on-board parameter (at rest only; persisted before it applies, completion then; the link takes up to 16 pairs, all-or-nothing).".into(),
+            title: "set on-board parameters (all or nothing, at rest only)".into(),
+            app_data_layout: format!(
+                "count u8 (1..{MAX_PARAMETERS_PER_TC}); that many (parameter ID u16, value i32)"
+            ),
             completion_timeout_s: QUICK_COMPLETION_S,
             build: build_set_parameter,
         },
-    ];
-    for f in FunctionId::ALL {
-        let (fields, build, description, completion_timeout_s) = function_args(f);
-        v.push(Telecommand {
-            name: upper_snake(&format!("{f:?}")),
-            service: service::FUNCTION,
-            subtype: subtype::PERFORM_FUNCTION,
-            function_id: Some(f.code()),
-            fields,
-            description: description.into(),
-            completion_timeout_s,
-            build,
-        });
-    }
+    ]);
     v.extend(schedule_telecommands());
     v
 }
@@ -1037,77 +1238,129 @@ macro_rules! leg_getters {
     };
 }
 
-/// The housekeeping fields with their accessors into [`Housekeeping`] (the structure
-/// ID has none: it is the constant [`HK_STRUCTURE_ID`]).
-pub fn housekeeping_fields() -> Vec<(Field, Option<HkGetter>)> {
+/// One row of the housekeeping layout as docs/icd.md shows it (section 6): one field, or
+/// a group of consecutive fields of one item (a pose, the six legs, a CUC time).
+#[derive(Clone, Debug)]
+pub struct HkRow {
+    /// What the row holds: for one field, that field's description.
+    pub description: String,
+    /// Its fields with their accessors into [`Housekeeping`] (the structure ID has none:
+    /// it is the constant [`HK_STRUCTURE_ID`]).
+    pub fields: Vec<(Field, Option<HkGetter>)>,
+}
+
+impl HkRow {
+    fn single(f: Field, get: Option<HkGetter>) -> HkRow {
+        HkRow {
+            description: f.description.clone(),
+            fields: vec![(f, get)],
+        }
+    }
+
+    fn group(description: String, fields: Vec<(Field, Option<HkGetter>)>) -> HkRow {
+        HkRow {
+            description,
+            fields,
+        }
+    }
+}
+
+/// `0 nominal, 1 A, 2 B` with the codes of [`BootSource`] (`bank`: "bank A" for "A").
+fn source_codes(nominal: &str, bank: &str) -> String {
+    format!(
+        "{} {nominal}, {} {bank}A, {} {bank}B",
+        BootSource::Nominal.code(),
+        BootSource::BankA.code(),
+        BootSource::BankB.code()
+    )
+}
+
+/// The housekeeping report's rows, in offset order (the fields tile
+/// [`HK_REPORT_LEN`] bytes: `host-tests/mdb.rs` reads an emitted report back by them).
+pub fn housekeeping_rows() -> Vec<HkRow> {
+    let one = |f: Field, get: HkGetter| HkRow::single(f, Some(get));
     let e = |name: &str, off, enumeration, d: &str| {
         field(name, off, Wire::U8, Meaning::Enum { enumeration }, d)
     };
     let b = |name: &str, off, wire, bit_field, d: &str| {
         field(name, off, wire, Meaning::Bits { bit_field }, d)
     };
-    let mut v: Vec<(Field, Option<HkGetter>)> = vec![
-        (
+    let leg_bits = "bit i = leg i+1";
+    let mut v: Vec<HkRow> = vec![
+        HkRow::single(
             fixed(
                 "structure_id",
                 0,
                 Wire::U8,
                 i64::from(HK_STRUCTURE_ID),
-                "structure ID of the one housekeeping report",
+                &format!("structure ID = {HK_STRUCTURE_ID}"),
             ),
             None,
         ),
-        (
-            e("state", 1, "controller_state", "controller state"),
-            Some(|h| i64::from(h.state)),
-        ),
-        (
+        one(e("state", 1, "controller_state", "controller state"), |h| {
+            i64::from(h.state)
+        }),
+        one(
             e(
                 "boot_source",
                 2,
                 "boot_source",
-                "where the boot table came from",
+                &format!("boot source: {}", source_codes("nominal", "bank ")),
             ),
-            Some(|h| i64::from(h.boot_source)),
+            |h| i64::from(h.boot_source),
         ),
-        (
-            e("active_bank", 3, "bank", "flash bank of the active table"),
-            Some(|h| i64::from(h.active_bank)),
+        one(
+            e(
+                "active_bank",
+                3,
+                "bank",
+                &format!(
+                    "source of the running table: {}",
+                    source_codes("nominal", "")
+                ),
+            ),
+            |h| i64::from(h.active_bank),
         ),
-        (
+        one(
             count(
                 "fk_iterations",
                 4,
                 Wire::U8,
-                "Newton iterations of the last FK",
+                "last FK Newton iteration count",
             ),
-            Some(|h| i64::from(h.fk_iterations)),
+            |h| i64::from(h.fk_iterations),
         ),
-        (
+        one(
             field(
                 "fk_valid",
                 5,
                 Wire::U8,
                 Meaning::Boolean,
-                "the FK pose is this cycle's (false: FK failed)",
+                "FK valid (1: the FK pose is this cycle's; 0: FK failed or no reading)",
             ),
-            Some(|h| i64::from(h.fk_valid)),
+            |h| i64::from(h.fk_valid),
         ),
-        (
-            count("cycle_counter", 6, Wire::U32, "control cycle counter"),
-            Some(|h| i64::from(h.cycle_counter)),
+        one(
+            count(
+                "cycle_counter",
+                6,
+                Wire::U32,
+                "control cycle counter: the cycle the report was sampled in, the one its time \
+                 stamp names",
+            ),
+            |h| i64::from(h.cycle_counter),
         ),
-        (
+        one(
             b(
                 "fault_flags",
                 10,
                 Wire::U32,
                 "fault_flags",
-                "latched fault flags",
+                "fault flags (latched)",
             ),
-            Some(|h| i64::from(h.fault_flags)),
+            |h| i64::from(h.fault_flags),
         ),
-        (
+        one(
             b(
                 "warning_flags",
                 14,
@@ -1115,9 +1368,9 @@ pub fn housekeeping_fields() -> Vec<(Field, Option<HkGetter>)> {
                 "fault_flags",
                 "warning flags",
             ),
-            Some(|h| i64::from(h.warning_flags)),
+            |h| i64::from(h.warning_flags),
         ),
-        (
+        one(
             b(
                 "refusal_bits",
                 18,
@@ -1125,85 +1378,116 @@ pub fn housekeeping_fields() -> Vec<(Field, Option<HkGetter>)> {
                 "refusal_bits",
                 "refusal bits of the last refused move",
             ),
-            Some(|h| i64::from(h.refusal_bits)),
+            |h| i64::from(h.refusal_bits),
         ),
-        (
-            count("active_table_id", 22, Wire::U32, "active table ID"),
-            Some(|h| i64::from(h.active_table_id)),
+        one(
+            count("active_table_id", 22, Wire::U32, "running table ID"),
+            |h| i64::from(h.active_table_id),
         ),
-        (
-            count("active_table_crc32", 26, Wire::U32, "active table CRC-32"),
-            Some(|h| i64::from(h.active_table_crc32)),
+        one(
+            count("active_table_crc32", 26, Wire::U32, "running table CRC-32"),
+            |h| i64::from(h.active_table_crc32),
         ),
     ];
-    let groups: [(&str, usize, &str, [HkGetter; 6]); 2] = [
+    let poses: [(&str, usize, &str, String, [HkGetter; 6]); 2] = [
         (
             "pose_fk_",
             30,
             "pose from FK of the encoders",
+            "pose from FK of the encoders (nm, µas; order as the TC pose)".into(),
             pose_getters!(pose_fk),
         ),
         (
             "pose_cmd_",
             54,
             "commanded pose",
+            "commanded pose: the path setpoint, or the pose of the held strokes (nm, µas)".into(),
             pose_getters!(pose_commanded),
         ),
     ];
-    for (prefix, off, what, getters) in groups {
-        for (f, g) in pose_fields(prefix, off, what).into_iter().zip(getters) {
-            v.push((f, Some(g)));
-        }
+    for (prefix, off, what, row, getters) in poses {
+        let fields = pose_fields(prefix, off, what)
+            .into_iter()
+            .zip(getters)
+            .map(|(f, g)| (f, Some(g)))
+            .collect();
+        v.push(HkRow::group(row, fields));
     }
-    let legs: [(&str, usize, &str, [HkGetter; 6]); 2] = [
+    let legs: [(&str, usize, &str, String, [HkGetter; 6]); 2] = [
         (
             "stroke_cmd_leg",
             78,
             "commanded stroke (um; wire i32 in nm)",
+            format!("commanded (or held) strokes, legs 1..{LEGS} (nm)"),
             leg_getters!(strokes_commanded_nm),
         ),
         (
             "encoder_leg",
             102,
             "encoder reading (um; wire i32 in nm, multiples of one 0.1 um count)",
+            format!(
+                "encoder readings, legs 1..{LEGS} (nm; the encoders count 0.1 µm, so multiples \
+                 of 100)"
+            ),
             leg_getters!(encoders_nm),
         ),
     ];
-    for (prefix, off, what, getters) in legs {
-        for (i, g) in getters.into_iter().enumerate() {
-            v.push((
-                calibrated(
-                    &format!("{prefix}{}", i + 1),
-                    off + 4 * i,
-                    Wire::I32,
-                    UNIT_UM,
-                    UM_PER_NM,
-                    &format!("leg {}: {what}", i + 1),
-                ),
-                Some(g),
-            ));
-        }
+    for (prefix, off, what, row, getters) in legs {
+        let fields = getters
+            .into_iter()
+            .enumerate()
+            .map(|(i, g)| {
+                (
+                    calibrated(
+                        &format!("{prefix}{}", i + 1),
+                        off + 4 * i,
+                        Wire::I32,
+                        UNIT_UM,
+                        UM_PER_NM,
+                        &format!("leg {}: {what}", i + 1),
+                    ),
+                    Some(g),
+                )
+            })
+            .collect();
+        v.push(HkRow::group(row, fields));
     }
+    let jobs = [
+        JobKind::Commit,
+        JobKind::Select,
+        JobKind::Reload,
+        JobKind::Parameters,
+    ]
+    .map(|j| {
+        // Exhaustive: a new job does not compile until it is named here.
+        let name = match j {
+            JobKind::Commit => "commit",
+            JobKind::Select => "selection",
+            JobKind::Reload => "reload",
+            JobKind::Parameters => "parameters",
+        };
+        format!("{} {name}", j.code())
+    });
     v.extend([
-        (
+        one(
             count(
                 "tc_accepted",
                 126,
                 Wire::U16,
                 "telecommands accepted (wrapping)",
             ),
-            Some((|h| i64::from(h.tc_accepted)) as HkGetter),
+            |h| i64::from(h.tc_accepted),
         ),
-        (
+        one(
             count(
                 "tc_rejected",
                 128,
                 Wire::U16,
                 "telecommands rejected (wrapping)",
             ),
-            Some(|h| i64::from(h.tc_rejected)),
+            |h| i64::from(h.tc_rejected),
         ),
-        (
+        one(
             field(
                 "last_failure_code",
                 130,
@@ -1213,121 +1497,135 @@ pub fn housekeeping_fields() -> Vec<(Field, Option<HkGetter>)> {
                 },
                 "last failure code reported (0 none)",
             ),
-            Some(|h| i64::from(h.last_failure_code)),
+            |h| i64::from(h.last_failure_code),
         ),
-        (
+        one(
             b(
                 "moving_legs",
                 132,
                 Wire::U8,
                 "leg_mask",
-                "legs commanded to move",
+                &format!("legs commanded to move ({leg_bits})"),
             ),
-            Some(|h| i64::from(h.moving_legs)),
+            |h| i64::from(h.moving_legs),
         ),
-        (
+        one(
             b(
                 "fault_legs",
                 133,
                 Wire::U8,
                 "leg_mask",
-                "legs named by the latched faults",
+                &format!("legs named by the latched faults ({leg_bits})"),
             ),
-            Some(|h| i64::from(h.fault_legs)),
+            |h| i64::from(h.fault_legs),
         ),
-        (
+        one(
             e(
                 "pending_bank",
                 134,
                 "bank",
-                "bank of the pending (committed, not activated) table",
+                &format!(
+                    "bank of the pending (committed, not activated) table: {}",
+                    source_codes("none", "")
+                ),
             ),
-            Some(|h| i64::from(h.pending_bank)),
+            |h| i64::from(h.pending_bank),
         ),
-        (
+        one(
             count(
                 "pending_table_id",
                 135,
                 Wire::U32,
                 "pending table ID (0 if none)",
             ),
-            Some(|h| i64::from(h.pending_table_id)),
+            |h| i64::from(h.pending_table_id),
         ),
-        (
+        one(
             count(
                 "job",
                 139,
                 Wire::U8,
-                "background job running: 0 none, 1 commit, 2 selection, 3 reload, 4 parameters",
+                &format!("background job running: 0 none, {}", jobs.join(", ")),
             ),
-            Some(|h| i64::from(h.job)),
+            |h| i64::from(h.job),
         ),
-        (
+        one(
             count(
                 "selected_source",
                 140,
                 Wire::U8,
-                "selected table (what boots): 0 nominal, 1 A, 2 B, 255 no selection record",
+                &format!(
+                    "selected table (what boots): {}, {NO_SELECTION} no selection record",
+                    source_codes("nominal", "")
+                ),
             ),
-            Some(|h| i64::from(h.selected_source)),
+            |h| i64::from(h.selected_source),
         ),
-        (
+        one(
             count(
                 "tm_dropped",
                 141,
                 Wire::U16,
-                "telemetry records dropped (wrapping)",
+                "telemetry records dropped (queue full; wrapping)",
             ),
-            Some(|h| i64::from(h.tm_dropped)),
+            |h| i64::from(h.tm_dropped),
         ),
-        (
+        one(
             count(
                 "tc_frames_dropped",
                 143,
                 Wire::U16,
-                "telecommand frames dropped: too long or bad COBS (wrapping)",
+                "telecommand frames dropped (too long or bad COBS; wrapping)",
             ),
-            Some(|h| i64::from(h.tc_frames_dropped)),
+            |h| i64::from(h.tc_frames_dropped),
         ),
-        (
+        one(
             count(
                 "uart_overruns",
                 145,
                 Wire::U16,
-                "UART receive overruns and RX queue overflows (wrapping)",
+                "UART receive overruns and receive-queue overflows (wrapping)",
             ),
-            Some(|h| i64::from(h.uart_overruns)),
+            |h| i64::from(h.uart_overruns),
         ),
-        (
+        one(
             count(
                 "cycle_overruns",
                 147,
                 Wire::U16,
                 "control-cycle overruns (wrapping)",
             ),
-            Some(|h| i64::from(h.cycle_overruns)),
+            |h| i64::from(h.cycle_overruns),
         ),
-        (
+        one(
             count(
                 "reset_cause",
                 149,
                 Wire::U8,
-                "reset cause: 0 power-on, 1 watchdog, 2 software, 3 HardFault, 4 panic, 5 external",
+                &format!(
+                    "reset cause (as in event 0x{:04X}): {}",
+                    event_id::BOOT_DETAIL,
+                    reset_causes()
+                        .iter()
+                        .map(|(code, name, _)| format!("{code} {name}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
             ),
-            Some(|h| i64::from(h.reset_cause)),
+            |h| i64::from(h.reset_cause),
         ),
-        (
+        one(
             count("boot_count", 150, Wire::U16, "boot count (wrapping)"),
-            Some(|h| i64::from(h.boot_count)),
+            |h| i64::from(h.boot_count),
         ),
-        (
+        one(
             count(
                 "bank_health",
                 152,
                 Wire::U8,
-                "flash bank health: bit 0 bank A, bit 1 bank B corrupt",
+                "flash bank health: bit 0 bank A, bit 1 bank B record corrupt",
             ),
-            Some(|h| i64::from(h.bank_health)),
+            |h| i64::from(h.bank_health),
         ),
     ]);
     let pivot: [HkGetter; 3] = [
@@ -1335,99 +1633,128 @@ pub fn housekeeping_fields() -> Vec<(Field, Option<HkGetter>)> {
         |h| i64::from(h.pivot_nm[1]),
         |h| i64::from(h.pivot_nm[2]),
     ];
-    for (k, g) in pivot.into_iter().enumerate() {
-        let axis = POSE_AXES.get(k).copied().unwrap_or("");
-        v.push((
-            calibrated(
-                &format!("pivot_{axis}"),
-                153 + 4 * k,
-                Wire::I32,
-                UNIT_UM,
-                UM_PER_NM,
-                &format!("pivot in M's coordinates, {axis} (um; wire i32 in nm; ST[20] parameter)"),
-            ),
-            Some(g),
-        ));
-    }
-    let operator: [(&str, usize, &str, [HkGetter; 6]); 2] = [
+    let pivot_ids = PARAMETERS
+        .get(crate::controller::params::index::PIVOT..crate::controller::params::index::PIVOT + 3)
+        .unwrap_or(&[])
+        .iter()
+        .map(|d| d.id)
+        .collect::<Vec<_>>();
+    let pivot_fields = pivot
+        .into_iter()
+        .enumerate()
+        .map(|(k, g)| {
+            let axis = POSE_AXES.get(k).copied().unwrap_or("");
+            (
+                calibrated(
+                    &format!("pivot_{axis}"),
+                    153 + 4 * k,
+                    Wire::I32,
+                    UNIT_UM,
+                    UM_PER_NM,
+                    &format!(
+                        "pivot in M's coordinates, {axis} (um; wire i32 in nm; ST[20] parameter)"
+                    ),
+                ),
+                Some(g),
+            )
+        })
+        .collect();
+    v.push(HkRow::group(
+        format!(
+            "the pivot in M's coordinates, x, y, z (nm; parameters {}..{})",
+            pivot_ids.first().copied().unwrap_or(0),
+            pivot_ids.last().copied().unwrap_or(0)
+        ),
+        pivot_fields,
+    ));
+    let operator: [(&str, usize, &str, &str, [HkGetter; 6]); 2] = [
         (
             "pose_fk_op_",
             165,
             "pose from FK in the operator's frames (about the pivot, in the user frame)",
+            "pose from FK in the operator's frames (pivot, user frame; nm, µas)",
             pose_getters!(pose_fk_operator),
         ),
         (
             "pose_cmd_op_",
             189,
             "commanded pose in the operator's frames (about the pivot, in the user frame)",
+            "commanded pose in the operator's frames (nm, µas)",
             pose_getters!(pose_commanded_operator),
         ),
     ];
-    for (prefix, off, what, getters) in operator {
-        for (f, g) in pose_fields(prefix, off, what).into_iter().zip(getters) {
-            v.push((f, Some(g)));
-        }
+    for (prefix, off, what, row, getters) in operator {
+        let fields = pose_fields(prefix, off, what)
+            .into_iter()
+            .zip(getters)
+            .map(|(f, g)| (f, Some(g)))
+            .collect();
+        v.push(HkRow::group(row.into(), fields));
     }
-    v.push((
+    v.push(one(
         count(
             "parameters_set",
             213,
             Wire::U32,
-            "on-board parameters set by TC[20,3] (bit i = parameter index i; clear: default)",
+            "on-board parameters set by TC[20,3] (bit i = parameter index i, rows of section \
+             5a in order; clear: default)",
         ),
-        Some(|h| i64::from(h.parameters_set)),
+        |h| i64::from(h.parameters_set),
     ));
     // Time-based schedule (ST[11]) and time reports (ST[9]): offsets 217..230.
-    let next = obt_fields(
-        "schedule_next_release_",
-        223,
-        "release time of the next activity (0 if none)",
-    );
-    let mut next = next.into_iter();
     v.extend([
-        (
+        one(
             count(
                 "schedule_activities",
                 217,
                 Wire::U8,
-                "activities in the time-based schedule",
+                &format!("time-tagged activities in the schedule (0..{SCHEDULE_CAPACITY})"),
             ),
-            Some((|h| i64::from(h.schedule.activities)) as HkGetter),
+            |h| i64::from(h.schedule.activities),
         ),
-        (
+        one(
             field(
                 "schedule_release_enabled",
                 218,
                 Wire::U8,
                 Meaning::Boolean,
-                "activities are released when their time comes",
+                "release of activities: 1 enabled, 0 disabled",
             ),
-            Some(|h| i64::from(h.schedule.release_enabled)),
+            |h| i64::from(h.schedule.release_enabled),
         ),
-        (
+        one(
             count(
                 "schedule_released",
                 219,
                 Wire::U16,
                 "activities released since boot (wrapping)",
             ),
-            Some(|h| i64::from(h.schedule.released)),
+            |h| i64::from(h.schedule.released),
         ),
-        (
+        one(
             count(
                 "schedule_failed",
                 221,
                 Wire::U16,
                 "released activities whose telecommand failed (wrapping)",
             ),
-            Some(|h| i64::from(h.schedule.failed)),
+            |h| i64::from(h.schedule.failed),
         ),
     ]);
-    if let (Some(sec), Some(frac)) = (next.next(), next.next()) {
-        v.push((sec, Some(|h| i64::from(h.schedule.next_release.seconds))));
-        v.push((frac, Some(|h| i64::from(h.schedule.next_release.fraction))));
-    }
-    v.push((
+    let next_what = "release time of the next activity (0 if none)";
+    let next: [HkGetter; 2] = [
+        |h| i64::from(h.schedule.next_release.seconds),
+        |h| i64::from(h.schedule.next_release.fraction),
+    ];
+    v.push(HkRow::group(
+        next_what.into(),
+        obt_fields("schedule_next_release_", 223, next_what)
+            .into_iter()
+            .zip(next)
+            .map(|(f, g)| (f, Some(g)))
+            .collect(),
+    ));
+    v.push(one(
         field(
             "time_report_rate",
             229,
@@ -1435,40 +1762,57 @@ pub fn housekeeping_fields() -> Vec<(Field, Option<HkGetter>)> {
             Meaning::Enum {
                 enumeration: "time_report_rate",
             },
-            "time report (TM[9,2]) rate in force",
+            &format!(
+                "time report rate (TC[{},{}]): N of 2^N s, {} off",
+                service::TIME,
+                subtype::SET_TIME_REPORT_RATE,
+                TimeReportRate::Off.code()
+            ),
         ),
-        Some(|h| i64::from(h.schedule.time_report_rate)),
+        |h| i64::from(h.schedule.time_report_rate),
     ));
-    let switches: [(&str, usize, &str, HkGetter); 4] = [
+    let switches: [(&str, usize, String, HkGetter); 4] = [
         (
             "limit_lower_legs",
             230,
-            "legs at their lower end-of-travel switch (last cycle's read)",
+            format!("legs at their lower end-of-travel switch ({leg_bits}; the last cycle's read)"),
             |h| i64::from(h.limit_lower_legs),
         ),
         (
             "limit_upper_legs",
             231,
-            "legs at their upper end-of-travel switch (last cycle's read)",
+            format!("legs at their upper end-of-travel switch ({leg_bits})"),
             |h| i64::from(h.limit_upper_legs),
         ),
         (
             "reference_legs",
             232,
-            "legs at their reference (home) sensor",
+            format!("legs at their reference (home) sensor ({leg_bits}; information only)"),
             |h| i64::from(h.reference_legs),
         ),
         (
             "switch_unreadable_legs",
             233,
-            "legs with a switch input that cannot be read (both directions blocked)",
+            format!(
+                "legs with a switch input that cannot be read ({leg_bits}; treated as both \
+                 ends active)"
+            ),
             |h| i64::from(h.switch_unreadable_legs),
         ),
     ];
     for (name, off, what, g) in switches {
-        v.push((b(name, off, Wire::U8, "leg_mask", what), Some(g)));
+        v.push(one(b(name, off, Wire::U8, "leg_mask", &what), g));
     }
     v
+}
+
+/// The housekeeping fields with their accessors into [`Housekeeping`]: the fields of
+/// [`housekeeping_rows`], in order.
+pub fn housekeeping_fields() -> Vec<(Field, Option<HkGetter>)> {
+    housekeeping_rows()
+        .into_iter()
+        .flat_map(|r| r.fields)
+        .collect()
 }
 
 // ---------------------------------------------------------------------------------
@@ -1522,6 +1866,11 @@ fn telemetry() -> Vec<TmPacket> {
             fixed_len: Some(4),
             description: "TM[1,1] acceptance, [1,3] start, [1,7] completion success".into(),
             repeated: None,
+            kinds: vec![
+                tm_kind(&[subtype::ACCEPTANCE_SUCCESS], "acceptance success", "request ID (4)"),
+                tm_kind(&[subtype::START_SUCCESS], "start success", "request ID"),
+                tm_kind(&[subtype::COMPLETION_SUCCESS], "completion success", "request ID"),
+            ],
         },
         TmPacket {
             name: "verification_failure".into(),
@@ -1535,6 +1884,23 @@ fn telemetry() -> Vec<TmPacket> {
             fixed_len: Some(10),
             description: "TM[1,2] acceptance, [1,4] start, [1,8] completion failure".into(),
             repeated: None,
+            kinds: vec![
+                tm_kind(
+                    &[subtype::ACCEPTANCE_FAILURE],
+                    "acceptance failure",
+                    "request ID (4); failure code u16; failure data u32",
+                ),
+                tm_kind(
+                    &[subtype::START_FAILURE],
+                    "start failure",
+                    "request ID; code u16; data u32",
+                ),
+                tm_kind(
+                    &[subtype::COMPLETION_FAILURE],
+                    "completion failure",
+                    "request ID; code u16; data u32",
+                ),
+            ],
         },
         TmPacket {
             name: "housekeeping".into(),
@@ -1544,6 +1910,11 @@ fn telemetry() -> Vec<TmPacket> {
             fixed_len: Some(HK_REPORT_LEN),
             description: "TM[3,25] housekeeping report".into(),
             repeated: None,
+            kinds: vec![tm_kind(
+                &[subtype::HK_REPORT],
+                "housekeeping report",
+                &format!("{HK_REPORT_LEN} bytes, section 6"),
+            )],
         },
         TmPacket {
             name: "event".into(),
@@ -1570,6 +1941,25 @@ fn telemetry() -> Vec<TmPacket> {
             fixed_len: Some(crate::link::tm::EVENT_REPORT_LEN),
             description: "TM[5,1] info, [5,2] low, [5,3] medium, [5,4] high severity event".into(),
             repeated: None,
+            kinds: {
+                let all = [
+                    EventSeverity::Info,
+                    EventSeverity::Low,
+                    EventSeverity::Medium,
+                    EventSeverity::High,
+                ];
+                let names: Vec<String> = all
+                    .iter()
+                    .map(|s| {
+                        format!("{} {}", s.subtype(), severity_name(*s).to_ascii_lowercase())
+                    })
+                    .collect();
+                vec![tm_kind(
+                    &all.map(EventSeverity::subtype),
+                    &format!("event: {} severity", names.join(", ")),
+                    "event ID u16; aux0 u32; aux1 u32",
+                )]
+            },
         },
         TmPacket {
             name: "table_dump".into(),
@@ -1600,6 +1990,13 @@ fn telemetry() -> Vec<TmPacket> {
             fixed_len: None,
             description: "TM[6,6] table dump chunk".into(),
             repeated: None,
+            kinds: vec![tm_kind(
+                &[subtype::MEMORY_DUMP_REPORT],
+                "table dump chunk",
+                &format!(
+                    "memory ID u8; offset u16; length u16 (1..{TABLE_CHUNK_MAX_LEN}); `length` bytes"
+                ),
+            )],
         },
         TmPacket {
             name: "move_check".into(),
@@ -1650,6 +2047,15 @@ fn telemetry() -> Vec<TmPacket> {
             fixed_len: Some(MOVE_CHECK_REPORT_LEN),
             description: "TM[8,130] move check report (answer to CHECK_MOVE)".into(),
             repeated: None,
+            kinds: vec![tm_kind(
+                &[subtype::MOVE_CHECK_REPORT],
+                &format!(
+                    "move check report (answer to function 0x{:04X})",
+                    FunctionId::CheckMove.code()
+                ),
+                "request ID (4); code u16; target refusal bits u32; path refusal bits u32; \
+                 path point u8",
+            )],
         },
         TmPacket {
             name: "parameter_report".into(),
@@ -1663,6 +2069,15 @@ fn telemetry() -> Vec<TmPacket> {
             )],
             fixed_len: None,
             description: "TM[20,2] parameter report: count, then (ID u16, value i32) pairs".into(),
+            kinds: vec![tm_kind(
+                &[subtype::PARAMETER_REPORT],
+                &format!(
+                    "parameter report (answer to TC[{},{}])",
+                    service::PARAMETER,
+                    subtype::PARAMETER_REPORT_REQUEST
+                ),
+                "count u8; that many (parameter ID u16, value i32), in parameter-index order",
+            )],
             repeated: Some(Repeated {
                 name: "report_parameters".into(),
                 count_field: "report_count".into(),
@@ -1684,15 +2099,6 @@ fn telemetry() -> Vec<TmPacket> {
                     ),
                 ],
             }),
-        },
-        TmPacket {
-            name: "ping_reply".into(),
-            service: service::TEST,
-            subtypes: vec![subtype::PING_REPLY],
-            fields: Vec::new(),
-            fixed_len: Some(0),
-            description: "TM[17,2] are-you-alive reply".into(),
-            repeated: None,
         },
         TmPacket {
             name: "cuc_time_report".into(),
@@ -1718,6 +2124,16 @@ fn telemetry() -> Vec<TmPacket> {
             fixed_len: Some(TIME_REPORT_LEN),
             description: "TM[9,2] CUC time report (on-board time since boot)".into(),
             repeated: None,
+            kinds: vec![tm_kind(
+                &[subtype::TIME_REPORT],
+                "time report",
+                &format!(
+                    "rate u8 (as TC[{},{}]); OBT CUC {CUC_COARSE_BYTES}+{CUC_FINE_BYTES} \
+                     ({TM_TIMESTAMP_LEN} bytes) (section 10)",
+                    service::TIME,
+                    subtype::SET_TIME_REPORT_RATE
+                ),
+            )],
         },
         TmPacket {
             name: "schedule_summary".into(),
@@ -1733,6 +2149,14 @@ fn telemetry() -> Vec<TmPacket> {
             description: "TM[11,13] time-based schedule summary: release time and request ID \
                           of every activity, in release order"
                 .into(),
+            kinds: vec![tm_kind(
+                &[subtype::SCHEDULE_SUMMARY_REPORT],
+                "schedule summary",
+                &format!(
+                    "N u8; N × (release time CUC {CUC_COARSE_BYTES}+{CUC_FINE_BYTES}, request ID \
+                     {REQUEST_ID_LEN} bytes), in release order"
+                ),
+            )],
             repeated: Some(Repeated {
                 name: "summary_activities".into(),
                 count_field: "summary_count".into(),
@@ -1758,6 +2182,17 @@ fn telemetry() -> Vec<TmPacket> {
                     f
                 },
             }),
+        },
+        // docs/icd.md's order: the ping reply last.
+        TmPacket {
+            name: "ping_reply".into(),
+            service: service::TEST,
+            subtypes: vec![subtype::PING_REPLY],
+            fields: Vec::new(),
+            fixed_len: Some(0),
+            description: "TM[17,2] are-you-alive reply".into(),
+            repeated: None,
+            kinds: vec![tm_kind(&[subtype::PING_REPLY], "are-you-alive reply", "none")],
         },
     ]
 }
@@ -1794,7 +2229,8 @@ fn obt_fields(prefix: &str, offset: usize, what: &str) -> Vec<Field> {
 // ---------------------------------------------------------------------------------
 // Enumerations and bit fields.
 
-fn controller_states() -> Vec<(i64, String, String)> {
+/// The controller states: code, label, name and what it means (docs/icd.md section 6).
+pub fn controller_state_doc() -> Vec<(u8, String, &'static str, &'static str)> {
     // Exhaustive: a new state does not compile until it is listed.
     let all = [
         State::Idle,
@@ -1805,19 +2241,25 @@ fn controller_states() -> Vec<(i64, String, String)> {
     ];
     all.iter()
         .map(|s| {
-            let meaning = match s {
-                State::Idle => "holding position, ready",
-                State::Moving => "following a trajectory",
-                State::Stopping => "decelerating after a stop or a fault",
-                State::StrokeMoving => "direct-stroke (recovery) move",
-                State::Faulted => "at rest with a latched fault",
+            let (name, meaning) = match s {
+                State::Idle => ("idle", "holding position, ready"),
+                State::Moving => ("moving", "planning or following a path"),
+                State::Stopping => ("stopping", "decelerating after a stop or a fault"),
+                State::StrokeMoving => ("direct-stroke move", "recovery"),
+                State::Faulted => (
+                    "faulted",
+                    "at rest, moves refused until a clear fault TC succeeds",
+                ),
             };
-            (
-                i64::from(s.code()),
-                upper_snake(&format!("{s:?}")),
-                meaning.into(),
-            )
+            (s.code(), upper_snake(&format!("{s:?}")), name, meaning)
         })
+        .collect()
+}
+
+fn controller_states() -> Vec<(i64, String, String)> {
+    controller_state_doc()
+        .into_iter()
+        .map(|(code, label, name, meaning)| (i64::from(code), label, format!("{name} ({meaning})")))
         .collect()
 }
 
@@ -1887,199 +2329,891 @@ fn time_report_rates() -> Vec<(i64, String, String)> {
     v
 }
 
-/// One instance of every failure the controller reports, by family, with the family
-/// prefix of its label. The labels are the variants' names.
-pub fn failure_samples() -> Vec<(&'static str, u16, String)> {
-    let mut v: Vec<(&'static str, u16, String)> = Vec::new();
-    let mut push = |family: &'static str, code: u16, debug: String| {
-        v.push((family, code, debug));
+/// Where a failure code reaches the ground (docs/icd.md section 7, column "report").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind", content = "code")]
+pub enum ReportedIn {
+    /// TM[1,2]: the decoder refuses the packet.
+    AcceptanceFailure,
+    /// TM[1,4]: the controller refuses to begin.
+    StartFailure,
+    /// TM[1,8]: something that had started failed.
+    CompletionFailure,
+    /// TM[1,8], or TM[1,4] when it happens while a move is being planned.
+    CompletionOrStartFailure,
+    /// No report (there is no request ID to report on): counted in housekeeping.
+    CountedOnly,
+    /// Never itself: the report carries the code it wraps.
+    AsWrappedCode,
+    /// Only inside the failure data of the code given.
+    InsideDataOf(u16),
+    /// Never on the wire (a family enumerated for completeness).
+    NotReported,
+}
+
+/// One failure code: docs/icd.md's row (section 7) and the mission database's
+/// enumeration value (label and meaning).
+#[derive(Clone, Debug, Serialize)]
+pub struct FailureCode {
+    /// The code (a `code()` of the flight error types).
+    pub code: u16,
+    /// Family prefix of the label.
+    pub family: &'static str,
+    /// Enumeration label: family and variant name (`MOTION_TARGET_REFUSED`).
+    pub label: String,
+    /// Origin column of docs/icd.md.
+    pub origin: &'static str,
+    /// What it means.
+    pub meaning: String,
+    /// Which report carries it.
+    pub report: ReportedIn,
+    /// What its failure data (u32) holds; "a/b" is `a << 16 | b`.
+    pub data: String,
+}
+
+/// `1,234,567`.
+pub fn thousands(v: i64) -> String {
+    let digits = v.unsigned_abs().to_string();
+    let mut out = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i) % 3 == 0 {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    if v < 0 {
+        format!("-{out}")
+    } else {
+        out
+    }
+}
+
+/// `0x050A`: a code or an ID as docs/icd.md writes it.
+pub fn hex4(v: u16) -> String {
+    format!("0x{v:04X}")
+}
+
+/// `2` or `2/2/3`: one number if all are equal (after rounding to 1e-9).
+fn uniform(values: &[f64]) -> String {
+    let r: Vec<f64> = values.iter().map(|v| (v * 1e9).round() / 1e9).collect();
+    if r.windows(2).all(|w| w[0] == w[1]) {
+        format!("{}", r.first().copied().unwrap_or(0.0))
+    } else {
+        r.iter()
+            .map(|v| format!("{v}"))
+            .collect::<Vec<_>>()
+            .join("/")
+    }
+}
+
+/// Every failure code the controller has, by family (one instance of each variant of
+/// the flight error types), with what docs/icd.md says of it. A variant missing here
+/// fails `host-tests/mdb.rs` (every `=> 0x0NNN` arm of a `code()` must be listed).
+pub fn failure_codes() -> Vec<FailureCode> {
+    use ReportedIn::{
+        AcceptanceFailure as Acc, AsWrappedCode, CompletionFailure as Compl,
+        CompletionOrStartFailure, CountedOnly, InsideDataOf, NotReported, StartFailure as Start,
     };
-    for e in [
-        LinkError::Truncated { got: 0, needed: 0 },
-        LinkError::LengthMismatch {
-            got: 0,
-            declared: 0,
-        },
-        LinkError::Oversized,
-        LinkError::BadFraming,
-        LinkError::BadCrc { found: 0 },
-        LinkError::WrongApid { apid: 0 },
-        LinkError::BadPrimaryHeader,
-        LinkError::UnsupportedPusVersion { version: 0 },
-        LinkError::UnknownService { service: 0 },
-        LinkError::UnknownSubtype {
-            service: 0,
-            subtype: 0,
-        },
-        LinkError::UnknownFunction { function_id: 0 },
-        LinkError::AppDataLength {
-            got: 0,
-            expected: 0,
-        },
-        LinkError::InvalidArgument { index: 0 },
-        LinkError::ChunkOutOfRange {
-            offset: 0,
-            length: 0,
-        },
-        LinkError::EmbeddedTc { index: 0, code: 0 },
-        LinkError::NotSchedulable {
-            service: 0,
-            subtype: 0,
-        },
+    let mut v: Vec<FailureCode> = Vec::new();
+    let mut push = |family: &'static str,
+                    origin: &'static str,
+                    code: u16,
+                    debug: String,
+                    (report, meaning, data): (ReportedIn, String, String)| {
+        v.push(FailureCode {
+            code,
+            family,
+            label: format!("{family}_{}", upper_snake(&debug)),
+            origin,
+            meaning,
+            report,
+            data,
+        });
+    };
+    let d = |r: ReportedIn, meaning: &str, data: &str| (r, meaning.to_string(), data.to_string());
+    let validation = crate::table::ValidationConfig::flight();
+    let ws = &validation.max_workspace;
+    let ws_arcsec: Vec<f64> = ws
+        .rotation_rad
+        .iter()
+        .map(|r| r * crate::units::ARCSEC_PER_RAD)
+        .collect();
+    let max_obt_ms = u64::from(u32::MAX) * u64::from(crate::timing::CYCLE_US) / 1000;
+    use crate::table::validate::field_index as fi;
+    let range = |a: u16, b: u16| format!("{a}..{}", b - 1);
+
+    for (e, doc) in [
+        (
+            LinkError::Truncated { got: 0, needed: 0 },
+            d(
+                Acc,
+                &format!(
+                    "truncated: shorter than {MIN_TC_PACKET_LEN} bytes or than the length field"
+                ),
+                "received/needed",
+            ),
+        ),
+        (
+            LinkError::LengthMismatch {
+                got: 0,
+                declared: 0,
+            },
+            d(
+                Acc,
+                "wrong length: bytes after the packet's declared end",
+                "received/declared",
+            ),
+        ),
+        (
+            LinkError::Oversized,
+            d(
+                Acc,
+                &format!("oversized: packet or declared length > {MAX_TC_PACKET_LEN}"),
+                "0",
+            ),
+        ),
+        (
+            LinkError::BadFraming,
+            d(CountedOnly, "bad COBS framing", "0"),
+        ),
+        (
+            LinkError::BadCrc { found: 0 },
+            d(Acc, "CRC-16 mismatch", "CRC found"),
+        ),
+        (
+            LinkError::WrongApid { apid: 0 },
+            d(Acc, "wrong APID", "APID found"),
+        ),
+        (
+            LinkError::BadPrimaryHeader,
+            d(
+                Acc,
+                "not an unsegmented version-0 TC with secondary header",
+                "0",
+            ),
+        ),
+        (
+            LinkError::UnsupportedPusVersion { version: 0 },
+            d(Acc, &format!("PUS version not {PUS_C_VERSION}"), "version"),
+        ),
+        (
+            LinkError::UnknownService { service: 0 },
+            d(Acc, "unknown service", "service"),
+        ),
+        (
+            LinkError::UnknownSubtype {
+                service: 0,
+                subtype: 0,
+            },
+            d(Acc, "unknown subtype", "service/subtype"),
+        ),
+        (
+            LinkError::UnknownFunction { function_id: 0 },
+            d(Acc, "unknown function ID", "function ID"),
+        ),
+        (
+            LinkError::AppDataLength {
+                got: 0,
+                expected: 0,
+            },
+            d(Acc, "application data length wrong", "received/expected"),
+        ),
+        (
+            LinkError::InvalidArgument { index: 0 },
+            d(
+                Acc,
+                "argument out of range (leg, memory ID, a count of parameters or activities, the \
+                 time report rate)",
+                "argument index (0-based; TC[8,1]'s function ID not counted)",
+            ),
+        ),
+        (
+            LinkError::ChunkOutOfRange {
+                offset: 0,
+                length: 0,
+            },
+            d(
+                Acc,
+                &format!("table chunk empty, > {TABLE_CHUNK_MAX_LEN} bytes or beyond the table"),
+                "offset/length",
+            ),
+        ),
+        (
+            LinkError::EmbeddedTc { index: 0, code: 0 },
+            d(
+                Acc,
+                &format!(
+                    "a TC[{s},{}]'s embedded telecommand is refused (the code it would get \
+                     alone; {} also when longer than {MAX_SCHEDULED_TC_LEN} bytes, {} when it \
+                     cannot be scheduled)",
+                    subtype::SCHEDULE_INSERT,
+                    hex4(LinkError::Oversized.code()),
+                    hex4(
+                        LinkError::NotSchedulable {
+                            service: 0,
+                            subtype: 0
+                        }
+                        .code()
+                    ),
+                    s = service::SCHEDULING,
+                ),
+                "activity index/code",
+            ),
+        ),
+        (
+            LinkError::NotSchedulable {
+                service: 0,
+                subtype: 0,
+            },
+            d(
+                InsideDataOf(LinkError::EmbeddedTc { index: 0, code: 0 }.code()),
+                &format!(
+                    "a telecommand that cannot be scheduled: TC[{},x] or a table chunk TC[{},{}]",
+                    service::SCHEDULING,
+                    service::MEMORY,
+                    subtype::MEMORY_LOAD
+                ),
+                "service/subtype",
+            ),
+        ),
     ] {
-        push("LINK", e.code(), format!("{e:?}"));
+        push("LINK", "link", e.code(), format!("{e:?}"), doc);
     }
-    for e in [
-        GeometryError::NonFinite,
-        GeometryError::UpperNotAboveLower { leg: 0 },
-        GeometryError::BadStrokeLimits { leg: 0 },
-        GeometryError::BadWorkspaceLimits,
+    let in_geometry = InsideDataOf(ValidationError::Geometry(GeometryError::NonFinite).code());
+    let geometry = [
+        (GeometryError::NonFinite, "non-finite"),
+        (
+            GeometryError::UpperNotAboveLower { leg: 0 },
+            "upper joint not above the lower",
+        ),
+        (
+            GeometryError::BadStrokeLimits { leg: 0 },
+            "bad stroke limits",
+        ),
+        (GeometryError::BadWorkspaceLimits, "bad workspace"),
+    ];
+    for (e, meaning) in geometry {
+        push(
+            "GEOMETRY",
+            "geometry",
+            e.code(),
+            format!("{e:?}"),
+            d(in_geometry, meaning, "—"),
+        );
+    }
+    for (e, meaning) in [
+        (IkError::NonFinite, "non-finite pose"),
+        (
+            IkError::OutsideWorkspace { axes: 0 },
+            "pose outside the workspace",
+        ),
+        (IkError::Unreachable { legs: 0 }, "a leg cannot reach"),
+        (
+            IkError::StrokeLimit { legs: 0 },
+            "a stroke beyond its limit",
+        ),
     ] {
-        push("GEOMETRY", e.code(), format!("{e:?}"));
+        push(
+            "IK",
+            "IK",
+            e.code(),
+            format!("{e:?}"),
+            d(NotReported, meaning, "—"),
+        );
     }
-    for e in [
-        IkError::NonFinite,
-        IkError::OutsideWorkspace { axes: 0 },
-        IkError::Unreachable { legs: 0 },
-        IkError::StrokeLimit { legs: 0 },
-    ] {
-        push("IK", e.code(), format!("{e:?}"));
-    }
-    for e in [
-        FkError::NonFinite,
-        FkError::Unreachable {
-            legs: 0,
-            iterations: 0,
-        },
-        FkError::SingularJacobian { iterations: 0 },
-        FkError::NotConverged { iterations: 0 },
-        FkError::ResidualTooLarge { iterations: 0 },
-    ] {
-        push("FK", e.code(), format!("{e:?}"));
-    }
-    for e in [
-        TableError::WrongLength { got: 0 },
-        TableError::BadMagic,
-        TableError::UnsupportedVersion { version: 0 },
-        TableError::BadLengthField { length: 0 },
-        TableError::BadCrc,
-        TableError::ReservedNotZero,
-        TableError::MissingLimits,
-    ] {
-        push("TABLE", e.code(), format!("{e:?}"));
-    }
-    for e in [
-        ValidationError::ProvenanceNotAscii { index: 0 },
-        ValidationError::NonFinite { field: 0 },
-        ValidationError::CoordinateOffNominal { index: 0 },
-        ValidationError::RodLengthImplausible { leg: 0 },
-        ValidationError::Geometry(GeometryError::NonFinite),
-        ValidationError::StrokeLimitBeyondCap { leg: 0 },
-        ValidationError::WorkspaceBeyondCap { axis: 0 },
-        ValidationError::Supervision { field: 0 },
-        ValidationError::Unreachable { legs: 0 },
-        ValidationError::StrokeLimitExceeded { legs: 0 },
+    let in_fk = InsideDataOf(
         ValidationError::FkFailed {
             corner: 0,
             fk_code: 0,
-        },
-        ValidationError::FkInaccurate { corner: 0 },
-        ValidationError::BadConfig,
+        }
+        .code(),
+    );
+    for (e, meaning) in [
+        (FkError::NonFinite, "non-finite"),
+        (
+            FkError::Unreachable {
+                legs: 0,
+                iterations: 0,
+            },
+            "a leg cannot reach on the way",
+        ),
+        (
+            FkError::SingularJacobian { iterations: 0 },
+            "singular Jacobian",
+        ),
+        (FkError::NotConverged { iterations: 0 }, "not converged"),
+        (
+            FkError::ResidualTooLarge { iterations: 0 },
+            "residual too large",
+        ),
     ] {
-        push("VALIDATION", e.code(), format!("{e:?}"));
+        push(
+            "FK",
+            "FK",
+            e.code(),
+            format!("{e:?}"),
+            d(in_fk, meaning, "—"),
+        );
     }
-    for e in [
-        StoreError::BadLayout,
-        StoreError::Flash(embedded_storage::nor_flash::NorFlashErrorKind::Other),
-        StoreError::Invalid(ValidationError::BadConfig),
-        StoreError::VerifyFailed,
-        StoreError::NoRecord(crate::table::BankStatus::Blank),
-        StoreError::Busy,
-        StoreError::NotExpected,
-        StoreError::ThresholdConflict,
+    for (e, meaning) in [
+        (TableError::WrongLength { got: 0 }, "wrong length"),
+        (TableError::BadMagic, "bad magic"),
+        (
+            TableError::UnsupportedVersion { version: 0 },
+            "unsupported format version",
+        ),
+        (
+            TableError::BadLengthField { length: 0 },
+            "length field wrong",
+        ),
+        (TableError::BadCrc, "CRC-32 wrong"),
+        (TableError::ReservedNotZero, "reserved field not 0"),
+        (TableError::MissingLimits, "limits missing"),
     ] {
-        push("STORE", e.code(), format!("{e:?}"));
+        push(
+            "TABLE",
+            "table image",
+            e.code(),
+            format!("{e:?}"),
+            d(Start, meaning, "0"),
+        );
     }
-    for e in [
-        MotionError::NonFinite,
-        MotionError::BadLimits { leg: 0 },
-        MotionError::StartRefused(Refusals::default()),
-        MotionError::TargetRefused(Refusals::default()),
-        MotionError::PathRefused {
-            sample: 0,
-            refusals: Refusals::default(),
-        },
-        MotionError::TooLong,
+    let geometry_codes = geometry.map(|(e, _)| e.code());
+    for (e, doc) in [
+        (
+            ValidationError::ProvenanceNotAscii { index: 0 },
+            d(Compl, "provenance tag not printable ASCII", "byte index"),
+        ),
+        (
+            ValidationError::NonFinite { field: 0 },
+            d(
+                Compl,
+                "a number is NaN or infinite",
+                &format!(
+                    "field: {} joints, {} p0, {} stroke min, {} stroke max, {} workspace \
+                     translation, {} workspace rotation, {} the f32 thresholds",
+                    range(0, fi::P0),
+                    range(fi::P0, fi::STROKE_MIN),
+                    range(fi::STROKE_MIN, fi::STROKE_MAX),
+                    range(fi::STROKE_MAX, fi::WORKSPACE_TRANSLATION),
+                    range(fi::WORKSPACE_TRANSLATION, fi::WORKSPACE_ROTATION),
+                    range(fi::WORKSPACE_ROTATION, fi::SUPERVISION),
+                    range(fi::SUPERVISION, fi::SUPERVISION + 4),
+                ),
+            ),
+        ),
+        (
+            ValidationError::CoordinateOffNominal { index: 0 },
+            d(
+                Compl,
+                &format!(
+                    "a joint coordinate or p0 component more than {} mm off nominal",
+                    uniform(&[validation.max_coordinate_deviation_mm])
+                ),
+                &format!(
+                    "coordinate index ({} joints, {} p0)",
+                    range(0, fi::P0),
+                    range(fi::P0, fi::STROKE_MIN)
+                ),
+            ),
+        ),
+        (
+            ValidationError::RodLengthImplausible { leg: 0 },
+            d(
+                Compl,
+                &format!(
+                    "a rod length more than {} mm off nominal",
+                    uniform(&[validation.max_rod_deviation_mm])
+                ),
+                "leg (0-based)",
+            ),
+        ),
+        (
+            ValidationError::Geometry(GeometryError::NonFinite),
+            d(
+                Compl,
+                "geometry unusable (rods, limits)",
+                &format!(
+                    "geometry code {}..{} ({})",
+                    hex4(geometry_codes.iter().copied().min().unwrap_or(0)),
+                    hex4(geometry_codes.iter().copied().max().unwrap_or(0)),
+                    geometry.map(|(_, m)| m).join(", ")
+                ),
+            ),
+        ),
+        (
+            ValidationError::StrokeLimitBeyondCap { leg: 0 },
+            d(
+                Compl,
+                &format!(
+                    "a stroke limit beyond ±{} mm",
+                    uniform(&[validation.max_abs_stroke_limit_mm])
+                ),
+                "leg (0-based)",
+            ),
+        ),
+        (
+            ValidationError::WorkspaceBeyondCap { axis: 0 },
+            d(
+                Compl,
+                &format!(
+                    "a workspace half-range beyond ±{} mm / ±{}\"",
+                    uniform(&ws.translation_mm),
+                    uniform(&ws_arcsec)
+                ),
+                "axis 0..5",
+            ),
+        ),
+        (
+            ValidationError::Supervision { field: 0 },
+            d(
+                Compl,
+                "a supervision threshold not positive, or warning >= fault",
+                "field 0..6 in layout order: the first not positive; 1 (the fault threshold) \
+                 when warning >= fault",
+            ),
+        ),
+        (
+            ValidationError::Unreachable { legs: 0 },
+            d(Compl, "part of the workspace unreachable", "leg mask"),
+        ),
+        (
+            ValidationError::StrokeLimitExceeded { legs: 0 },
+            d(
+                Compl,
+                "part of the workspace beyond a stroke limit",
+                "leg mask",
+            ),
+        ),
+        (
+            ValidationError::FkFailed {
+                corner: 0,
+                fk_code: 0,
+            },
+            d(
+                Compl,
+                "FK from home fails at a workspace corner",
+                "FK code low byte << 8 / corner",
+            ),
+        ),
+        (
+            ValidationError::FkInaccurate { corner: 0 },
+            d(Compl, "FK at a corner does not return the corner", "corner"),
+        ),
+        (
+            ValidationError::BadConfig,
+            d(Compl, "validation configuration out of range (defect)", "0"),
+        ),
     ] {
-        push("MOTION", e.code(), format!("{e:?}"));
+        push("VALIDATION", "validation", e.code(), format!("{e:?}"), doc);
     }
-    for e in [
-        StrokeMoveError::BadLeg,
-        StrokeMoveError::NonFinite,
-        StrokeMoveError::BadLimits,
-        StrokeMoveError::DeltaTooLarge,
-        StrokeMoveError::OutsideStrokeRange,
-        StrokeMoveError::TooLong,
+    for (e, doc) in [
+        (
+            StoreError::BadLayout,
+            d(Compl, "bank layout does not fit the flash (defect)", "0"),
+        ),
+        (
+            StoreError::Flash(embedded_storage::nor_flash::NorFlashErrorKind::Other),
+            d(Compl, "the flash driver failed (e.g. power loss)", "0"),
+        ),
+        (
+            StoreError::Invalid(ValidationError::BadConfig),
+            d(
+                AsWrappedCode,
+                "refused by validation (nested; reported as its 0x041x code)",
+                "—",
+            ),
+        ),
+        (
+            StoreError::VerifyFailed,
+            d(Compl, "read-back after a write differs", "0"),
+        ),
+        (
+            StoreError::NoRecord(crate::table::BankStatus::Blank),
+            d(
+                Compl,
+                "the bank holds no complete, CRC-valid record (switch bank)",
+                "the bank's status flag (boot flags above)",
+            ),
+        ),
+        (
+            StoreError::Busy,
+            d(Compl, "a write is already in progress (defect guard)", "0"),
+        ),
+        (
+            StoreError::NotExpected,
+            d(
+                Compl,
+                "the record is not the one expected (activate of a vanished pending table)",
+                "0",
+            ),
+        ),
+        (
+            StoreError::ThresholdConflict,
+            d(
+                Compl,
+                "activate, switch bank or revert: the table's following-error thresholds with \
+                 the overrides in force (parameters 0x0030/0x0031) would leave the warning not \
+                 below the fault threshold; nothing persisted",
+                "0",
+            ),
+        ),
     ] {
-        push("STROKE", e.code(), format!("{e:?}"));
+        push("STORE", "store", e.code(), format!("{e:?}"), doc);
+    }
+    for (e, doc) in [
+        (
+            MotionError::NonFinite,
+            d(Start, "move: non-finite pose", "0"),
+        ),
+        (
+            MotionError::BadLimits { leg: 0 },
+            d(Start, "move: motion limits invalid", "0"),
+        ),
+        (
+            MotionError::StartRefused(Refusals::default()),
+            d(
+                Start,
+                "move: the start pose (of the held strokes) is refused by the workspace check",
+                "refusal bits",
+            ),
+        ),
+        (
+            MotionError::TargetRefused(Refusals::default()),
+            d(
+                Start,
+                "move: the target is refused by the workspace check",
+                "refusal bits",
+            ),
+        ),
+        (
+            MotionError::PathRefused {
+                sample: 0,
+                refusals: Refusals::default(),
+            },
+            d(
+                Start,
+                "move: the straight path leaves the workspace/stroke range between its ends",
+                "refusal bits",
+            ),
+        ),
+        (
+            MotionError::TooLong,
+            d(
+                Start,
+                &format!(
+                    "move too long (more than 2^{} cycles)",
+                    crate::motion::MAX_MOVE_CYCLES.trailing_zeros()
+                ),
+                "0",
+            ),
+        ),
+    ] {
+        push("MOTION", "motion", e.code(), format!("{e:?}"), doc);
+    }
+    let max_delta_id = PARAMETERS
+        .get(crate::controller::params::index::DIRECT_MAX_DELTA)
+        .map_or(0, |p| p.id);
+    for (e, doc) in [
+        (
+            StrokeMoveError::BadLeg,
+            d(Start, "direct stroke: bad leg", "0"),
+        ),
+        (
+            StrokeMoveError::NonFinite,
+            d(Start, "direct stroke: non-finite stroke or delta", "0"),
+        ),
+        (
+            StrokeMoveError::BadLimits,
+            d(Start, "direct stroke: limits invalid", "0"),
+        ),
+        (
+            StrokeMoveError::DeltaTooLarge,
+            d(
+                Start,
+                &format!(
+                    "direct stroke: the delta exceeds the largest direct-stroke delta \
+                     (parameter {})",
+                    hex4(max_delta_id)
+                ),
+                "0",
+            ),
+        ),
+        (
+            StrokeMoveError::OutsideStrokeRange,
+            d(
+                Start,
+                "direct stroke: destination outside the stroke limits and no closer",
+                "0",
+            ),
+        ),
+        (
+            StrokeMoveError::TooLong,
+            d(Start, "direct stroke: too long", "0"),
+        ),
+    ] {
+        push("STROKE", "motion", e.code(), format!("{e:?}"), doc);
     }
     // The controller's own codes; its pass-through variants (Motion, Stroke, TableDecode,
     // Store) carry the codes listed above.
-    for e in [
-        CommandError::Faulted(FaultFlags::empty()),
-        CommandError::Busy(State::Moving),
-        CommandError::FaultPersists(FaultFlags::empty()),
-        CommandError::NoPose,
-        CommandError::UploadIncomplete(0),
-        CommandError::CrcMismatch(0),
-        CommandError::NoPending,
-        CommandError::Stopped,
-        CommandError::AbortedByFault(FaultFlags::empty()),
-        CommandError::PendingMismatch { pending_id: 0 },
-        CommandError::EncoderSuspect(0),
-        CommandError::NoGeometry,
-        CommandError::JobBusy(0),
-        CommandError::TowardEndOfTravel(0),
+    let job_offset = housekeeping_fields()
+        .iter()
+        .find(|(f, _)| f.name == "job")
+        .map_or(0, |(f, _)| f.offset);
+    for (e, doc) in [
+        (
+            CommandError::Faulted(FaultFlags::empty()),
+            d(
+                Start,
+                "a fault is latched: clear it first",
+                "latched fault flags",
+            ),
+        ),
+        (
+            CommandError::Busy(State::Moving),
+            d(
+                Start,
+                "busy: a motion is in progress (stop first; tables change between motions only)",
+                "state code",
+            ),
+        ),
+        (
+            CommandError::FaultPersists(FaultFlags::empty()),
+            d(
+                Start,
+                "clear refused: the fault condition persists",
+                "blocking fault flags",
+            ),
+        ),
+        (
+            CommandError::NoPose,
+            d(
+                Start,
+                "the pose of the held strokes is unknown (FK failed)",
+                "0",
+            ),
+        ),
+        (
+            CommandError::UploadIncomplete(0),
+            d(
+                Start,
+                "commit: table bytes missing from the upload buffer",
+                "bytes missing",
+            ),
+        ),
+        (
+            CommandError::CrcMismatch(0),
+            d(
+                Start,
+                "commit: CRC-32 does not match the uploaded bytes",
+                "CRC computed",
+            ),
+        ),
+        (
+            CommandError::NoPending,
+            d(Start, "activate: no table pending", "0"),
+        ),
+        (
+            CommandError::Stopped,
+            d(
+                CompletionOrStartFailure,
+                "move ended early by a stop telecommand",
+                "0",
+            ),
+        ),
+        (
+            CommandError::AbortedByFault(FaultFlags::empty()),
+            d(
+                CompletionOrStartFailure,
+                "move ended early by a fault",
+                "latched fault flags",
+            ),
+        ),
+        (
+            CommandError::PendingMismatch { pending_id: 0 },
+            d(
+                Start,
+                "activate: the named table is not the pending one",
+                "pending table ID",
+            ),
+        ),
+        (
+            CommandError::EncoderSuspect(0),
+            d(
+                Start,
+                "direct stroke: the leg's own encoder is suspect",
+                "reasons (section 3)",
+            ),
+        ),
+        (
+            CommandError::NoGeometry,
+            d(
+                Start,
+                "no usable geometry (defect guard): all motion refused",
+                "0",
+            ),
+        ),
+        (
+            CommandError::JobBusy(0),
+            d(
+                Start,
+                "a table job is running",
+                &format!("job (HK offset {job_offset})"),
+            ),
+        ),
+        (
+            CommandError::TowardEndOfTravel(0),
+            d(
+                Start,
+                "direct stroke toward an end-of-travel switch that is active or was seen since \
+                 the fault latched",
+                "legs blocked in the move's direction (bit i = leg i+1)",
+            ),
+        ),
     ] {
-        push("CONTROLLER", e.code(), format!("{e:?}"));
+        push("CONTROLLER", "controller", e.code(), format!("{e:?}"), doc);
     }
-    for e in [
-        ParamError::UnknownId(0),
-        ParamError::OutOfRange(0),
-        ParamError::WarningNotBelowFault,
-        ParamError::Repeated(0),
+    for (e, doc) in [
+        (
+            ParamError::UnknownId(0),
+            d(Start, "unknown parameter ID", "the ID"),
+        ),
+        (
+            ParamError::OutOfRange(0),
+            d(Start, "value outside the parameter's range", "the ID"),
+        ),
+        (
+            ParamError::WarningNotBelowFault,
+            d(
+                Start,
+                "following warning threshold not below the fault threshold",
+                "0",
+            ),
+        ),
+        (
+            ParamError::Repeated(0),
+            d(
+                Start,
+                "a TC[20,1] or TC[20,3] names a parameter ID twice",
+                "the ID",
+            ),
+        ),
     ] {
-        push("CONTROLLER", e.code(), format!("{e:?}"));
+        push("CONTROLLER", "parameters", e.code(), format!("{e:?}"), doc);
     }
     // The schedule's codes (CommandError::Schedule passes them through).
-    for e in [
-        ScheduleError::Full { free: 0 },
-        ScheduleError::ReleaseTimeInPast { index: 0 },
-        ScheduleError::DuplicateRequestId { index: 0 },
-        ScheduleError::NotScheduled { index: 0 },
-        ScheduleError::ShiftOutOfRange {
-            request_id: RequestId::default(),
-        },
-        ScheduleError::ReleaseTimeBeyondClock { index: 0 },
+    for (e, doc) in [
+        (
+            ScheduleError::Full { free: 0 },
+            d(
+                Start,
+                &format!("insert: the activities do not all fit ({SCHEDULE_CAPACITY} places)"),
+                "free places",
+            ),
+        ),
+        (
+            ScheduleError::ReleaseTimeInPast { index: 0 },
+            d(
+                Start,
+                "insert: a release time is earlier than now",
+                "activity index",
+            ),
+        ),
+        (
+            ScheduleError::DuplicateRequestId { index: 0 },
+            d(
+                Start,
+                "insert: a request ID is already scheduled or repeated in the TC",
+                "activity index",
+            ),
+        ),
+        (
+            ScheduleError::NotScheduled { index: 0 },
+            d(
+                Start,
+                "delete: a request ID is not scheduled, or listed twice",
+                "index in the TC",
+            ),
+        ),
+        (
+            ScheduleError::ShiftOutOfRange {
+                request_id: RequestId::default(),
+            },
+            d(
+                Start,
+                "time shift: an activity would be earlier than now or beyond the clock's range",
+                "the request ID of the first such activity in release order",
+            ),
+        ),
+        (
+            ScheduleError::ReleaseTimeBeyondClock { index: 0 },
+            d(
+                Start,
+                &format!(
+                    "insert: a release time beyond the clock's range ({}.{:03} s)",
+                    thousands(i64::try_from(max_obt_ms / 1000).unwrap_or(i64::MAX)),
+                    max_obt_ms % 1000
+                ),
+                "activity index",
+            ),
+        ),
     ] {
-        push("SCHEDULE", e.code(), format!("{e:?}"));
+        push("SCHEDULE", "schedule", e.code(), format!("{e:?}"), doc);
     }
     v
 }
 
-fn failure_codes() -> Vec<(i64, String, String)> {
+/// The values of the `failure_code` enumeration: 0 (none), then every code of
+/// [`failure_codes`] with its label and meaning.
+fn failure_code_values() -> Vec<(i64, String, String)> {
     let mut v = vec![(0, "NONE".to_string(), "no failure".to_string())];
-    v.extend(failure_samples().into_iter().map(|(family, code, debug)| {
-        (
-            i64::from(code),
-            format!("{family}_{}", upper_snake(&debug)),
-            format!(
-                "{} ({family})",
-                debug.split([' ', '(']).next().unwrap_or("")
-            ),
-        )
-    }));
+    v.extend(
+        failure_codes()
+            .into_iter()
+            .map(|c| (i64::from(c.code), c.label, c.meaning)),
+    );
     v
+}
+
+/// What an on-board parameter is, by its name in [`PARAMETERS`] (the flight image
+/// carries no such text); `None` for a parameter not described here, which fails
+/// `host-tests/mdb.rs`.
+pub fn parameter_description(name: &str) -> Option<String> {
+    Some(match name {
+        "pivot_x" => "pivot x (in M's coordinates)".into(),
+        "pivot_y" => "pivot y".into(),
+        "pivot_z" => "pivot z".into(),
+        "user_alpha" => {
+            "user frame alpha (rotation of the user frame from the base, Rz Ry Rx)".into()
+        }
+        "user_beta" => "user frame beta".into(),
+        "user_gamma" => "user frame gamma".into(),
+        "move_speed" => "coordinated-move speed limit per slider".into(),
+        "move_accel" => "coordinated-move acceleration limit per slider".into(),
+        "direct_speed" => "direct-stroke speed".into(),
+        "direct_accel" => "direct-stroke acceleration".into(),
+        "direct_max_delta" => "largest direct-stroke delta".into(),
+        "hk_period" => format!(
+            "housekeeping period (in control cycles of {} ms)",
+            crate::timing::CYCLE_US / 1000
+        ),
+        "following_warning" => "following-error warning threshold".into(),
+        "following_fault" => "following-error fault threshold".into(),
+        "encoder_jump" => "encoder jump threshold".into(),
+        "stuck_progress" => "stuck detection: least progress".into(),
+        "stuck_window" => "stuck detection: window".into(),
+        "warning_debounce" => "warning debounce".into(),
+        "fault_debounce" => "fault debounce".into(),
+        _ => return None,
+    })
+}
+
+/// A parameter's default as docs/icd.md writes it.
+pub fn parameter_default(d: &crate::controller::params::ParamDef) -> String {
+    match d.default {
+        crate::controller::params::Default::Fixed(v) => thousands(i64::from(v)),
+        crate::controller::params::Default::Table => "the running table's".into(),
+    }
 }
 
 /// The on-board parameters (ST[20]) with their unit, range and default.
@@ -2087,187 +3221,284 @@ fn parameter_ids() -> Vec<(i64, String, String)> {
     PARAMETERS
         .iter()
         .map(|d| {
-            let default = match d.default {
-                crate::controller::params::Default::Fixed(v) => format!("{v}"),
-                crate::controller::params::Default::Table => "the running table's".into(),
-            };
             (
                 i64::from(d.id),
                 d.name.to_ascii_uppercase(),
                 format!(
-                    "{} ({}; {}..={}; default {default})",
-                    d.name, d.unit, d.min, d.max
+                    "{} ({}; {}..={}; default {})",
+                    parameter_description(d.name).unwrap_or_else(|| d.name.to_string()),
+                    d.unit,
+                    d.min,
+                    d.max,
+                    parameter_default(d)
                 ),
             )
         })
         .collect()
 }
 
+/// The reset causes: code, name, note (docs/icd.md section 4 and housekeeping).
+pub fn reset_causes() -> Vec<(u8, &'static str, &'static str)> {
+    use crate::controller::ResetCause;
+    [
+        ResetCause::PowerOn,
+        ResetCause::Watchdog,
+        ResetCause::Software,
+        ResetCause::HardFault,
+        ResetCause::Panic,
+        ResetCause::External,
+    ]
+    .iter()
+    .map(|c| {
+        // Exhaustive: a new cause does not compile until it is named here.
+        let (name, note) = match c {
+            ResetCause::PowerOn => ("power-on", ""),
+            ResetCause::Watchdog => ("watchdog", ""),
+            ResetCause::Software => ("software", ""),
+            ResetCause::HardFault => ("HardFault", "including a stack overflow into the guard"),
+            ResetCause::Panic => ("panic", ""),
+            ResetCause::External => (
+                "external",
+                "a reset software did not announce: the reset pin, a debugger, QEMU's system_reset",
+            ),
+        };
+        (c.code(), name, note)
+    })
+    .collect()
+}
+
 /// The events (IDs from [`event_id`], severities as the controller sends them).
 pub fn events() -> Vec<Event> {
-    let info = EventSeverity::Info;
-    let sev = |s: &[EventSeverity]| s.iter().map(|s| severity_name(*s)).collect();
+    use EventSeverity::{High, Info, Low, Medium};
+    let sev = |s: &[(EventSeverity, &'static str)]| {
+        s.iter()
+            .map(|(s, when)| SeverityUse {
+                severity: severity_name(*s),
+                subtype: s.subtype(),
+                when,
+            })
+            .collect()
+    };
+    let ev = |id: u16,
+              name: &'static str,
+              description: &str,
+              severities: Vec<SeverityUse>,
+              (aux0, aux1): (&str, &str),
+              message: &'static str| Event {
+        id,
+        name,
+        description: description.into(),
+        severities,
+        aux0: aux0.into(),
+        aux1: aux1.into(),
+        message,
+    };
+    let sources = format!("source ({})", source_codes("nominal", ""));
+    let request_id_word = "request ID of the released TC (packet ID << 16, sequence control)";
     vec![
-        Event {
-            id: event_id::STATE_CHANGED,
-            name: "STATE_CHANGED",
-            severities: sev(&[info]),
-            aux0: "old state (controller_state)",
-            aux1: "new state (controller_state)",
-            message: "controller state {aux0} -> {aux1}",
-        },
-        Event {
-            id: event_id::FAULT_LATCHED,
-            name: "FAULT_LATCHED",
-            severities: sev(&[EventSeverity::High]),
-            aux0: "all latched fault flags (fault_flags)",
-            aux1: "newly latched flags (bits 0..23) and the legs they name (bits 24..29)",
-            message: "fault latched: flags {aux0}, new {aux1}",
-        },
-        Event {
-            id: event_id::FAULTS_CLEARED,
-            name: "FAULTS_CLEARED",
-            severities: sev(&[info]),
-            aux0: "flags cleared (fault_flags)",
-            aux1: "0",
-            message: "faults cleared: flags {aux0}",
-        },
-        Event {
-            id: event_id::WARNING_CHANGED,
-            name: "WARNING_CHANGED",
-            severities: sev(&[EventSeverity::Low]),
-            aux0: "warning flags (fault_flags)",
-            aux1: "legs of the warnings (leg mask)",
-            message: "warning flags now {aux0}",
-        },
-        Event {
-            id: event_id::MOVE_REFUSED,
-            name: "MOVE_REFUSED",
-            severities: sev(&[EventSeverity::Low]),
-            aux0: "refusal bits (refusal_bits)",
-            aux1: "failure code (failure_code)",
-            message: "move refused: refusal bits {aux0}, failure code {aux1}",
-        },
-        Event {
-            id: event_id::SETPOINT_REFUSED,
-            name: "SETPOINT_REFUSED",
-            severities: sev(&[EventSeverity::High]),
-            aux0: "refusal bits (refusal_bits)",
-            aux1: "control cycle",
-            message: "setpoint on a planned path failed IK (motion holds): refusal bits {aux0}, cycle {aux1}",
-        },
-        Event {
-            id: event_id::END_OF_TRAVEL,
-            name: "END_OF_TRAVEL",
-            severities: sev(&[EventSeverity::High]),
-            aux0: "legs at the lower switch (bits 0..5), at the upper switch (bits 8..13), with an unreadable input (bits 16..21)",
-            aux1: "control cycle",
-            message: "end of travel: switches {aux0} at cycle {aux1} (legs stopped toward them)",
-        },
-        Event {
-            id: event_id::TABLE_ACTIVATED,
-            name: "TABLE_ACTIVATED",
-            severities: sev(&[info]),
-            aux0: "table ID",
-            aux1: "CRC-32",
-            message: "table {aux0} activated, CRC-32 {aux1}",
-        },
-        Event {
-            id: event_id::TABLE_REJECTED,
-            name: "TABLE_REJECTED",
-            severities: sev(&[EventSeverity::Medium]),
-            aux0: "failure code (failure_code)",
-            aux1: "ID of the uploaded table for a commit (if it decodes), else 0",
-            message: "table rejected: failure code {aux0}, table {aux1}",
-        },
-        Event {
-            id: event_id::TABLE_COMMITTED,
-            name: "TABLE_COMMITTED",
-            severities: sev(&[info]),
-            aux0: "table ID",
-            aux1: "bank (boot_source: 1 A, 2 B)",
-            message: "table {aux0} committed to bank {aux1}",
-        },
-        Event {
-            id: event_id::TABLE_RELOADED,
-            name: "TABLE_RELOADED",
-            severities: sev(&[EventSeverity::Medium]),
-            aux0: "table ID",
-            aux1: "source (boot_source)",
-            message: "table {aux0} reloaded from {aux1} after a RAM upset",
-        },
-        Event {
-            id: event_id::BANK_HEALTH,
-            name: "BANK_HEALTH",
-            severities: sev(&[info, EventSeverity::Medium]),
-            aux0: "bit 0 bank A, bit 1 bank B corrupt",
-            aux1: "0",
-            message: "flash bank health {aux0}",
-        },
-        Event {
-            id: event_id::BOOT,
-            name: "BOOT",
-            severities: sev(&[info, EventSeverity::Low]),
-            aux0: "boot source (boot_source)",
-            aux1: "running table ID",
-            message: "boot finished: source {aux0}, table {aux1}",
-        },
-        Event {
-            id: event_id::BOOT_DETAIL,
-            name: "BOOT_DETAIL",
-            severities: sev(&[info]),
-            aux0: "boot flags (bank A bits 0..7, fell back bit 7, bank B bits 8..15, selection bits 16..18)",
-            aux1: "reset cause (bits 0..7), boot count (bits 16..31)",
-            message: "boot detail: flags {aux0}, reset cause and count {aux1}",
-        },
-        Event {
-            id: event_id::DEADLINE_MISSED,
-            name: "DEADLINE_MISSED",
-            severities: sev(&[EventSeverity::High]),
-            aux0: "consecutive overruns",
-            aux1: "overruns since boot",
-            message: "control cycles overran {aux0} times in a row (total {aux1}): motion stopped",
-        },
-        Event {
-            id: event_id::PARAMETERS_CHANGED,
-            name: "PARAMETERS_CHANGED",
-            severities: sev(&[info]),
-            aux0: "the parameters this telecommand set (bit i = parameter index i)",
-            aux1: "every parameter set now (bit i = parameter index i; HK offset 213)",
-            message: "on-board parameters changed: {aux0} set (all set: {aux1})",
-        },
-        Event {
-            id: event_id::PARAMETERS_IGNORED,
-            name: "PARAMETERS_IGNORED",
-            severities: sev(&[EventSeverity::Low]),
-            aux0: "persisted parameters not applied (bit i = parameter index i): out of range, or following-error overrides conflicting with the running table",
-            aux1: "0",
-            message: "persisted parameters {aux0} not applied: the defaults or the table's thresholds run",
-        },
-        Event {
-            id: event_id::ACTIVITY_RELEASED,
-            name: "ACTIVITY_RELEASED",
-            severities: sev(&[info]),
-            aux0: "request ID of the released TC (packet ID << 16 | sequence control)",
-            aux1: "release time (on-board time, s)",
-            message: "scheduled activity {aux0} released (release time {aux1} s)",
-        },
-        Event {
-            id: event_id::ACTIVITY_FAILED,
-            name: "ACTIVITY_FAILED",
-            severities: sev(&[EventSeverity::Medium]),
-            aux0: "request ID of the released TC (packet ID << 16 | sequence control)",
-            aux1: "report subtype (bits 16..23) and failure code (bits 0..15)",
-            message: "released activity {aux0} failed: subtype and code {aux1}",
-        },
-        Event {
-            id: event_id::ACTIVITY_EXPIRED,
-            name: "ACTIVITY_EXPIRED",
-            severities: sev(&[EventSeverity::Low]),
-            aux0: "request ID of the deleted TC (packet ID << 16 | sequence control)",
-            aux1: "its release time (on-board time, s)",
-            message: "activity {aux0} deleted unrun: release time {aux1} s passed while release was disabled",
-        },
+        ev(
+            event_id::STATE_CHANGED,
+            "STATE_CHANGED",
+            "controller state changed",
+            sev(&[(Info, "")]),
+            ("old state", "new state"),
+            "controller state {aux0} -> {aux1}",
+        ),
+        ev(
+            event_id::FAULT_LATCHED,
+            "FAULT_LATCHED",
+            "fault latched",
+            sev(&[(High, "")]),
+            (
+                "all latched fault flags",
+                "newly latched flags (bits 0..23), legs they name (bits 24..29)",
+            ),
+            "fault latched: flags {aux0}, new {aux1}",
+        ),
+        ev(
+            event_id::FAULTS_CLEARED,
+            "FAULTS_CLEARED",
+            "faults cleared",
+            sev(&[(Info, "")]),
+            ("flags cleared", "0"),
+            "faults cleared: flags {aux0}",
+        ),
+        ev(
+            event_id::WARNING_CHANGED,
+            "WARNING_CHANGED",
+            "warning flags changed",
+            sev(&[(Low, "")]),
+            ("warning flags", "legs of the warnings"),
+            "warning flags now {aux0}",
+        ),
+        ev(
+            event_id::MOVE_REFUSED,
+            "MOVE_REFUSED",
+            "move refused",
+            sev(&[(Low, "")]),
+            ("refusal bits", "failure code"),
+            "move refused: refusal bits {aux0}, failure code {aux1}",
+        ),
+        ev(
+            event_id::SETPOINT_REFUSED,
+            "SETPOINT_REFUSED",
+            "a setpoint on a planned path failed IK (defect guard; the motion holds)",
+            sev(&[(High, "")]),
+            ("refusal bits", "control cycle"),
+            "setpoint on a planned path failed IK (motion holds): refusal bits {aux0}, cycle {aux1}",
+        ),
+        ev(
+            event_id::END_OF_TRAVEL,
+            "END_OF_TRAVEL",
+            "end of travel: the set of active end-of-travel switches changed to a non-empty one",
+            sev(&[(High, "")]),
+            (
+                "legs at the lower switch (bits 0..5), at the upper switch (bits 8..13), with an \
+                 unreadable input (bits 16..21)",
+                "control cycle",
+            ),
+            "end of travel: switches {aux0} at cycle {aux1} (legs stopped toward them)",
+        ),
+        ev(
+            event_id::TABLE_ACTIVATED,
+            "TABLE_ACTIVATED",
+            "table activated (now running)",
+            sev(&[(Info, "")]),
+            ("table ID", "CRC-32"),
+            "table {aux0} activated, CRC-32 {aux1}",
+        ),
+        ev(
+            event_id::TABLE_REJECTED,
+            "TABLE_REJECTED",
+            "table command refused or failed (commit, activate, switch bank, revert)",
+            sev(&[(Medium, "")]),
+            (
+                "failure code",
+                "for a commit: the uploaded table's ID when every byte was loaded since the last \
+                 commit and the image decodes (magic, version, length, CRC-32, reserved), else 0 \
+                 (so 0 with 0x0705); 0 for the others",
+            ),
+            "table rejected: failure code {aux0}, table {aux1}",
+        ),
+        ev(
+            event_id::TABLE_COMMITTED,
+            "TABLE_COMMITTED",
+            "table committed to flash (now pending)",
+            sev(&[(Info, "")]),
+            (
+                "table ID",
+                &format!(
+                    "bank ({} A, {} B)",
+                    BootSource::BankA.code(),
+                    BootSource::BankB.code()
+                ),
+            ),
+            "table {aux0} committed to bank {aux1}",
+        ),
+        ev(
+            event_id::TABLE_RELOADED,
+            "TABLE_RELOADED",
+            "running table reloaded from its source after a RAM upset",
+            sev(&[(Medium, "")]),
+            ("table ID", &sources),
+            "table {aux0} reloaded from {aux1} after a RAM upset",
+        ),
+        ev(
+            event_id::BANK_HEALTH,
+            "BANK_HEALTH",
+            "flash bank health changed",
+            sev(&[(Info, "when healthy"), (Medium, "when corrupt")]),
+            ("bit 0 bank A, bit 1 bank B corrupt", "0"),
+            "flash bank health {aux0}",
+        ),
+        ev(
+            event_id::BOOT,
+            "BOOT",
+            "boot finished",
+            sev(&[(Info, ""), (Low, "if the boot fell back")]),
+            (
+                &format!("boot {sources}"),
+                "running table ID",
+            ),
+            "boot finished: source {aux0}, table {aux1}",
+        ),
+        ev(
+            event_id::BOOT_DETAIL,
+            "BOOT_DETAIL",
+            "boot detail",
+            sev(&[(Info, "")]),
+            (
+                "boot flags (below)",
+                "reset cause (bits 0..7), boot count (bits 16..31)",
+            ),
+            "boot detail: flags {aux0}, reset cause and count {aux1}",
+        ),
+        ev(
+            event_id::DEADLINE_MISSED,
+            "DEADLINE_MISSED",
+            &format!(
+                "control cycles overran {} times in a row: motion stopped",
+                crate::controller::OVERRUN_HOLD_LIMIT
+            ),
+            sev(&[(High, "")]),
+            ("consecutive overruns", "overruns since boot"),
+            "control cycles overran {aux0} times in a row (total {aux1}): motion stopped",
+        ),
+        ev(
+            event_id::PARAMETERS_CHANGED,
+            "PARAMETERS_CHANGED",
+            "on-board parameters changed (persisted and applied)",
+            sev(&[(Info, "")]),
+            (
+                "the parameters this TC[20,3] set (bit i = parameter index i)",
+                "every parameter set now (the set mask, HK offset 213)",
+            ),
+            "on-board parameters changed: {aux0} set (all set: {aux1})",
+        ),
+        ev(
+            event_id::PARAMETERS_IGNORED,
+            "PARAMETERS_IGNORED",
+            "persisted on-board parameters not applied (at boot, or when the repair of an upset \
+             re-reads them): out of range, or following-error overrides that would leave the \
+             warning not below the running table's fault threshold",
+            sev(&[(Low, "")]),
+            ("the parameters not applied (bit i = parameter index i)", "0"),
+            "persisted parameters {aux0} not applied: the defaults or the table's thresholds run",
+        ),
+        ev(
+            event_id::ACTIVITY_RELEASED,
+            "ACTIVITY_RELEASED",
+            "time-tagged activity released: its telecommand runs now",
+            sev(&[(Info, "")]),
+            (request_id_word, "release time (OBT, whole seconds)"),
+            "scheduled activity {aux0} released (release time {aux1} s)",
+        ),
+        ev(
+            event_id::ACTIVITY_FAILED,
+            "ACTIVITY_FAILED",
+            &format!(
+                "a released activity's telecommand failed (its TM[{v},{}]/[{v},{}]/[{v},{}] has \
+                 the details)",
+                subtype::ACCEPTANCE_FAILURE,
+                subtype::START_FAILURE,
+                subtype::COMPLETION_FAILURE,
+                v = service::VERIFICATION
+            ),
+            sev(&[(Medium, "")]),
+            (
+                "request ID of the released TC",
+                "report subtype << 16, failure code",
+            ),
+            "released activity {aux0} failed: subtype and code {aux1}",
+        ),
+        ev(
+            event_id::ACTIVITY_EXPIRED,
+            "ACTIVITY_EXPIRED",
+            "activity deleted unrun: its release time passed while release was disabled",
+            sev(&[(Low, "")]),
+            ("request ID of the TC", "release time (OBT, whole seconds)"),
+            "activity {aux0} deleted unrun: release time {aux1} s passed while release was disabled",
+        ),
     ]
 }
 
@@ -2286,83 +3517,469 @@ fn bit_of(word: u32) -> u32 {
     word.trailing_zeros()
 }
 
+/// One fault or warning flag: bit, label, its name in docs/icd.md (section 6) and what
+/// it means (the mission database's bit description).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FlagDoc {
+    /// Bit position (from [`FaultFlags`]).
+    pub bit: u32,
+    /// Label (the `FaultFlags` constant's name).
+    pub label: &'static str,
+    /// Its name in docs/icd.md.
+    pub name: String,
+    /// What it means.
+    pub meaning: &'static str,
+    /// A warning (not latched), not a fault.
+    pub warning: bool,
+}
+
 /// The fault and warning flags, bits from [`FaultFlags`].
-pub fn fault_flag_bits() -> Vec<(u32, String, String)> {
-    let flags = [
+pub fn fault_flags_doc() -> Vec<FlagDoc> {
+    let flags: [(FaultFlags, &str, String, &str); 14] = [
         (
             FaultFlags::FOLLOWING_ERROR,
             "FOLLOWING_ERROR",
+            "following error".into(),
             "fault: |measured - commanded stroke| above the fault threshold",
         ),
         (
             FaultFlags::ENCODER_STUCK,
             "ENCODER_STUCK",
+            "encoder stuck".into(),
             "fault: encoder makes no progress while its slider moves",
         ),
         (
             FaultFlags::ENCODER_JUMP,
             "ENCODER_JUMP",
+            "encoder jump".into(),
             "fault: encoder changed more than physically possible in one cycle",
         ),
         (
             FaultFlags::ENCODER_READ_FAILURE,
             "ENCODER_READ_FAILURE",
+            "encoder read failure".into(),
             "fault: encoder did not answer, corrupted or non-finite",
         ),
         (
             FaultFlags::SOFT_LIMIT,
             "SOFT_LIMIT",
+            "slider beyond soft limit".into(),
             "fault: measured stroke beyond the soft limit",
         ),
         (
             FaultFlags::FK_NOT_CONVERGED,
             "FK_NOT_CONVERGED",
+            "FK not converged".into(),
             "fault: FK of the measured strokes failed",
         ),
         (
             FaultFlags::POSE_OUTSIDE_WORKSPACE,
             "POSE_OUTSIDE_WORKSPACE",
+            "pose outside workspace".into(),
             "fault: measured pose outside the workspace",
         ),
         (
             FaultFlags::DRIVE_FAULT,
             "DRIVE_FAULT",
+            "drive fault".into(),
             "fault: a drive reported a fault",
         ),
         (
             FaultFlags::TABLE_CORRUPT,
             "TABLE_CORRUPT",
-            "fault: the running table, geometry, thresholds or parameters in RAM failed the scrub or their check",
+            "running table, parameters or settings corrupt in RAM (scrub, checks)".into(),
+            "fault: the running table, geometry, thresholds or parameters in RAM failed the \
+             scrub or their check",
         ),
         (
             FaultFlags::DEADLINE_MISSED,
             "DEADLINE_MISSED",
+            format!(
+                "deadline missed ({} consecutive control-cycle overruns)",
+                crate::controller::OVERRUN_HOLD_LIMIT
+            ),
             "fault: control cycles overran their period 3 times in a row",
         ),
         (
             FaultFlags::LIMIT_SWITCH,
             "LIMIT_SWITCH",
+            "end of travel (an end-of-travel switch active or a switch input unreadable)".into(),
             "fault: an end-of-travel switch active, or a switch input unreadable",
         ),
         (
             FaultFlags::OUTPUT_LIMITED,
             "OUTPUT_LIMITED",
-            "fault: the output stage clamped a stroke step beyond the speed or acceleration limit (geometry or planner wrong); the drives held at once",
+            "output limited (a stroke step beyond the speed or acceleration limit was clamped: \
+             geometry or planner wrong; the drives held at once)"
+                .into(),
+            "fault: the output stage clamped a stroke step beyond the speed or acceleration \
+             limit",
         ),
         (
             FaultFlags::FOLLOWING_WARNING,
             "FOLLOWING_WARNING",
+            "following error above the warning threshold".into(),
             "warning: following error above the warning threshold",
         ),
         (
             FaultFlags::ENCODER_WARNING,
             "ENCODER_WARNING",
+            format!(
+                "encoder warning (the encoder's own warning bit: position valid, maintenance \
+                 asked for; legs in event {}, not latched, motion goes on)",
+                hex4(event_id::WARNING_CHANGED)
+            ),
             "warning: an encoder reports its warning bit (maintenance: e.g. a dirty scale)",
         ),
     ];
     flags
+        .into_iter()
+        .map(|(f, label, name, meaning)| FlagDoc {
+            bit: bit_of(f.bits()),
+            label,
+            name,
+            meaning,
+            warning: FaultFlags::ALL_WARNINGS.contains(f),
+        })
+        .collect()
+}
+
+/// The fault and warning flags as (bit, label, meaning), bits from [`FaultFlags`].
+pub fn fault_flag_bits() -> Vec<(u32, String, String)> {
+    fault_flags_doc()
+        .into_iter()
+        .map(|f| (f.bit, f.label.to_string(), f.meaning.to_string()))
+        .collect()
+}
+
+/// The status flags of one flash bank in the boot flags (event BOOT_DETAIL aux0), from
+/// [`crate::table::BankStatus::flag`]: (bit, what).
+pub fn bank_status_flags() -> Vec<(u32, &'static str)> {
+    use crate::table::BankStatus;
+    let all = [
+        BankStatus::Blank,
+        BankStatus::ReadFailed,
+        BankStatus::HeaderCorrupt,
+        BankStatus::BodyCorrupt(TableError::BadCrc),
+        BankStatus::Rejected(ValidationError::BadConfig),
+        BankStatus::Standby { sequence: 0 },
+        BankStatus::Active { sequence: 0 },
+    ];
+    all.iter()
+        .map(|b| {
+            // Exhaustive: a new status does not compile until it is named here.
+            let what = match b {
+                BankStatus::Blank => "blank",
+                BankStatus::ReadFailed => "read failed",
+                BankStatus::HeaderCorrupt => "header corrupt",
+                BankStatus::BodyCorrupt(_) => "body corrupt",
+                BankStatus::Rejected(_) => "refused by validation",
+                BankStatus::Standby { .. } => "valid standby",
+                BankStatus::Active { .. } => "selected and running",
+            };
+            (bit_of(u32::from(b.flag())), what)
+        })
+        .collect()
+}
+
+// ---------------------------------------------------------------------------------
+// The parameter table image (TC[6,2] chunks, TM[6,6] dumps).
+
+/// One row of the table image's layout (docs/icd.md section 5; little-endian).
+#[derive(Clone, Debug, Serialize)]
+pub struct TableImageRow {
+    /// Offset in the image (bytes).
+    pub offset: usize,
+    /// Size (bytes).
+    pub size: usize,
+    /// Type as docs/icd.md writes it (`u16`, `36 × f64`, `ASCII`, `bytes`).
+    pub ty: String,
+    /// What it holds.
+    pub field: String,
+    /// Unit (empty: none).
+    pub unit: &'static str,
+    /// What validation accepts (with the refusal codes).
+    pub validation: String,
+    /// The row's bytes in an image of this table (checked against [`Table::to_bytes`] by
+    /// `host-tests/icd.rs`).
+    #[serde(skip)]
+    pub bytes_of: fn(&Table) -> Vec<u8>,
+}
+
+fn f64s_le(v: &[f64]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// The table image's rows, in offset order (they tile [`TABLE_LEN`] bytes).
+pub fn table_image() -> Vec<TableImageRow> {
+    use crate::table::layout::{
+        JOINT_COORDS, PROVENANCE_TAG_LEN, TABLE_CRC_LEN, TABLE_CRC_OFFSET, TABLE_FORMAT_VERSION,
+        TABLE_MAGIC,
+    };
+    #[derive(Clone, Copy)]
+    enum Ty {
+        Bytes,
+        Ascii,
+        U16,
+        U32,
+        F32,
+        F64,
+    }
+    let validation = crate::table::ValidationConfig::flight();
+    let ws = &validation.max_workspace;
+    let ws_arcsec: Vec<f64> = ws
+        .rotation_rad
         .iter()
-        .map(|(f, n, m)| (bit_of(f.bits()), (*n).to_string(), (*m).to_string()))
+        .map(|r| r * crate::units::ARCSEC_PER_RAD)
+        .collect();
+    let code = |e: ValidationError| hex4(e.code());
+    let non_finite = code(ValidationError::NonFinite { field: 0 });
+    let dev = uniform(&[validation.max_coordinate_deviation_mm]);
+    let cap = uniform(&[validation.max_abs_stroke_limit_mm]);
+    let stroke_cap = code(ValidationError::StrokeLimitBeyondCap { leg: 0 });
+    let ws_cap = code(ValidationError::WorkspaceBeyondCap { axis: 0 });
+    let legs = format!("legs 1..{LEGS}");
+    type Row = (
+        Ty,
+        usize,
+        String,
+        &'static str,
+        String,
+        fn(&Table) -> Vec<u8>,
+    );
+    let rows: Vec<Row> = vec![
+        (
+            Ty::Bytes,
+            TABLE_MAGIC.len(),
+            format!("magic `\"{}\"`", String::from_utf8_lossy(&TABLE_MAGIC)),
+            "",
+            "exact".into(),
+            |_| TABLE_MAGIC.to_vec(),
+        ),
+        (
+            Ty::U16,
+            1,
+            "format version".into(),
+            "",
+            format!("{TABLE_FORMAT_VERSION}"),
+            |_| TABLE_FORMAT_VERSION.to_le_bytes().to_vec(),
+        ),
+        (
+            Ty::U16,
+            1,
+            "total length, CRC included".into(),
+            "bytes",
+            format!("{TABLE_LEN}"),
+            |_| u16::try_from(TABLE_LEN).unwrap_or(0).to_le_bytes().to_vec(),
+        ),
+        (
+            Ty::U32,
+            1,
+            "table ID (reported in HK)".into(),
+            "",
+            "any".into(),
+            |t| t.table_id.to_le_bytes().to_vec(),
+        ),
+        (Ty::U32, 1, "calibration ID".into(), "", "any".into(), |t| {
+            t.provenance.calibration_id.to_le_bytes().to_vec()
+        }),
+        (
+            Ty::Ascii,
+            PROVENANCE_TAG_LEN,
+            "provenance tag, NUL/space padded".into(),
+            "",
+            format!(
+                "printable ASCII or NUL ({})",
+                code(ValidationError::ProvenanceNotAscii { index: 0 })
+            ),
+            |t| t.provenance.tag.to_vec(),
+        ),
+        (
+            Ty::F64,
+            JOINT_COORDS,
+            format!(
+                "joint centres, leg-major: leg i (1..{LEGS}) at this offset + {} (i - 1): `a.x \
+                 a.y a.z` (frame B, zero stroke), then `b.x b.y b.z` (frame M)",
+                JOINT_COORDS / LEGS * core::mem::size_of::<f64>()
+            ),
+            "mm",
+            format!(
+                "finite ({non_finite}); within {dev} mm of nominal ({}); rod length within {} mm \
+                 of nominal ({}); upper joint >= {} mm above the lower at home ({})",
+                code(ValidationError::CoordinateOffNominal { index: 0 }),
+                uniform(&[validation.max_rod_deviation_mm]),
+                code(ValidationError::RodLengthImplausible { leg: 0 }),
+                uniform(&[crate::kinematics::geometry::MIN_ROD_VERTICAL_MM]),
+                code(ValidationError::Geometry(GeometryError::NonFinite)),
+            ),
+            |t| {
+                t.legs
+                    .iter()
+                    .flat_map(|l| f64s_le(&l.a_mm).into_iter().chain(f64s_le(&l.b_mm)))
+                    .collect()
+            },
+        ),
+        (
+            Ty::F64,
+            3,
+            "p0: home position of M's origin in B".into(),
+            "mm",
+            format!("finite, within {dev} mm of nominal"),
+            |t| f64s_le(&t.p0_mm),
+        ),
+        (
+            Ty::F64,
+            LEGS,
+            format!("slider stroke lower limits, {legs}"),
+            "mm",
+            format!("finite; >= -{cap} mm ({stroke_cap}); contains 0"),
+            |t| f64s_le(&t.stroke_limits.min_mm),
+        ),
+        (
+            Ty::F64,
+            LEGS,
+            format!("slider stroke upper limits, {legs}"),
+            "mm",
+            format!("finite; <= {cap} mm ({stroke_cap}); contains 0"),
+            |t| f64s_le(&t.stroke_limits.max_mm),
+        ),
+        (
+            Ty::F64,
+            3,
+            "workspace half-range x, y, z (base axes)".into(),
+            "mm",
+            format!(
+                "finite, >= 0, <= {} mm ({ws_cap})",
+                uniform(&ws.translation_mm)
+            ),
+            |t| f64s_le(&t.workspace.translation_mm),
+        ),
+        (
+            Ty::F64,
+            3,
+            "workspace half-range alpha, beta, gamma".into(),
+            "rad",
+            format!("finite, >= 0, <= {} arcsec ({ws_cap})", uniform(&ws_arcsec)),
+            |t| f64s_le(&t.workspace.rotation_rad),
+        ),
+        (
+            Ty::F32,
+            1,
+            "following-error warning threshold".into(),
+            "mm",
+            format!(
+                "> 0, < fault threshold ({})",
+                code(ValidationError::Supervision { field: 0 })
+            ),
+            |t| {
+                t.supervision
+                    .following_error_warning_mm
+                    .to_le_bytes()
+                    .to_vec()
+            },
+        ),
+        (
+            Ty::F32,
+            1,
+            "following-error fault threshold".into(),
+            "mm",
+            "> 0".into(),
+            |t| {
+                t.supervision
+                    .following_error_fault_mm
+                    .to_le_bytes()
+                    .to_vec()
+            },
+        ),
+        (
+            Ty::F32,
+            1,
+            "encoder jump threshold".into(),
+            "mm per control cycle",
+            "> 0".into(),
+            |t| {
+                t.supervision
+                    .encoder_jump_mm_per_cycle
+                    .to_le_bytes()
+                    .to_vec()
+            },
+        ),
+        (
+            Ty::F32,
+            1,
+            "stuck detection: least progress counted as motion".into(),
+            "mm",
+            "> 0".into(),
+            |t| t.supervision.stuck_min_progress_mm.to_le_bytes().to_vec(),
+        ),
+        (
+            Ty::U16,
+            1,
+            "stuck detection window".into(),
+            "control cycles",
+            "> 0".into(),
+            |t| t.supervision.stuck_detection_cycles.to_le_bytes().to_vec(),
+        ),
+        (
+            Ty::U16,
+            1,
+            "warning debounce".into(),
+            "control cycles",
+            "> 0".into(),
+            |t| t.supervision.warning_debounce_cycles.to_le_bytes().to_vec(),
+        ),
+        (
+            Ty::U16,
+            1,
+            "fault debounce".into(),
+            "control cycles",
+            "> 0".into(),
+            |t| t.supervision.fault_debounce_cycles.to_le_bytes().to_vec(),
+        ),
+        (
+            Ty::U16,
+            1,
+            "reserved".into(),
+            "",
+            format!("0 ({})", hex4(TableError::ReservedNotZero.code())),
+            |_| 0u16.to_le_bytes().to_vec(),
+        ),
+        (
+            Ty::U32,
+            TABLE_CRC_LEN / 4,
+            format!("CRC-32/ISO-HDLC (zlib) of bytes 0..{TABLE_CRC_OFFSET}"),
+            "",
+            format!("must match ({})", hex4(TableError::BadCrc.code())),
+            |t| t.crc32().to_le_bytes().to_vec(),
+        ),
+    ];
+    let mut offset = 0;
+    rows.into_iter()
+        .map(|(ty, n, field, unit, validation, bytes_of)| {
+            let (elem, name) = match ty {
+                Ty::Bytes => (1, "bytes"),
+                Ty::Ascii => (1, "ASCII"),
+                Ty::U16 => (2, "u16"),
+                Ty::U32 | Ty::F32 => (4, if matches!(ty, Ty::U32) { "u32" } else { "f32" }),
+                Ty::F64 => (8, "f64"),
+            };
+            let ty = match ty {
+                Ty::Bytes | Ty::Ascii => name.to_string(),
+                _ if n == 1 => name.to_string(),
+                _ => format!("{n} × {name}"),
+            };
+            let row = TableImageRow {
+                offset,
+                size: elem * n,
+                ty,
+                field,
+                unit,
+                validation,
+                bytes_of,
+            };
+            offset += row.size;
+            row
+        })
         .collect()
 }
 
@@ -2477,7 +4094,7 @@ pub fn mdb() -> Mdb {
             },
             Enumeration {
                 name: "failure_code",
-                values: failure_codes(),
+                values: failure_code_values(),
             },
             Enumeration {
                 name: "event_id",
@@ -2523,6 +4140,8 @@ pub fn mdb() -> Mdb {
                 success_subtype: subtype::COMPLETION_SUCCESS,
             },
         ],
+        failure_codes: failure_codes(),
+        table_image: table_image(),
     }
 }
 

@@ -6,6 +6,7 @@ pub mod campaign;
 pub mod eval;
 pub mod files;
 pub mod gateway;
+pub mod icd;
 pub mod ikfk;
 pub mod mdb;
 pub mod mission;
