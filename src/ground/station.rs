@@ -249,6 +249,16 @@ impl Station {
     /// housekeeping, other telecommands' reports) arrived before or after it. `None`
     /// until both reports have arrived (acceptance requested, ack flags 0xF).
     pub fn answer(&self, rid: RequestId) -> Option<Vec<(TmTime, &Tm)>> {
+        Some(
+            self.answer_indices(rid)?
+                .into_iter()
+                .filter_map(|i| Some((*self.log_times.get(i)?, self.log.get(i)?)))
+                .collect(),
+        )
+    }
+
+    /// Indices in `log` of [`Station::answer`]'s packets.
+    pub fn answer_indices(&self, rid: RequestId) -> Option<Vec<usize>> {
         let acc = self.report_index(rid, Verification::AcceptanceSuccess)?;
         let at = *self.log_times.get(acc)?;
         let next = acc
@@ -257,12 +267,8 @@ impl Station {
                 |t| matches!(t, Tm::Verify(r, v) if *r == rid && *v != Verification::AcceptanceSuccess),
             )?;
         Some(
-            self.log
-                .get(acc + 1..next)?
-                .iter()
-                .zip(self.log_times.get(acc + 1..next)?)
-                .filter(|(_, time)| **time == at)
-                .map(|(t, time)| (*time, t))
+            (acc + 1..next)
+                .filter(|i| self.log_times.get(*i) == Some(&at))
                 .collect(),
         )
     }
