@@ -242,12 +242,14 @@ impl Station {
     /// What the execution of telecommand `rid` made, with its packet times: the packets
     /// after its acceptance report and before its next report (start, or a start or
     /// completion failure), stamped in the acceptance's control cycle. The controller
-    /// queues a telecommand's records together, in this order, in the cycle that
-    /// executes it (ping reply, one-shot housekeeping, parameter report, dump chunks,
+    /// queues a telecommand's records together, in this order, while it executes it
+    /// (one lock: ping reply, one-shot housekeeping, parameter report, dump chunks,
     /// schedule summary, a refusal's event), and nothing queued is reordered (ICD,
     /// section 1); so this is the telecommand's own answer, whatever else (periodic
-    /// housekeeping, other telecommands' reports) arrived before or after it. `None`
-    /// until both reports have arrived (acceptance requested, ack flags 0xF).
+    /// housekeeping, other telecommands' reports) arrived before or after it. Not a
+    /// move check's TM[8,130]: that follows the check's evaluation, outside the lock,
+    /// possibly a cycle later (it names its request ID). `None` until both reports
+    /// have arrived (acceptance requested, ack flags 0xF).
     pub fn answer(&self, rid: RequestId) -> Option<Vec<(TmTime, &Tm)>> {
         Some(
             self.answer_indices(rid)?
