@@ -651,7 +651,7 @@ fn each_failure_arrives_in_the_report_the_icd_names() {
 /// received is counted in `tm_dropped`.
 #[test]
 fn telemetry_numbers_are_gapless_and_replies_are_never_dropped_under_a_full_downlink() {
-    use m2ctl::ground::station::TmNumbers;
+    use m2ctl::ground::station::TmHeader;
     use m2ctl::link::command::ParameterIds;
     use m2ctl::link::schedule::ScheduleCommand;
     use m2ctl::link::time::TimeReportRate;
@@ -724,7 +724,7 @@ fn telemetry_numbers_are_gapless_and_replies_are_never_dropped_under_a_full_down
         r.run(500);
 
         // 1. Sequence count: 0 at boot, +1 per packet, no gap.
-        let numbers: &[TmNumbers] = &r.st.log_numbers;
+        let numbers: &[TmHeader] = &r.st.log_headers;
         assert_eq!(numbers.len(), r.st.log.len());
         for (i, n) in numbers.iter().enumerate() {
             assert_eq!(

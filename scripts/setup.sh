@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Installs what the project needs on a fresh Debian machine with rustup (idempotent):
 # the Cortex-M4F Rust target, QEMU for Arm, Arm binutils and gcc (for the instruction
-# counter tools/qemu-insncount), valgrind (host benchmark), and defmt-print (decodes the
-# firmware's log).
+# counter tools/qemu-insncount), valgrind (host benchmark), defmt-print (decodes the
+# firmware's log) and stress-ng (the QEMU tests under CPU load, scripts/qemu-load-test.sh).
 set -euo pipefail
 need_apt=()
 command -v qemu-system-arm >/dev/null || need_apt+=(qemu-system-arm)
@@ -10,6 +10,7 @@ command -v arm-none-eabi-nm >/dev/null || need_apt+=(binutils-arm-none-eabi)
 command -v gcc >/dev/null || need_apt+=(gcc)
 [ -f /usr/include/stdio.h ] || need_apt+=(libc6-dev)
 command -v valgrind >/dev/null || need_apt+=(valgrind)
+command -v stress-ng >/dev/null || need_apt+=(stress-ng)
 # Ground segment (scripts/ground-segment.sh, scripts/yamcs-e2e.sh): Java 17 for Yamcs,
 # Chromium for the web UI screenshot.
 command -v java >/dev/null || need_apt+=(openjdk-17-jre-headless)
@@ -35,4 +36,4 @@ import importlib.metadata as m
 want = {"fprime-yamcs-bundle": "5.12.8.0", "yamcs-pymdb": "1.4.0", "yamcs-client": "2.1.0", "space-packet-parser": "6.2.0"}
 raise SystemExit(any(m.version(k) != v for k, v in want.items()))
 PY
-echo "setup: rust target, qemu-system-arm, arm binutils, gcc, valgrind, defmt-print, nightly + cargo-fuzz, Yamcs ground segment ready"
+echo "setup: rust target, qemu-system-arm, arm binutils, gcc, valgrind, stress-ng, defmt-print, nightly + cargo-fuzz, Yamcs ground segment ready"

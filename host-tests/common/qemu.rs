@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 use m2ctl::controller::event;
 use m2ctl::ground::station::Station;
 use m2ctl::link::hk::Housekeeping;
-use m2ctl::link::tm::Verification;
+use m2ctl::link::tm::{TmTime, Verification};
 use m2ctl::link::{Command as Tc, RequestId};
 
 /// The flight image built by `cargo build --profile flight --target thumbv7em-none-eabihf
@@ -123,16 +123,16 @@ impl Qemu {
     /// loaded host does when it does not schedule it: the guest's clock must not see
     /// that time ([`ICOUNT_SHIFT`]).
     pub fn stall_host(&self, pause: Duration) {
-        let signal = |name: &str| {
-            let ok = Command::new("kill")
-                .args([name, &self.child.id().to_string()])
-                .status()
-                .is_ok_and(|s| s.success());
-            assert!(ok, "kill {name} QEMU");
-        };
-        signal("-STOP");
+        let _stopped = self.stop();
         std::thread::sleep(pause);
-        signal("-CONT");
+    }
+
+    /// Stops the QEMU process (SIGSTOP) until the returned guard is dropped (SIGCONT):
+    /// guest time stands still meanwhile, so the ground can act on what it has
+    /// received without the guest running on.
+    pub fn stop(&self) -> Stopped {
+        signal(self.child.id(), "-STOP");
+        Stopped(self.child.id())
     }
 
     /// Sends bytes to the firmware's UART.
@@ -140,7 +140,9 @@ impl Qemu {
         self.uart.write_all(bytes).unwrap();
     }
 
-    /// Reads whatever arrives within `wait`.
+    /// Reads whatever arrives within `wait`: one polling step of [`Link::until`]. What
+    /// arrived within a wall-clock wait decides nothing: the tests select telemetry by
+    /// request ID and time stamp.
     pub fn read_for(&mut self, wait: Duration) -> Vec<u8> {
         let t0 = Instant::now();
         let mut out = Vec::new();
@@ -196,6 +198,27 @@ impl Qemu {
         let words = self.read_words(lo, ((hi - lo) / 4) as usize);
         let unused = words.iter().take_while(|w| **w == STACK_PAINT).count() as u32;
         hi - lo - 4 * unused
+    }
+}
+
+/// Sends `name` (`-STOP`, `-CONT`) to process `pid`.
+fn signal(pid: u32, name: &str) {
+    let ok = Command::new("kill")
+        .args([name, &pid.to_string()])
+        .status()
+        .is_ok_and(|s| s.success());
+    assert!(ok, "kill {name} QEMU");
+}
+
+/// A stopped QEMU process ([`Qemu::stop`]); continued (SIGCONT) on drop, also when a
+/// test fails while it is stopped.
+pub struct Stopped(u32);
+
+impl Drop for Stopped {
+    fn drop(&mut self) {
+        let _ = Command::new("kill")
+            .args(["-CONT", &self.0.to_string()])
+            .status();
     }
 }
 
@@ -328,11 +351,48 @@ impl Link {
         self.st.reports(rid)
     }
 
-    /// One-shot housekeeping, its three success reports asserted.
+    /// One-shot housekeeping, its three success reports asserted: the report this
+    /// request made ([`Station::hk_answer`]: stamped in the cycle that executed it,
+    /// between its acceptance and start reports), not whichever arrived last.
     pub fn housekeeping(&mut self, timeout: Duration) -> Housekeeping {
         let rid = self.send(&Tc::HousekeepingOneShot);
         assert_eq!(self.complete(rid, timeout), OK3, "housekeeping");
-        self.st.last_hk().unwrap()
+        self.st
+            .hk_answer(rid)
+            .expect("the one-shot's housekeeping report (between its acceptance and start reports)")
+    }
+
+    /// The first housekeeping report made after the packet `log[i]` (a later time
+    /// stamp, same boot: [`Station::hk_after`]), once it has arrived (asserted within
+    /// `timeout`), and its packet time.
+    pub fn hk_after(&mut self, i: usize, timeout: Duration) -> (TmTime, Housekeeping) {
+        assert!(
+            self.until(timeout, |s| s.hk_after(i).next().is_some()),
+            "no housekeeping report made after packet {i} ({:?}) within {timeout:?}",
+            self.st.log.get(i)
+        );
+        let (t, h) = self.st.hk_after(i).next().unwrap();
+        (t, *h)
+    }
+
+    /// Stops QEMU ([`Qemu::stop`]) and reads what it has sent: the station has every
+    /// packet the guest made so far, and the guest's clock stands still, until the
+    /// guard is dropped. The guest's clock is then at least the newest packet time
+    /// received (and less than it plus the housekeeping period: a periodic report is
+    /// made every period and sent in the same link pass unless the downlink is backed
+    /// up).
+    pub fn stop_and_drain(&mut self) -> Stopped {
+        let stopped = self.q.stop();
+        // QEMU writes the guest's bytes to the socket as the guest sends them: once it
+        // is stopped, a read that times out has found everything it sent.
+        loop {
+            let bytes = self.q.read_for(Duration::from_millis(300));
+            if bytes.is_empty() {
+                break;
+            }
+            self.st.receive(&bytes);
+        }
+        stopped
     }
 
     /// Reads telemetry until `done` holds or `timeout` passes.

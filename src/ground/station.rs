@@ -9,6 +9,20 @@ use crate::link::time::TimeReportRate;
 use crate::link::tm::{parse_tm, EventSeverity, TmReport, TmTime, Verification};
 use crate::link::{Command, Housekeeping, MemoryId, RequestId};
 
+/// The packet header fields of one received TM packet (the counters the ICD promises:
+/// sequence count 0 after boot, +1 per packet; message type counter per service).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TmHeader {
+    /// Packet sequence count (14 bits).
+    pub seq_count: u16,
+    /// Service.
+    pub service: u8,
+    /// Subtype.
+    pub subtype: u8,
+    /// Message type counter (per service).
+    pub msg_counter: u16,
+}
+
 /// One telemetry packet, owned.
 #[derive(Clone, Debug, PartialEq)]
 // The housekeeping report is the one large variant; a parsed report is a transient
@@ -35,17 +49,6 @@ pub enum Tm {
     ScheduleSummary(Vec<SummaryEntry>),
 }
 
-/// The numbers a TM packet carries besides its content.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct TmNumbers {
-    /// Packet sequence count (14 bits).
-    pub seq_count: u16,
-    /// PUS service.
-    pub service: u8,
-    /// Message type counter of its service.
-    pub msg_counter: u16,
-}
-
 /// Sends telecommands, collects telemetry.
 #[derive(Debug)]
 pub struct Station {
@@ -55,9 +58,8 @@ pub struct Station {
     pub log: Vec<Tm>,
     /// The packet time (on-board time) of each entry of `log`.
     pub log_times: Vec<TmTime>,
-    /// The numbers of each entry of `log`: its sequence count, service and message type
-    /// counter (the ground checks them for gaps).
-    pub log_numbers: Vec<TmNumbers>,
+    /// The packet header of each entry of `log`.
+    pub log_headers: Vec<TmHeader>,
     /// Frames that did not deframe or parse (a healthy link keeps this at 0).
     pub bad_frames: usize,
     /// Telecommands encoded so far.
@@ -78,7 +80,7 @@ impl Station {
             deframer: Deframer::new(),
             log: Vec::new(),
             log_times: Vec::new(),
-            log_numbers: Vec::new(),
+            log_headers: Vec::new(),
             bad_frames: 0,
             tc_sent: 0,
         }
@@ -147,18 +149,19 @@ impl Station {
                         Tm::ScheduleSummary(view.entries().collect())
                     }
                 };
-                let numbers = TmNumbers {
+                let header = TmHeader {
                     seq_count: tm.seq_count,
                     service: tm.service,
+                    subtype: tm.subtype,
                     msg_counter: tm.msg_counter,
                 };
-                (report, tm.time, numbers)
+                (report, tm.time, header)
             });
             match tm {
-                Some((t, time, numbers)) => {
+                Some((t, time, header)) => {
                     self.log.push(t);
                     self.log_times.push(time);
-                    self.log_numbers.push(numbers);
+                    self.log_headers.push(header);
                 }
                 None => self.bad_frames += 1,
             }
@@ -197,7 +200,11 @@ impl Station {
         })
     }
 
-    /// The newest housekeeping report.
+    /// The newest housekeeping report received. Only where the station and the
+    /// controller run in lockstep (the simulated bench): over a real link the
+    /// controller runs on while the station is not reading, so "newest" is whatever the
+    /// read happened to reach; select by request ID and time stamp there
+    /// ([`Station::hk_answer`], [`Station::hk_after`]).
     pub fn last_hk(&self) -> Option<Housekeeping> {
         self.log.iter().rev().find_map(|t| match t {
             Tm::Hk(h) => Some(*h),
@@ -205,7 +212,8 @@ impl Station {
         })
     }
 
-    /// The newest schedule summary report.
+    /// The newest schedule summary report received (lockstep only, as
+    /// [`Station::last_hk`]; over a real link: [`Station::answer`]).
     pub fn last_summary(&self) -> Option<&[SummaryEntry]> {
         self.log.iter().rev().find_map(|t| match t {
             Tm::ScheduleSummary(s) => Some(s.as_slice()),
@@ -220,6 +228,76 @@ impl Station {
             .zip(&self.log_times)
             .find_map(|(t, time)| match t {
                 Tm::Verify(r, v) if *r == rid && *v == which => Some(*time),
+                _ => None,
+            })
+    }
+
+    /// Index in `log` of the first report `which` for request `rid`.
+    pub fn report_index(&self, rid: RequestId, which: Verification) -> Option<usize> {
+        self.log
+            .iter()
+            .position(|t| matches!(t, Tm::Verify(r, v) if *r == rid && *v == which))
+    }
+
+    /// What the execution of telecommand `rid` made, with its packet times: the packets
+    /// after its acceptance report and before its next report (start, or a start or
+    /// completion failure), stamped in the acceptance's control cycle. The controller
+    /// queues a telecommand's records together, in this order, while it executes it
+    /// (one lock: ping reply, one-shot housekeeping, parameter report, dump chunks,
+    /// schedule summary, a refusal's event), and nothing queued is reordered (ICD,
+    /// section 1); so this is the telecommand's own answer, whatever else (periodic
+    /// housekeeping, other telecommands' reports) arrived before or after it. Not a
+    /// move check's TM[8,130]: that follows the check's evaluation, outside the lock,
+    /// possibly a cycle later (it names its request ID). `None` until both reports
+    /// have arrived (acceptance requested, ack flags 0xF).
+    pub fn answer(&self, rid: RequestId) -> Option<Vec<(TmTime, &Tm)>> {
+        Some(
+            self.answer_indices(rid)?
+                .into_iter()
+                .filter_map(|i| Some((*self.log_times.get(i)?, self.log.get(i)?)))
+                .collect(),
+        )
+    }
+
+    /// Indices in `log` of [`Station::answer`]'s packets.
+    pub fn answer_indices(&self, rid: RequestId) -> Option<Vec<usize>> {
+        let acc = self.report_index(rid, Verification::AcceptanceSuccess)?;
+        let at = *self.log_times.get(acc)?;
+        let next = acc
+            + 1
+            + self.log.get(acc + 1..)?.iter().position(
+                |t| matches!(t, Tm::Verify(r, v) if *r == rid && *v != Verification::AcceptanceSuccess),
+            )?;
+        Some(
+            (acc + 1..next)
+                .filter(|i| self.log_times.get(*i) == Some(&at))
+                .collect(),
+        )
+    }
+
+    /// The housekeeping report a one-shot request (TC[3,27]) `rid` made
+    /// ([`Station::answer`]); `None` if it has not arrived (or was dropped).
+    pub fn hk_answer(&self, rid: RequestId) -> Option<Housekeeping> {
+        self.answer(rid)?.iter().find_map(|(_, t)| match t {
+            Tm::Hk(h) => Some(*h),
+            _ => None,
+        })
+    }
+
+    /// The housekeeping reports made after the packet `log[i]`, with their packet
+    /// times, in the order made: those after it in the log with a later time stamp,
+    /// up to the next boot event (the on-board time restarts at 0 at every boot).
+    pub fn hk_after(&self, i: usize) -> impl Iterator<Item = (TmTime, &Housekeeping)> + '_ {
+        let after = self.log_times.get(i).copied();
+        self.log
+            .iter()
+            .zip(&self.log_times)
+            .skip(i.saturating_add(1))
+            .take_while(
+                |(t, _)| !matches!(t, Tm::Event(_, id, _) if *id == crate::controller::event::BOOT),
+            )
+            .filter_map(move |(t, time)| match t {
+                Tm::Hk(h) if after.is_some_and(|a| *time > a) => Some((*time, h)),
                 _ => None,
             })
     }

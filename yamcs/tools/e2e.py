@@ -21,11 +21,13 @@ Prints the figures: commands sent, parameters seen, packets, timings.
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from datetime import timezone
 import urllib.request
@@ -60,27 +62,115 @@ def m2ground_packets(*args: str) -> list[bytes]:
     return [bytes.fromhex(line) for line in out.split()]
 
 
+# Packet fields read from the archived binary (ICD section 2): PUS service and subtype,
+# the CUC 4+2 on-board time stamp, the request ID of a service-1 report.
+TC_PACKET_ID = 0x1800 | 0x0B2  # TC, secondary header, APID 0x0B2
+
+
+def pus_type(b: bytes) -> tuple[int, int]:
+    return b[7], b[8]
+
+
+def obt_of(b: bytes) -> int:
+    """The packet's time stamp: raw CUC 4+2 on-board time (1/65536 s)."""
+    return int.from_bytes(b[13:19], "big")
+
+
+def request_id(seq: int) -> bytes:
+    return TC_PACKET_ID.to_bytes(2, "big") + (0xC000 | (seq & 0x3FFF)).to_bytes(2, "big")
+
+
+class Report:
+    """One archived TM packet and the parameters Yamcs decoded from it (the parameter
+    values with that packet's generation time), read when asked for."""
+
+    def __init__(self, op: "Operator", packet):
+        self.op, self.packet = op, packet
+        self.obt = obt_of(packet.binary)
+        self.generation_time = packet.generation_time
+        self.reception_time = packet.reception_time
+
+    def value(self, name: str, timeout=15.0):
+        return self.op.wait(f"{name} of the packet at OBT {self.obt / 65536:.3f} s",
+                            lambda: self.op.snapshot(self.generation_time).get(name), timeout)
+
+
 class Operator:
+    """An operator's tool on Yamcs. Telemetry is selected by request ID and on-board time
+    stamp (the raw CUC time of the archived packets), never as the latest value Yamcs
+    has: the controller in QEMU runs on its own clock, ahead of a loaded host."""
+
     def __init__(self):
         self.client = YamcsClient(URL)
         self.proc = self.client.get_processor(INSTANCE, PROCESSOR)
         self.conn = self.proc.create_command_connection()
         self.mdb = self.client.get_mdb(INSTANCE)
+        self.archive = self.client.get_archive(INSTANCE)
         self.sent = 0
         self.stage_times: dict[str, list[float]] = {s: [] for s in STAGES}
+        # Every parameter value of the controller, by its packet's generation time.
+        self._lock = threading.Lock()
+        self._values: dict = {}
+        names = [p.qualified_name for p in self.mdb.list_parameters() if p.qualified_name.startswith(NS)]
+        self.subscription = self.proc.create_parameter_subscription(
+            names, on_data=self._on_data, send_from_cache=False)
 
-    def value(self, name: str):
-        return self.proc.get_parameter_value(NS + name)
+    def _on_data(self, data):
+        with self._lock:
+            for pv in data.parameters:
+                self._values.setdefault(pv.generation_time, {})[pv.name.rsplit("/", 1)[-1]] = pv
 
-    def wait_hk(self, after=None, timeout=15.0):
-        """The next housekeeping report (its cycle counter value) after `after`."""
+    def snapshot(self, generation_time) -> dict:
+        with self._lock:
+            return dict(self._values.get(generation_time, {}))
+
+    @staticmethod
+    def wait(what: str, find, timeout: float):
+        """find() until it is not None; the wall clock only bounds the wait."""
         t0 = time.time()
-        while time.time() - t0 < timeout:
-            v = self.value("cycle_counter")
-            if v is not None and (after is None or v.generation_time > after.generation_time):
-                return v
-            time.sleep(0.1)
-        raise TimeoutError("no housekeeping")
+        while True:
+            found = find()
+            if found is not None:
+                return found
+            if time.time() - t0 > timeout:
+                raise TimeoutError(what)
+            time.sleep(0.2)
+
+    def packets(self, service: int, subtype: int) -> list:
+        """Archived packets TM[service,subtype], in on-board time order."""
+        out = [p for p in self.archive.list_packets() if pus_type(p.binary) == (service, subtype)]
+        return sorted(out, key=lambda p: obt_of(p.binary))
+
+    def report(self, seq: int, subtype: int, timeout=30.0) -> Report:
+        """The TM[1,subtype] for the telecommand with sequence count `seq` (its request ID)."""
+        rid = request_id(seq)
+        return self.wait(f"TM[1,{subtype}] of TC seq {seq}", lambda: next(
+            (Report(self, p) for p in self.packets(1, subtype) if p.binary[19:23] == rid), None), timeout)
+
+    def answer(self, seq: int, service: int, subtype: int, timeout=30.0) -> Report:
+        """A TM[service,subtype] that names request ID `seq` in its first four bytes."""
+        rid = request_id(seq)
+        return self.wait(f"TM[{service},{subtype}] of TC seq {seq}", lambda: next(
+            (Report(self, p) for p in self.packets(service, subtype) if p.binary[19:23] == rid), None),
+            timeout)
+
+    def hk_after(self, obt: int, timeout=30.0) -> Report:
+        """The first housekeeping report made after on-board time `obt` (raw CUC)."""
+        return self.wait(f"housekeeping after OBT {obt / 65536:.3f} s", lambda: next(
+            (Report(self, p) for p in self.packets(3, 25) if obt_of(p.binary) > obt), None), timeout)
+
+    def hk_before(self, obt: int) -> Report:
+        """The last housekeeping report made before on-board time `obt` (raw CUC)."""
+        before = [p for p in self.packets(3, 25) if obt_of(p.binary) < obt]
+        if not before:
+            raise LookupError(f"no housekeeping before OBT {obt / 65536:.3f} s")
+        return Report(self, before[-1])
+
+    def newest_obt(self) -> int:
+        """The newest time stamp archived: a lower bound of the controller's clock (for
+        choosing a future release time, never for selecting what is checked)."""
+        newest = itertools.islice(self.archive.list_packets(descending=True, page_size=50), 50)
+        return max(obt_of(p.binary) for p in newest)
 
     def command(self, name: str, args=None, timeout=30.0):
         cmd = self.conn.issue(NS + name, args=args or {})
@@ -90,6 +180,10 @@ class Operator:
         except TimeoutError:
             pass
         return cmd
+
+    def done(self, cmd, subtype=7) -> Report:
+        """The service-1 report `subtype` (7: completion) of a command Yamcs issued."""
+        return self.report(cmd.attributes.get("ccsds-seqcount"), subtype)
 
     def stages(self, cmd) -> dict[str, str]:
         acks = cmd.acknowledgments
@@ -116,7 +210,6 @@ def main() -> int:
     t_start = time.time()
     op = Operator()
     print("e2e: connected to Yamcs", URL)
-    hk0 = op.wait_hk()
 
     # 1. Ping.
     print("1. ping")
@@ -126,13 +219,16 @@ def main() -> int:
     check(all(v == "OK" for v in st.values()), f"PING verifier stages {st}")
     same_bytes(op, cmd, ["ping"])
 
-    # 2. Housekeeping with units and correlated time.
+    # 2. Housekeeping with units and correlated time: three consecutive reports (by
+    # on-board time) made after the ping's completion.
     print("2. housekeeping")
-    hk1 = op.wait_hk(after=hk0)
-    hk2 = op.wait_hk(after=hk1)
-    check(hk2.eng_value > hk1.eng_value > hk0.eng_value, "cycle counter updates every report")
+    hk0 = op.hk_after(op.done(cmd).obt)
+    hk1 = op.hk_after(hk0.obt)
+    hk2 = op.hk_after(hk1.obt)
+    c0, c1, c2 = (h.value("cycle_counter").eng_value for h in (hk0, hk1, hk2))
+    check(c2 > c1 > c0, f"cycle counter updates every report ({c0}, {c1}, {c2})")
     period = (hk2.generation_time - hk1.generation_time).total_seconds()
-    cycles = hk2.eng_value - hk1.eng_value
+    cycles = c2 - c1
     figures["housekeeping period (UTC s, cycles)"] = (round(period, 3), cycles)
     # 1 s of OBT; in UTC it is that times QEMU's guest/host rate (1.0 unloaded, up to
     # ~5 while Yamcs' JVM starts beside it on two cores): a check of units, not pacing.
@@ -143,10 +239,10 @@ def main() -> int:
         units[p] = info.units
     check(units["pose_fk_x"] == ["um"] and units["pose_fk_rx"] == ["arcsec"] and units["encoder_leg1"] == ["um"],
           f"units {units}")
-    state = op.value("state")
+    state = hk2.value("state")
     check(state.eng_value == "IDLE", f"state {state.eng_value} (raw {state.raw_value})")
 
-    # 3. A move in um / arcsec.
+    # 3. A move in um / arcsec; the first housekeeping made after its completion.
     print("3. move")
     target = {"x": 12.5, "y": -7.25, "z": 3.0, "rx": -3.25, "ry": 1.5, "rz": 2.0}
     t0 = time.time()
@@ -157,33 +253,34 @@ def main() -> int:
     check(all(v == "OK" for v in st.values()), f"MOVE_ABSOLUTE verifier stages {st}")
     same_bytes(op, cmd, ["move-absolute", "x=12.5", "y=-7.25", "z=3",
                          "rx=-3.25", "ry=1.5", "rz=2"])
-    hk = op.wait_hk(after=op.wait_hk())
+    hk = op.hk_after(op.done(cmd).obt)
     errs = {}
     for axis, want in target.items():
-        fk = op.value("pose_fk_" + axis).eng_value
-        cmdv = op.value("pose_cmd_" + axis).eng_value
+        fk = hk.value("pose_fk_" + axis).eng_value
+        cmdv = hk.value("pose_cmd_" + axis).eng_value
         errs[axis] = round(fk - want, 4)
         check(abs(cmdv - want) < 1e-6, f"commanded {axis} = {cmdv} (target {want})")
     figures["pose reached - target (um, arcsec)"] = errs
     check(all(abs(e) < 0.3 for e in errs.values()), f"housekeeping pose reaches the target: {errs}")
-    check(op.value("state").eng_value == "IDLE", "state IDLE after the move")
+    check(hk.value("state").eng_value == "IDLE", "state IDLE after the move")
 
-    # 4. A refused move: 5 mm is outside the +-2 mm workspace.
+    # 4. A refused move: 5 mm is outside the +-2 mm workspace; the first housekeeping
+    # made after its start failure report.
     print("4. refused move")
     cmd = op.command("MOVE_ABSOLUTE", {"x": 5000.0, "y": 0, "z": 0, "rx": 0, "ry": 0, "rz": 0})
     st = op.stages(cmd)
     check(cmd.is_failure(), f"refused move failed: {cmd.error}")
     check(st["Acceptance"] == "OK" and st["Start"] == "NOK", f"refused at the start stage: {st}")
     check("MOTION_TARGET_REFUSED" in (cmd.error or ""), "failure code MOTION_TARGET_REFUSED in the command history")
-    op.wait_hk(after=op.wait_hk())
-    code = op.value("last_failure_code").eng_value
-    bits = {b: op.value("refusal_bits_" + b).eng_value for b in
+    hk = op.hk_after(op.done(cmd, subtype=4).obt)
+    code = hk.value("last_failure_code").eng_value
+    bits = {b: hk.value("refusal_bits_" + b).eng_value for b in
             ("x_outside_workspace", "y_outside_workspace", "non_finite", "leg1_above_max")}
     check(code == "MOTION_TARGET_REFUSED", f"housekeeping last failure code {code}")
     check(bits["x_outside_workspace"] is True and bits["y_outside_workspace"] is False
           and bits["non_finite"] is False,
-          f"refusal bits decoded: {bits} (word 0x{op.value('refusal_bits').raw_value:08x})")
-    pose_after = op.value("pose_cmd_x").eng_value
+          f"refusal bits decoded: {bits} (word 0x{hk.value('refusal_bits').raw_value:08x})")
+    pose_after = hk.value("pose_cmd_x").eng_value
     check(abs(pose_after - 12.5) < 1e-6, "a refused move changes nothing (commanded x still 12.5 um)")
 
     # 5. Table upload, commit, activate.
@@ -213,10 +310,10 @@ def main() -> int:
     same_bytes(op, cmd, upload_args, index=len(chunks) + 1)
     check(activate[13:21] == (77).to_bytes(4, "big") + crc.to_bytes(4, "big"),
           "the activate TC names table 77 and its CRC")
-    op.wait_hk(after=op.wait_hk())
-    tid, tcrc = op.value("active_table_id").eng_value, op.value("active_table_crc32").eng_value
+    hk = op.hk_after(op.done(cmd).obt)
+    tid, tcrc = hk.value("active_table_id").eng_value, hk.value("active_table_crc32").eng_value
     check(tid == 77 and tcrc == crc, f"housekeeping: active table {tid}, CRC-32 0x{tcrc:08x}")
-    bank = op.value("active_bank").eng_value
+    bank = hk.value("active_bank").eng_value
     check(bank in ("BANK_A", "BANK_B"), f"active table in flash {bank}")
 
     # 5b. Operations: an on-board parameter (the pivot), a move check, a scheduled move.
@@ -224,44 +321,64 @@ def main() -> int:
     cmd = op.command("SET_PARAMETER", {"parameter_id": "PIVOT_Z", "value": 250_000_000}, timeout=60)
     check(cmd.is_success(), f"SET_PARAMETER PIVOT_Z = 250 mm ({cmd.error or 'OK'})")
     same_bytes(op, cmd, ["set-parameter", "parameter_id=PIVOT_Z", "value=250000000"])
-    op.wait_hk(after=op.wait_hk())
-    pivot = op.value("pivot_z").eng_value
+    pivot = op.hk_after(op.done(cmd).obt).value("pivot_z").eng_value
     check(abs(pivot - 250_000.0) < 1e-6, f"housekeeping pivot_z = {pivot} um")
     cmd = op.command("REPORT_PARAMETER", {"parameter_id": "PIVOT_Z"})
     check(cmd.is_success(), f"REPORT_PARAMETER ({cmd.error or 'OK'})")
     cmd = op.command("CHECK_MOVE", {"x": 5000.0, "y": 0, "z": 0, "rx": 0, "ry": 0, "rz": 0})
     check(cmd.is_success(), f"CHECK_MOVE completed ({cmd.error or 'OK'})")
-    time.sleep(0.5)
-    code = op.value("check_code").eng_value
+    # This check's TM[8,130] (its request ID), not the latest check_code.
+    code = op.answer(cmd.attributes.get("ccsds-seqcount"), 8, 130).value("check_code").eng_value
     check(code == "MOTION_TARGET_REFUSED", f"TM[8,130] check_code {code} (nothing moved)")
-    check(abs(op.value("pose_cmd_x").eng_value - 12.5) < 1e-6, "the move check moved nothing")
-    # A move released by the on-board schedule 2 s from now (OBT from housekeeping).
-    obt_s = op.wait_hk().eng_value / 1000.0 + 2.0
-    inner = m2ground_packets("--seq", "9000", "move-absolute", "x=-20", "y=5")[0]
-    released0 = op.value("schedule_released").eng_value
-    cmd = op.command("SCHEDULE_INSERT_ACTIVITY", {
-        "release_seconds": int(obt_s), "release_fraction": obt_s - int(obt_s), "telecommand": inner})
+    x = op.hk_after(op.done(cmd).obt).value("pose_cmd_x").eng_value
+    check(abs(x - 12.5) < 1e-6, "the move check moved nothing")
+    # A move released by the on-board schedule 3 s after the newest time stamp archived
+    # (the controller's clock is at least that). Should the controller's clock have
+    # passed it before the insert arrives (refused 0x0B02, nothing inserted), the
+    # refusal's own time stamp is the next lower bound.
+    inner_seq = 9000
+    inner = m2ground_packets("--seq", str(inner_seq), "move-absolute", "x=-20", "y=5")[0]
+    floor = op.newest_obt()
+    for attempt in range(3):
+        obt_s = floor / 65536 + 3.0
+        cmd = op.command("SCHEDULE_INSERT_ACTIVITY", {
+            "release_seconds": int(obt_s), "release_fraction": obt_s - int(obt_s), "telecommand": inner})
+        if cmd.is_success() or attempt == 2:
+            break
+        refusal = op.done(cmd, subtype=4)
+        if int.from_bytes(refusal.packet.binary[23:25], "big") != 0x0B02:
+            break
+        print(f"       insert refused 0x0B02 at OBT {refusal.obt / 65536:.3f} s (release {obt_s:.3f} s): again")
+        floor = refusal.obt
     check(cmd.is_success(), f"SCHEDULE_INSERT_ACTIVITY at OBT {obt_s:.3f} s ({cmd.error or 'OK'})")
-    # Wait on the controller's own clock (QEMU's guest time may lag UTC on a loaded
-    # host): until a housekeeping report generated after the release time (OBT).
-    deadline = time.time() + 90
-    obt_seen = 0.0
-    while time.time() < deadline and obt_seen < obt_s + 0.5:
-        obt_seen = op.wait_hk().eng_value / 1000.0
-        time.sleep(0.2)
-    check(op.value("schedule_released").eng_value == released0 + 1,
-          f"housekeeping: one activity released (release OBT {obt_s:.3f} s, HK at OBT {obt_seen:.3f} s)")
-    time.sleep(3.0)
-    op.wait_hk(after=op.wait_hk())
-    x = op.value("pose_cmd_op_x").eng_value
+    # Released count: in the last housekeeping made before the insert was executed, and
+    # in the first made after the released move's completion (its request ID).
+    released0 = op.hk_before(op.done(cmd, subtype=1).obt).value("schedule_released").eng_value
+    accepted = op.report(inner_seq, 1, timeout=90)
+    arrived = op.report(inner_seq, 7, timeout=90)
+    check(obt_s <= accepted.obt / 65536 < obt_s + 0.002,
+          f"the activity ran at OBT {accepted.obt / 65536:.4f} s (release {obt_s:.4f} s)")
+    hk = op.hk_after(arrived.obt)
+    check(hk.value("schedule_released").eng_value == released0 + 1,
+          f"housekeeping: one activity released (release OBT {obt_s:.3f} s, HK at OBT {hk.obt / 65536:.3f} s)")
+    x = hk.value("pose_cmd_op_x").eng_value
     check(abs(x + 20.0) < 0.01, f"the released move arrived: commanded x (operator frames) {x} um")
 
-    # 6. Events with severities.
+    # 6. Events with severities: listed once Yamcs has archived the ones this run made
+    # (the wall clock only bounds the wait).
     print("6. events")
-    time.sleep(1.0)
     names = {e["name"] for e in json.loads(subprocess.run(
         [M2GROUND, "mdb-json"], check=True, capture_output=True, text=True).stdout)["events"]}
-    events = [e for e in op.client.get_archive(INSTANCE).list_events() if e.event_type in names]
+    expected = {"BOOT", "BOOT_DETAIL", "STATE_CHANGED", "MOVE_REFUSED", "PARAMETERS_CHANGED",
+                "ACTIVITY_RELEASED", "TABLE_COMMITTED", "TABLE_ACTIVATED"}
+
+    def archived_events():
+        ev = [e for e in op.client.get_archive(INSTANCE).list_events() if e.event_type in names]
+        return ev if expected <= {e.event_type for e in ev} else None
+    try:
+        events = op.wait("the run's events archived", archived_events, 30.0)
+    except TimeoutError:
+        events = [e for e in op.client.get_archive(INSTANCE).list_events() if e.event_type in names]
     seen = {}
     for e in events:
         seen.setdefault(e.event_type, set()).add(e.severity)
@@ -281,27 +398,27 @@ def main() -> int:
     # controller's clock has settled).
     print("7. time")
     tco_client = op.client.get_tco_client(INSTANCE, "tco0")
-    # Packets with a non-zero CUC fraction (housekeeping comes on whole seconds): the
-    # reports of a ping. Those received since the coefficients in force were set were
-    # stamped with them (the gateway sets coefficients before it forwards a packet).
+    # Packets with a non-zero CUC fraction (housekeeping comes on whole seconds): a
+    # ping's own reports (its request ID). Those received since the coefficients in
+    # force were set were stamped with them (the gateway sets coefficients before it
+    # forwards a packet).
     checked = []
     for _ in range(5):
-        op.command("PING")
-        time.sleep(0.2)
+        cmd = op.command("PING")
+        seq = cmd.attributes.get("ccsds-seqcount")
+        reports = [op.report(seq, sub) for sub in (1, 3, 7)]
         st = tco_client.get_status()
         c = st.coefficients
         if c is None or st.coefficients_time is None:
             continue
-        pkts = list(op.client.get_archive(INSTANCE).list_packets(descending=True, page_size=20))[:20]
-        for pkt in pkts:
-            if pkt.reception_time < st.coefficients_time:
+        for r in reports:
+            if r.reception_time < st.coefficients_time:
                 continue
-            b = pkt.binary
-            raw = int.from_bytes(b[13:19], "big")
+            raw = r.obt
             if raw & 0xFFFF == 0:
                 continue
             want = c.utc.timestamp() + c.gradient * (raw - c.obt) + (c.offset or 0.0)
-            checked.append((pkt.generation_time.timestamp() - want, raw))
+            checked.append((r.generation_time.timestamp() - want, raw))
         if checked:
             figures["time correlation (gradient s/count, UTC s per OBT s)"] = (
                 c.gradient, round(c.gradient * 65536, 4))
@@ -311,10 +428,11 @@ def main() -> int:
         raw = checked[0][1]
         check(worst <= 0.0011, f"generation time = UTC(OBT) by the coefficients within {worst * 1e3:.2f} ms, "
               f"e.g. OBT 0x{raw:012x} = {raw >> 16} s + {raw & 0xFFFF}/65536 s (CUC 4+2 decoded)")
+    # Four consecutive housekeeping reports (by on-board time) after that ping.
     lags = []
-    last = op.wait_hk()
+    last = op.hk_after(op.done(cmd).obt)
     for _ in range(4):
-        last = op.wait_hk(after=last)
+        last = op.hk_after(last.obt)
         lags.append((last.reception_time - last.generation_time).total_seconds())
     figures["reception - generation of 4 reports (ms)"] = [round(x * 1e3, 1) for x in lags]
     med = sorted(lags)[len(lags) // 2]
