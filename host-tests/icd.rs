@@ -269,3 +269,38 @@ fn activate_of_a_pending_table_reports_each_stage_and_the_boot_follows() {
     r.run(JOB_CYCLES);
     assert!(all_ok(&r.st.reports(rid)));
 }
+
+/// Section 1's telemetry-queue figures are the code's constants (prose, not a generated
+/// table: each number is found in its sentence).
+#[test]
+fn the_telemetry_queue_figures_in_section_1_are_the_codes() {
+    use m2ctl::controller::comms::MAX_TC_PER_PASS;
+    use m2ctl::controller::telemetry::{
+        ADMISSION_FREE_SLOTS, HK_SAMPLES, MAX_BULK_PER_TC, MAX_DEFERRED_REPLIES,
+        MAX_REPLIES_PER_TC, REPLY_RESERVE, TM_QUEUE_LEN, TM_RESERVED_SLOTS,
+    };
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/icd.md"))
+        .unwrap()
+        .replace('\n', " ")
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ");
+    for phrase in [
+        format!("At most **{MAX_TC_PER_PASS} telecommands are executed per control cycle**"),
+        format!("has **{ADMISSION_FREE_SLOTS} free places**"),
+        format!("queues up to {TM_QUEUE_LEN} telemetry records"),
+        format!("one telecommand queues at most {MAX_REPLIES_PER_TC} replies at once"),
+        format!("still owes at most {MAX_DEFERRED_REPLIES} (a move's start and completion)"),
+        format!("events never take the last {REPLY_RESERVE} places"),
+        format!("telecommands are taken only with {ADMISSION_FREE_SLOTS} free"),
+        format!("queued while more than {REPLY_RESERVE} places are free"),
+        format!("queued while more than {TM_RESERVED_SLOTS} places are free"),
+        format!("taken with {ADMISSION_FREE_SLOTS} free places gets all {MAX_BULK_PER_TC} chunks"),
+        format!("at most {HK_SAMPLES} wait to be sent"),
+    ] {
+        assert!(
+            text.contains(&phrase),
+            "docs/icd.md section 1 lacks: {phrase}"
+        );
+    }
+}

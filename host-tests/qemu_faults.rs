@@ -6,7 +6,10 @@
 //!    watchdog resets the board;
 //! 2. after the watchdog reset: the boot reports the watchdog and boot 2; then a stack
 //!    overflow runs into the MPU guard: MemManage, reset;
-//! 3. after that reset: the boot reports the fault and boot 3; the link works.
+//! 3. after that reset: the boot reports the fault and boot 3; the link works;
+//! 4. after QEMU's system_reset: the boot reports an external reset and boot 4.
+//!
+//! Boot 1 is a power-on with boot count 1 (a new QEMU process: no reset record in RAM).
 //!
 //! Needs QEMU and the image, so it is `#[ignore]`d in the plain test run.
 
@@ -127,4 +130,18 @@ fn overruns_hang_and_overflow_reset_with_their_cause_reported() {
     );
     assert_eq!(l.st.bad_frames, 0);
     println!("overflow: MPU guard fault, reset, boot 3 reports cause hard fault; link up");
+
+    // An external reset (QEMU's system_reset, as the reset pin or a debugger): boot 4
+    // reports cause 5, external, not the watchdog (ICD section 4, reset causes).
+    l.q.system_reset();
+    assert!(
+        l.until(t, |s| s.events(event::BOOT_DETAIL).len() >= 4),
+        "no boot after system_reset"
+    );
+    assert_eq!(
+        l.boots()[3],
+        (u32::from(ResetCause::External.code()), 4),
+        "boot after an external reset"
+    );
+    println!("external reset: boot 4 reports cause external");
 }

@@ -162,6 +162,30 @@ impl Qemu {
 }
 
 impl Qemu {
+    /// Resets the guest from outside (QEMU monitor `system_reset`, as the reset pin or
+    /// a debugger would); RAM keeps its contents.
+    pub fn system_reset(&self) {
+        let mut mon = UnixStream::connect(&self.monitor).expect("QEMU monitor socket");
+        mon.set_read_timeout(Some(Duration::from_millis(200)))
+            .unwrap();
+        // Its banner and prompt first, then the command; it has run when the monitor
+        // shows its prompt again (closing the socket earlier can drop the command).
+        fn prompt_until(mon: &mut UnixStream, seen: &mut String, n: usize) {
+            let mut buf = [0u8; 4096];
+            let t0 = Instant::now();
+            while seen.matches("(qemu)").count() < n && t0.elapsed() < Duration::from_secs(10) {
+                if let Ok(k) = mon.read(&mut buf) {
+                    seen.push_str(&String::from_utf8_lossy(&buf[..k]));
+                }
+            }
+        }
+        let mut seen = String::new();
+        prompt_until(&mut mon, &mut seen, 1);
+        mon.write_all(b"system_reset\n").unwrap();
+        prompt_until(&mut mon, &mut seen, 2);
+        assert!(seen.matches("(qemu)").count() >= 2, "monitor: {seen:?}");
+    }
+
     /// Reads `words` 32-bit words of guest memory at `addr` through QEMU's monitor.
     pub fn read_words(&self, addr: u32, words: usize) -> Vec<u32> {
         let mut mon = UnixStream::connect(&self.monitor).expect("QEMU monitor socket");
