@@ -71,6 +71,10 @@ fn soak_holds_the_operator_contract_every_cycle() {
         "soak end of travel: {} switch trips (event 0x0007), {} cycles in motion with a leg blocked by a switch",
         f.switch_trips, f.blocked_motion_cycles
     );
+    println!(
+        "soak upsets: {} RAM bits flipped, {} repairs after a detection",
+        f.upsets, f.repairs
+    );
     assert!(
         s.violations().is_empty(),
         "{} violations, first: {:?}",
@@ -81,6 +85,10 @@ fn soak_holds_the_operator_contract_every_cycle() {
     assert!(
         f.reboots > 0 && f.tcs_done > 100,
         "the soak did too little: {f:?}"
+    );
+    assert!(
+        f.upsets > 0 && f.repairs > 0,
+        "the adversary never upset RAM, or no upset was repaired: {f:?}"
     );
     assert!(
         f.switch_trips > 0 && f.blocked_motion_cycles > 0,

@@ -17,7 +17,19 @@
 //!    selection implies (or, if a selection was being written at the cut, that one),
 //!    never a table nobody committed;
 //! 7. no leg's commanded stroke moves toward an end-of-travel switch that the cycle's
-//!    read showed active (or unreadable), unless the drives hold where their sliders are.
+//!    read showed active (or unreadable), unless the drives hold where their sliders are;
+//! 8. no commanded step exceeds the speed limit in force (the parameters the operator
+//!    set and the controller applied), whatever was upset in RAM;
+//! 9. no upset value is ever persisted: the parameters in flash are always a set the
+//!    operator's telecommands made (checked after every parameter job and reboot);
+//! 10. a detected upset always clears after its repair: from the cycle fault 0x100
+//!    latches, the reload (event 0x0013) comes within [`REPAIR_CYCLES`], whatever job
+//!    was running.
+//!
+//! The adversary also upsets RAM, single bits at random moments (during moves, during
+//! table jobs): the parameters in force, their check word, the running table, its
+//! derived geometry, the supervision thresholds, the derived settings and the output
+//! stage's limits.
 //!
 //! The adversary's plant faults include the switches' (a switch misadjusted into the
 //! path of the sliders, stuck active, an unreadable input) and encoder warnings.
@@ -51,6 +63,11 @@ const STEP_ROUNDING_MM: f64 = 2e-6;
 /// A slider "at rest" moves less than this per cycle (mm): 0.1 nm, above the f32
 /// resolution of a held stroke (a hold rounds the setpoint to the f32 of the interface).
 const STILL_MM: f64 = 1e-7;
+
+/// Cycles within which a detected upset must be repaired (invariant 10): two scrub
+/// periods (the reload may wait for a job that runs: a commit erases 0.3 s sectors) and
+/// the slowest job.
+pub const REPAIR_CYCLES: u64 = 6_000;
 
 /// What the soak knows the controller should run after a reboot.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -152,6 +169,10 @@ pub struct SoakFigures {
     /// Cycles in motion with a leg blocked by an active (or unreadable) switch: the
     /// cycles invariant 7 constrained.
     pub blocked_motion_cycles: u64,
+    /// RAM upsets injected.
+    pub upsets: u64,
+    /// Repairs (reloads) after detected upsets.
+    pub repairs: u64,
     /// Invariant violations.
     pub violations: u64,
 }
@@ -203,6 +224,19 @@ pub struct Soak<C> {
     rest_cycles: u32,
     /// The last actions, printed at the first violation.
     history: Vec<String>,
+    /// Every parameter set the operator's telecommands can have made (persisted forms):
+    /// invariant 9.
+    param_sets: Vec<[u8; crate::table::store::PARAMETERS_LEN]>,
+    /// TC[20,3]s in flight and their pairs (applied to the model when they complete).
+    setting: Vec<(RequestId, Vec<(u16, i32)>)>,
+    /// Speed limits in force (mm per cycle): coordinated, direct (invariant 8).
+    step_limits_mm: (f64, f64),
+    /// The oldest upset detection (fault 0x100) not yet repaired (invariant 10).
+    corrupt_since: Option<u64>,
+    /// RAM upsets injected.
+    upsets: u64,
+    /// Reloads after a detected upset (events 0x0013).
+    repairs: u64,
 }
 
 /// Actions kept in the history.
@@ -267,7 +301,30 @@ impl<C: Choices> Soak<C> {
             tm_dropped_seen: 0,
             rest_cycles: 0,
             history: Vec::new(),
+            param_sets: vec![crate::controller::Parameters::none().encode()],
+            setting: Vec::new(),
+            step_limits_mm: (0.0, 0.0),
+            corrupt_since: None,
+            upsets: 0,
+            repairs: 0,
         }
+        .with_limits_from_controller()
+    }
+
+    /// The speed limits in force, read from the controller (at boot: nothing upset yet).
+    fn with_limits_from_controller(mut self) -> Self {
+        self.read_step_limits();
+        self
+    }
+
+    fn read_step_limits(&mut self) {
+        let l = self
+            .r
+            .ctl
+            .parameters()
+            .step_limits(self.r.ctl.active_table());
+        let dt = f64::from(CYCLE_S);
+        self.step_limits_mm = (f64::from(l.coordinated.0) * dt, f64::from(l.direct.0) * dt);
     }
 
     fn uniform(&mut self) -> f64 {
@@ -412,7 +469,9 @@ impl<C: Choices> Soak<C> {
     /// One random operator (or adversary) action.
     pub fn act(&mut self) {
         let pending = self.r.ctl.pending_table();
-        match self.below(23) {
+        match self.below(26) {
+            23 => self.set_parameters(),
+            24 | 25 => self.upset(),
             0..=4 => {
                 let p = self.pose();
                 self.send(&Command::MoveAbsolute(p));
@@ -519,6 +578,100 @@ impl<C: Choices> Soak<C> {
                 }
             }
             _ => self.power_cut(),
+        }
+    }
+
+    /// A valid TC[20,3]: speeds and accelerations within the defaults (so invariant 2's
+    /// bound stays an upper bound), a pivot, the housekeeping period.
+    fn set_parameters(&mut self) {
+        let mut pairs = Vec::new();
+        if self.below(2) == 0 {
+            pairs.push((0x0010, 50_000 + self.below(150_001) as i32));
+        }
+        if self.below(2) == 0 {
+            pairs.push((0x0011, 200_000 + self.below(800_001) as i32));
+        }
+        if self.below(2) == 0 {
+            pairs.push((0x0012, 10_000 + self.below(40_001) as i32));
+        }
+        if self.below(2) == 0 || pairs.is_empty() {
+            pairs.push((0x0003, (self.rng.sym() * 300e6) as i32));
+        }
+        if self.below(4) == 0 {
+            pairs.push((0x0020, 500 + self.below(1_500) as i32));
+        }
+        let values = crate::link::command::ParameterValues::new(&pairs);
+        let Ok(values) = values else { return };
+        // The model: any set the operator had may be the one this builds on.
+        let table = *self.r.ctl.active_table();
+        let grown: Vec<_> = self
+            .param_sets
+            .iter()
+            .filter_map(|b| {
+                crate::controller::Parameters::decode(b)
+                    .with(&pairs, &table)
+                    .ok()
+                    .map(|p| p.encode())
+            })
+            .collect();
+        for g in grown {
+            if !self.param_sets.contains(&g) {
+                self.param_sets.push(g);
+            }
+        }
+        let rid = self.send(&Command::SetParameters(values));
+        self.setting.push((rid, pairs));
+    }
+
+    /// One RAM bit flipped, as a radiation upset would: the parameters in force or
+    /// their check word, the running table, its geometry, the supervision thresholds,
+    /// the derived settings or the output stage's limits.
+    fn upset(&mut self) {
+        let bit = self.below(32) as u32;
+        let which = self.below(7);
+        let k = self.below(64);
+        let flip32 = |x: &mut f32| *x = f32::from_bits(x.to_bits() ^ (1 << bit));
+        let flip64 =
+            |x: &mut f64| *x = f64::from_bits(x.to_bits() ^ (1u64 << (bit + 32 * (k as u32 & 1))));
+        self.upsets += 1;
+        self.note(format!(
+            "upset: target {which} index {k} bit {bit} (state {:?}, job {})",
+            self.r.ctl.state(),
+            self.r.ctl.housekeeping().job
+        ));
+        match which {
+            0 => self.r.ctl.upset_parameters(k % 21, bit),
+            1 => self.r.ctl.upset(|a, _| {
+                let leg = &mut a.geom.legs[k % LEGS];
+                match k / LEGS % 6 {
+                    0 => flip32(&mut leg.d0_mm[k % 3]),
+                    1 => flip32(&mut leg.two_d0_xy_mm[k % 2]),
+                    2 => flip32(&mut leg.d0z_sq_mm2),
+                    3 => flip32(&mut leg.inv_two_d0z_per_mm),
+                    4 => flip32(&mut leg.b_mm[k % 3]),
+                    _ => flip32(&mut leg.rod_mm),
+                }
+            }),
+            2 => self.r.ctl.upset(|a, _| match k % 3 {
+                0 => flip64(&mut a.table.p0_mm[k % 3]),
+                1 => flip64(&mut a.table.legs[k % LEGS].a_mm[k % 3]),
+                _ => flip64(&mut a.table.stroke_limits.max_mm[k % LEGS]),
+            }),
+            3 => self.r.ctl.upset(|_, c| match k % 3 {
+                0 => flip32(&mut c.following_fault_mm),
+                1 => flip32(&mut c.jump_mm_per_cycle),
+                _ => flip32(&mut c.following_warning_mm),
+            }),
+            4 => self.r.ctl.upset_ops(|o| match k % 3 {
+                0 => flip32(&mut o.motion.max_speed_mm_per_s[k % LEGS]),
+                1 => flip32(&mut o.motion.max_accel_mm_per_s2[k % LEGS]),
+                _ => flip32(&mut o.direct.0),
+            }),
+            5 => self.r.ctl.upset_output_limits(k % 8, bit),
+            _ => self
+                .r
+                .ctl
+                .upset(|a, _| flip64(&mut a.table.workspace.translation_mm[k % 3])),
         }
     }
 
@@ -649,6 +802,22 @@ impl<C: Choices> Soak<C> {
         self.prev_faulted = !self.r.ctl.faults().is_empty();
         self.tm_dropped_seen = 0;
         self.rest_cycles = 0;
+        self.setting.clear();
+        self.corrupt_since = None;
+        self.read_step_limits();
+        self.check_persisted_parameters();
+    }
+
+    /// Invariant 9: the parameters in flash are a set the operator's telecommands made.
+    fn check_persisted_parameters(&mut self) {
+        let stored = self.r.worker.store_mut().persisted_parameters();
+        let decoded = crate::controller::Parameters::decode(&stored).encode();
+        if !self.param_sets.contains(&decoded) {
+            self.violation(format!(
+                "persisted parameters no telecommand made (an upset adopted?): {:?}",
+                crate::controller::Parameters::decode(&stored)
+            ));
+        }
     }
 
     /// Checks the report order of every telecommand in flight; retires finished ones.
@@ -667,6 +836,15 @@ impl<C: Choices> Soak<C> {
             };
             if finished {
                 self.tcs_done += 1;
+                // A parameter set that completed is in force now (invariant 8's model),
+                // and persisted (invariant 9 checks the flash).
+                if let Some(k) = self.setting.iter().position(|(r, _)| *r == rid) {
+                    let (_, _pairs) = self.setting.remove(k);
+                    if reps.last() == Some(&Verification::CompletionSuccess) {
+                        self.read_step_limits_from_model();
+                    }
+                    self.check_persisted_parameters();
+                }
                 // A selection refused at start changed nothing; one that completed (or
                 // failed after starting) is known from the events.
                 self.selecting.retain(|(r, _)| *r != rid);
@@ -680,13 +858,27 @@ impl<C: Choices> Soak<C> {
         self.in_flight = keep;
     }
 
+    /// The speed limits in force after a parameter set completed: what flash holds
+    /// (invariant 9 checks it is a set the operator made), never the controller's RAM.
+    fn read_step_limits_from_model(&mut self) {
+        let stored = self.r.worker.store_mut().persisted_parameters();
+        let l =
+            crate::controller::Parameters::decode(&stored).step_limits(self.r.ctl.active_table());
+        let dt = f64::from(CYCLE_S);
+        self.step_limits_mm = (f64::from(l.coordinated.0) * dt, f64::from(l.direct.0) * dt);
+    }
+
     /// The per-cycle invariants (module documentation).
     fn check_cycle(&mut self) {
         let c = self.r.ctl.strokes_commanded_mm();
         let state = self.r.ctl.state();
         let faulted = !self.r.ctl.faults().is_empty();
         let hk = self.r.ctl.housekeeping();
-        let limits = self.r.ctl.active_table().stroke_limits;
+        // The running table as the operator uploaded it (the RAM copy may be upset).
+        let limits = self
+            .known
+            .get(&hk.active_table_crc32)
+            .map_or(self.r.ctl.active_table().stroke_limits, |t| t.stroke_limits);
         let truth = self.r.plant.with(|p| p.strokes_mm());
         let drives = self.r.plant.with(|p| p.drive_setpoints_mm());
         let skip = std::mem::take(&mut self.repaired);
@@ -833,6 +1025,37 @@ impl<C: Choices> Soak<C> {
                 ));
             }
         }
+        // 8. The speed limit in force (the output stage's, whatever is upset): each
+        //    command's step within the coordinated or the direct limit of the motion.
+        if moving(state) && moving(self.prev_state) && !skip {
+            let limit = match state {
+                State::StrokeMoving => self.step_limits_mm.1,
+                State::Moving => self.step_limits_mm.0,
+                _ => self.step_limits_mm.0.max(self.step_limits_mm.1),
+            } + f64::from(crate::motion::limiter::STEP_TOLERANCE_MM);
+            for i in 0..LEGS {
+                let d = (f64::from(c[i]) - f64::from(self.prev_cmd[i])).abs();
+                if d > limit {
+                    self.violation(format!(
+                        "leg {} commanded step {:.4} um over the {:.4} um limit in force ({:?} -> {state:?})",
+                        i + 1,
+                        d * UM_PER_MM,
+                        limit * UM_PER_MM,
+                        self.prev_state
+                    ));
+                }
+            }
+        }
+        // 10. A detected upset is repaired within REPAIR_CYCLES (detections and repairs
+        //     are read from the telemetry by `track_selections`).
+        if let Some(t) = self.corrupt_since {
+            if self.cycles.saturating_sub(t) > REPAIR_CYCLES {
+                self.violation(format!(
+                    "an upset detected at cycle {t} (fault 0x100) not repaired"
+                ));
+                self.corrupt_since = None;
+            }
+        }
         // 6. Track completed selections from the telemetry.
         self.track_selections();
         self.prev_cmd = c;
@@ -851,6 +1074,19 @@ impl<C: Choices> Soak<C> {
         for k in self.log_seen..new {
             if let Tm::Event(_, event::END_OF_TRAVEL, _) = self.r.st.log[k] {
                 self.switch_trips += 1;
+            }
+            // Each detection (event 0x0002 naming 0x100 among the new faults) waits for
+            // a repair (event 0x0013); the fault may stay latched until cleared.
+            if let Tm::Event(_, event::FAULT_LATCHED, [_, new]) = self.r.st.log[k] {
+                if new & crate::supervision::FaultFlags::TABLE_CORRUPT.bits() != 0
+                    && self.corrupt_since.is_none()
+                {
+                    self.corrupt_since = Some(self.cycles);
+                }
+            }
+            if let Tm::Event(_, event::TABLE_RELOADED, _) = self.r.st.log[k] {
+                self.repairs += 1;
+                self.corrupt_since = None;
             }
             if let Tm::Event(_, event::TABLE_ACTIVATED, [id, crc]) = self.r.st.log[k] {
                 let t = TableRef { id, crc };
@@ -876,6 +1112,8 @@ impl<C: Choices> Soak<C> {
             state_cycles: self.state_cycles,
             switch_trips: self.switch_trips,
             blocked_motion_cycles: self.blocked_motion_cycles,
+            upsets: self.upsets,
+            repairs: self.repairs,
             violations: self.violations.len() as u64,
         }
     }

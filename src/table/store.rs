@@ -865,6 +865,22 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
         }
     }
 
+    /// The parameters of the newest valid selection record in flash now, read without
+    /// changing what the store knows (tests, the soak: what a boot would restore).
+    pub fn persisted_parameters(&mut self) -> [u8; PARAMETERS_LEN] {
+        match (self.read_slot(Slot::A), self.read_slot(Slot::B)) {
+            (Some((_, qa, pa)), Some((_, qb, pb))) => {
+                if seq_newer(qb, qa) {
+                    pb
+                } else {
+                    pa
+                }
+            }
+            (Some((_, _, p)), None) | (None, Some((_, _, p))) => p,
+            (None, None) => [0; PARAMETERS_LEN],
+        }
+    }
+
     /// Re-reads both selection slots from flash and returns the parameters of the newest
     /// valid one (the repair of a RAM upset: what the next boot would read, not the RAM
     /// copy).
