@@ -23,8 +23,8 @@
 //! 9. no upset value is ever persisted: the parameters in flash are always a set the
 //!    operator's telecommands made (checked after every parameter job and reboot);
 //! 10. a detected upset always clears after its repair: from the cycle fault 0x100
-//!    latches, the reload (event 0x0013) comes within [`REPAIR_CYCLES`], whatever job
-//!    was running.
+//!     latches, the reload (event 0x0013) comes within [`REPAIR_CYCLES`], whatever job
+//!     was running.
 //!
 //! The adversary also upsets RAM, single bits at random moments (during moves, during
 //! table jobs): the parameters in force, their check word, the running table, its
