@@ -47,6 +47,9 @@ const GOLDEN_SHA: &str = concat!(
     "/testdata/characterisation/host-telemetry.sha256"
 );
 
+/// The packets' CRC-16/CCITT-FALSE from the crc crate (not the crate under test's).
+const CCITT: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740);
+
 /// Parameter IDs used here (docs/icd.md, ST[20]).
 const PIVOT_Z: u16 = 0x0003;
 const MOVE_SPEED: u16 = 0x0010;
@@ -93,12 +96,12 @@ fn session() -> Vec<u8> {
     let (mut wrong_apid, _) = r.st.packet(&Command::Ping).unwrap();
     wrong_apid[1] ^= 0x01;
     let n = wrong_apid.len();
-    let crc = m2ctl::link::tc::CRC16.checksum(&wrong_apid[..n - 2]);
+    let crc = CCITT.checksum(&wrong_apid[..n - 2]);
     wrong_apid[n - 2..].copy_from_slice(&crc.to_be_bytes());
     send_raw(&mut r, &wrong_apid, 3);
     let (mut unknown, _) = r.st.packet(&Command::Ping).unwrap();
     unknown[7] = 42; // service
-    let crc = m2ctl::link::tc::CRC16.checksum(&unknown[..n - 2]);
+    let crc = CCITT.checksum(&unknown[..n - 2]);
     unknown[n - 2..].copy_from_slice(&crc.to_be_bytes());
     send_raw(&mut r, &unknown, 3);
     send_raw(&mut r, &good[..good.len() - 1], 3);

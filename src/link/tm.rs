@@ -11,24 +11,20 @@
 //! [`TmTime`]), source data, CRC-16/CCITT-FALSE.
 
 use crate::units::{US_PER_MS, US_PER_S};
-use arbitrary_int::{u11, u14};
-use spacepackets::ecss::tm::{
-    GenericPusTmSecondaryHeader, PusTmCreator, PusTmReader, PusTmSecondaryHeader,
-};
-use spacepackets::ecss::{CreatorConfig, MessageTypeId};
-use spacepackets::{CcsdsPacket, PacketId, PacketSequenceControl, SequenceFlags, SpHeader};
+use spacepackets::ecss::tm::{GenericPusTmSecondaryHeader, PusTmReader};
+use spacepackets::CcsdsPacket;
 
 use super::command::{MemoryId, TABLE_CHUNK_MAX_LEN};
 use super::error::{sat_u16, LinkError};
 use super::framing::{encode_frame, FrameError};
 use super::hk::{Housekeeping, HK_REPORT_LEN};
 use super::schedule::{emit_summary, SummaryEntry, SummaryView, MAX_SUMMARY_LEN};
-use super::tc::{RequestId, APID_MASK, REQUEST_ID_LEN, SEQ_COUNT_MASK};
+use super::tc::{RequestId, CRC16, REQUEST_ID_LEN, SEQ_COUNT_MASK};
 use super::time::{parse_time_report, time_report_bytes, TimeReportRate, TIME_REPORT_LEN};
 use super::wire::{Order, Reader, Writer};
 use super::{
-    service, subtype, CCSDS_PRIMARY_HEADER_LEN, CRC16_LEN, DATA_LEN_FIELD_OFFSET, M2_APID,
-    MAX_TM_PACKET_LEN, PUS_TM_SEC_HEADER_LEN_NO_TIME, TM_TIMESTAMP_LEN,
+    service, subtype, CCSDS_PRIMARY_HEADER_LEN, CRC16_LEN, DATA_LEN_FIELD_OFFSET, DATA_LEN_OFFSET,
+    M2_APID, MAX_TM_PACKET_LEN, PUS_C_VERSION, PUS_TM_SEC_HEADER_LEN_NO_TIME, TM_TIMESTAMP_LEN,
 };
 
 /// Largest source data of any TM packet the controller emits (bytes): the schedule
@@ -51,6 +47,19 @@ pub const MAX_TM_SOURCE_DATA_LEN: usize = {
     }
     m
 };
+/// Bytes of the headers of a TM packet before its source data: primary header, PUS-C
+/// TM secondary header, timestamp.
+pub const TM_HEADER_LEN: usize =
+    CCSDS_PRIMARY_HEADER_LEN + PUS_TM_SEC_HEADER_LEN_NO_TIME + TM_TIMESTAMP_LEN;
+/// The packet ID of every TM packet: version 0, type TM (0), secondary header flag,
+/// APID [`M2_APID`].
+const TM_PACKET_ID: u16 = 0x0800 | (M2_APID & super::tc::APID_MASK);
+/// Sequence flags "unsegmented" in the packet sequence control.
+const SEQ_FLAGS_UNSEGMENTED: u16 = 0xc000;
+/// Shift of the PUS version in the first secondary-header byte (time reference status
+/// 0 below it).
+const PUS_VERSION_SHIFT: u8 = 4;
+
 /// Bytes of the TM[6,6] header before the data: memory ID u8, offset u16, length u16.
 pub const DUMP_HEADER_LEN: usize = 5;
 /// Bytes of a failure notice: code u16, data u32.
@@ -404,8 +413,16 @@ impl TmWriter {
         self.counters = checkpoint;
     }
 
-    /// Builds, frames and counts one packet; counters move only on success.
-    fn emit(
+    /// Builds, frames and counts one packet of service and subtype `message` with this
+    /// source data; counters move only on success. Returns the frame length.
+    ///
+    /// The headers are written here (the layout of the module documentation), not by
+    /// spacepackets' `PusTmCreator`: its writer and the `crc` crate's 512-byte CRC-16
+    /// table it computes with were ~1 KB of the flight image, where this and the
+    /// nibble-table [`CRC16`] are ~0.2 KB. Equal to the crate's packets bit for bit (host
+    /// test `link::tm_packets_equal_spacepackets_creator`, which keeps the crate as the
+    /// reference).
+    pub fn emit_packet(
         &mut self,
         time: TmTime,
         message: (u8, u8),
@@ -417,22 +434,49 @@ impl TmWriter {
         let msg_counter = slot
             .and_then(|i| self.counters.msg_counters.get(i).copied())
             .unwrap_or(0);
-        let stamp = time.to_bytes();
-        let sp = SpHeader::new(
-            PacketId::new_for_tm(true, u11::new(M2_APID & APID_MASK)),
-            PacketSequenceControl::new(
-                SequenceFlags::Unsegmented,
-                u14::new(self.counters.seq_count & SEQ_COUNT_MASK),
-            ),
-            0,
-        );
-        let sec = PusTmSecondaryHeader::new(MessageTypeId::new(svc, sub), msg_counter, 0, &stamp);
-        let tm = PusTmCreator::new(sp, sec, source_data, CreatorConfig::default());
+        let len = TM_HEADER_LEN + source_data.len() + CRC16_LEN;
         let mut packet = [0u8; MAX_TM_PACKET_LEN];
-        let n = tm
-            .write_to_slice(&mut packet)
-            .map_err(|_| EmitError::BufferTooSmall)?;
-        let bytes = packet.get(..n).ok_or(EmitError::BufferTooSmall)?;
+        let data_len =
+            u16::try_from(len - DATA_LEN_OFFSET).map_err(|_| EmitError::BufferTooSmall)?;
+        let [id0, id1] = TM_PACKET_ID.to_be_bytes();
+        let [sc0, sc1] =
+            (SEQ_FLAGS_UNSEGMENTED | (self.counters.seq_count & SEQ_COUNT_MASK)).to_be_bytes();
+        let [dl0, dl1] = data_len.to_be_bytes();
+        let [mc0, mc1] = msg_counter.to_be_bytes();
+        let [t0, t1, t2, t3, t4, t5] = time.to_bytes();
+        let header: [u8; TM_HEADER_LEN] = [
+            id0,
+            id1,
+            sc0,
+            sc1,
+            dl0,
+            dl1,
+            PUS_C_VERSION << PUS_VERSION_SHIFT,
+            svc,
+            sub,
+            mc0,
+            mc1,
+            0,
+            0,
+            t0,
+            t1,
+            t2,
+            t3,
+            t4,
+            t5,
+        ];
+        let too_small = EmitError::BufferTooSmall;
+        let mut w = Writer::new(&mut packet, Order::Big);
+        w.put(&header)
+            .and_then(|_| w.put(source_data))
+            .ok_or(too_small)?;
+        let crc = CRC16.checksum(packet.get(..len - CRC16_LEN).ok_or(too_small)?);
+        let mut w = Writer::new(
+            packet.get_mut(len - CRC16_LEN..).ok_or(too_small)?,
+            Order::Big,
+        );
+        w.u16(crc).ok_or(too_small)?;
+        let bytes = packet.get(..len).ok_or(too_small)?;
         let framed = encode_frame(bytes, out)?;
         self.counters.seq_count = self.counters.seq_count.wrapping_add(1) & SEQ_COUNT_MASK;
         if let Some(c) = slot.and_then(|i| self.counters.msg_counters.get_mut(i)) {
@@ -461,7 +505,7 @@ impl TmWriter {
         }
         let len = w.position();
         let src = data.get(..len).ok_or(EmitError::BufferTooSmall)?;
-        self.emit(time, (service::VERIFICATION, report.subtype()), src, out)
+        self.emit_packet(time, (service::VERIFICATION, report.subtype()), src, out)
     }
 
     /// TM[5,x] event report: event ID u16, aux words u32 x2. Returns the frame length.
@@ -479,7 +523,7 @@ impl TmWriter {
             .and_then(|_| w.u32(aux[0]))
             .and_then(|_| w.u32(aux[1]))
             .ok_or(EmitError::BufferTooSmall)?;
-        self.emit(time, (service::EVENT, severity.subtype()), &data, out)
+        self.emit_packet(time, (service::EVENT, severity.subtype()), &data, out)
     }
 
     /// TM[3,25] housekeeping report. Returns the frame length.
@@ -491,7 +535,7 @@ impl TmWriter {
     ) -> Result<usize, EmitError> {
         let mut data = [0u8; HK_REPORT_LEN];
         hk.emit(&mut data);
-        self.emit(
+        self.emit_packet(
             time,
             (service::HOUSEKEEPING, subtype::HK_REPORT),
             &data,
@@ -508,7 +552,7 @@ impl TmWriter {
         out: &mut [u8],
     ) -> Result<usize, EmitError> {
         let data = time_report_bytes(rate, time);
-        self.emit(time, (service::TIME, subtype::TIME_REPORT), &data, out)
+        self.emit_packet(time, (service::TIME, subtype::TIME_REPORT), &data, out)
     }
 
     /// TM[11,13] schedule summary: N u8, then release time and request ID of each
@@ -522,7 +566,7 @@ impl TmWriter {
         let mut data = [0u8; MAX_SUMMARY_LEN];
         let n = emit_summary(entries, &mut data).ok_or(EmitError::BufferTooSmall)?;
         let src = data.get(..n).ok_or(EmitError::BufferTooSmall)?;
-        self.emit(
+        self.emit_packet(
             time,
             (service::SCHEDULING, subtype::SCHEDULE_SUMMARY_REPORT),
             src,
@@ -532,7 +576,7 @@ impl TmWriter {
 
     /// TM[17,2] ping reply (no source data). Returns the frame length.
     pub fn emit_ping_reply(&mut self, time: TmTime, out: &mut [u8]) -> Result<usize, EmitError> {
-        self.emit(time, (service::TEST, subtype::PING_REPLY), &[], out)
+        self.emit_packet(time, (service::TEST, subtype::PING_REPLY), &[], out)
     }
 
     /// TM[8,130] move-check report: request ID (4), code u16 (0: the move would be
@@ -552,7 +596,7 @@ impl TmWriter {
             .and_then(|_| w.u32(check.path_refusals))
             .and_then(|_| w.u8(check.path_sample))
             .ok_or(EmitError::BufferTooSmall)?;
-        self.emit(
+        self.emit_packet(
             time,
             (service::FUNCTION, subtype::MOVE_CHECK_REPORT),
             &data,
@@ -578,7 +622,7 @@ impl TmWriter {
         }
         let len = w.position();
         let src = data.get(..len).ok_or(EmitError::BufferTooSmall)?;
-        self.emit(
+        self.emit_packet(
             time,
             (service::PARAMETER, subtype::PARAMETER_REPORT),
             src,
@@ -608,7 +652,7 @@ impl TmWriter {
             .ok_or(EmitError::BadChunk)?;
         let len = w.position();
         let src = data.get(..len).ok_or(EmitError::BadChunk)?;
-        self.emit(
+        self.emit_packet(
             time,
             (service::MEMORY, subtype::MEMORY_DUMP_REPORT),
             src,
