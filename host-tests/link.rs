@@ -1186,3 +1186,32 @@ fn tm_packets_equal_spacepackets_creator() {
         "service 1 wrapped"
     );
 }
+
+/// What the one emit path (`TmSource`) refuses, as the per-packet emitters with their
+/// own buffers refused it: a summary beyond the schedule's 16 activities and a
+/// parameter report beyond the source data (a too-small buffer), a dump chunk empty or
+/// beyond 128 bytes (a bad chunk); nothing is counted.
+#[test]
+fn emitters_refuse_oversized_source_data_as_before() {
+    use m2ctl::link::schedule::SummaryEntry;
+    let mut w = TmWriter::new();
+    let mut buf = [0u8; MAX_TM_FRAME_LEN];
+    let t = TmTime::default();
+    let entries = vec![SummaryEntry::default(); 17];
+    assert_eq!(
+        w.emit_schedule_summary(t, &entries, &mut buf),
+        Err(EmitError::BufferTooSmall)
+    );
+    assert!(w.emit_schedule_summary(t, &entries[..16], &mut buf).is_ok());
+    let values = vec![(1u16, -1i32); 39];
+    assert_eq!(
+        w.emit_parameter_report(t, &values, &mut buf),
+        Err(EmitError::BufferTooSmall)
+    );
+    assert!(w.emit_parameter_report(t, &values[..38], &mut buf).is_ok());
+    assert_eq!(
+        w.emit_table_dump_chunk(t, MemoryId::ActiveTable, 0, &[7; 129], &mut buf),
+        Err(EmitError::BadChunk)
+    );
+    assert_eq!(w.next_seq_count(), 2);
+}
