@@ -106,7 +106,7 @@ impl Default for LinkService {
 /// What one record needs from the controller to be encoded.
 enum Content {
     Plain(TmRecord),
-    Hk(Housekeeping),
+    Hk(super::telemetry::HkSample),
     Params(heapless::Vec<(u16, i32), { super::params::N_PARAMETERS }>),
     Dump(crate::link::MemoryId, u16, super::commands::DumpChunk),
     Summary(super::schedule::ScheduleSummary),
@@ -223,8 +223,8 @@ impl LinkService {
                 let content = match stamped.record {
                     TmRecord::Housekeeping => {
                         let mut hk = *c.tm_queue().peek_housekeeping()?;
-                        hk.tc_frames_dropped = counters.frames_dropped;
-                        hk.uart_overruns = counters.uart_overruns;
+                        hk.report.tc_frames_dropped = counters.frames_dropped;
+                        hk.report.uart_overruns = counters.uart_overruns;
                         Content::Hk(hk)
                     }
                     TmRecord::DumpChunk {
@@ -268,6 +268,7 @@ impl LinkService {
     #[inline(never)]
     fn encode(&mut self, stamped: &Stamped, content: &Content, out: &mut [u8]) -> Option<usize> {
         let time = super::schedule::obt_of_cycle(stamped.cycle);
+        let hk: Housekeeping;
         let source = match content {
             Content::Plain(TmRecord::Verification { request_id, report }) => {
                 TmSource::Verification {
@@ -288,7 +289,11 @@ impl LinkService {
             Content::Params(values) => TmSource::Parameters(values),
             Content::Plain(TmRecord::TimeReport { rate }) => TmSource::TimeReport(*rate),
             Content::Summary(entries) => TmSource::ScheduleSummary(entries),
-            Content::Hk(hk) => TmSource::Housekeeping(hk),
+            Content::Hk(sample) => {
+                // Converted here, below the control task (`HkSample`).
+                hk = sample.to_report();
+                TmSource::Housekeeping(&hk)
+            }
             Content::Dump(memory, offset, chunk) => TmSource::DumpChunk {
                 memory: *memory,
                 offset_bytes: *offset,

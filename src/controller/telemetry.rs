@@ -34,10 +34,12 @@
 
 use heapless::Deque;
 
+use crate::kinematics::{Pose, LEGS};
 use crate::link::command::TABLE_CHUNK_MAX_LEN;
 use crate::link::tc::RequestId;
 use crate::link::time::TimeReportRate;
 use crate::link::tm::{EventSeverity, Verification};
+use crate::link::wire::{mm_to_nm_f32, pose_to_wire_f32};
 use crate::link::{Housekeeping, MemoryId};
 
 /// Records the queue holds.
@@ -65,6 +67,47 @@ const _: () = assert!(ADMISSION_FREE_SLOTS <= TM_QUEUE_LEN);
 /// Housekeeping samples the queue keeps waiting to be sent (a backed-up downlink's
 /// periodic and one-shot reports beyond them are dropped and counted).
 pub const HK_SAMPLES: usize = 4;
+
+/// A housekeeping sample as the control cycle takes it: the report's other fields as
+/// they go on the wire, and its poses, strokes and encoder readings still in working
+/// units (mm, rad, `f32`). The link service converts those to nm and micro-arcseconds
+/// when it encodes the report ([`HkSample::to_report`]): the conversion of the rotations
+/// is exact in `f64`, software floating point on the Cortex-M4F (~5,000 instructions
+/// for the four poses), and taken in the control cycle it put a move's cycle with a
+/// housekeeping sample at 20,233 instructions. The result is the same: the same
+/// conversion of the same values, only later.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct HkSample {
+    /// Every field but the six below, which are zero here.
+    pub report: Housekeeping,
+    /// Pose from FK (mm, rad).
+    pub pose_fk: Pose<f32>,
+    /// Commanded pose (mm, rad).
+    pub pose_commanded: Pose<f32>,
+    /// Commanded strokes (mm).
+    pub strokes_commanded_mm: [f32; LEGS],
+    /// Encoder readings (mm).
+    pub encoders_mm: [f32; LEGS],
+    /// Pose from FK in the operator's frames (mm, rad).
+    pub pose_fk_operator: Pose<f32>,
+    /// Commanded pose in the operator's frames (mm, rad).
+    pub pose_commanded_operator: Pose<f32>,
+}
+
+impl HkSample {
+    /// The report: the six fields in wire units (`link::wire::pose_to_wire_f32`,
+    /// `mm_to_nm_f32`).
+    pub fn to_report(&self) -> Housekeeping {
+        let mut h = self.report;
+        h.pose_fk = pose_to_wire_f32(&self.pose_fk);
+        h.pose_commanded = pose_to_wire_f32(&self.pose_commanded);
+        h.strokes_commanded_nm = self.strokes_commanded_mm.map(mm_to_nm_f32);
+        h.encoders_nm = self.encoders_mm.map(mm_to_nm_f32);
+        h.pose_fk_operator = pose_to_wire_f32(&self.pose_fk_operator);
+        h.pose_commanded_operator = pose_to_wire_f32(&self.pose_commanded_operator);
+        h
+    }
+}
 
 /// Which records yield to which when the queue fills (module documentation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -179,7 +222,7 @@ pub struct Stamped {
 pub struct TmQueue {
     queue: Deque<Stamped, TM_QUEUE_LEN>,
     /// The samples of the queued housekeeping records, in queue order.
-    hk: Deque<Housekeeping, HK_SAMPLES>,
+    hk: Deque<HkSample, HK_SAMPLES>,
     dropped: u16,
 }
 
@@ -214,7 +257,7 @@ impl TmQueue {
     /// Queues a housekeeping report made in `cycle` with its sample, or drops and
     /// counts it when the bulk reserve or the [`HK_SAMPLES`] are used up. Returns
     /// whether it was queued.
-    pub fn push_housekeeping(&mut self, cycle: u32, sample: &Housekeeping) -> bool {
+    pub fn push_housekeeping(&mut self, cycle: u32, sample: &HkSample) -> bool {
         let record = TmRecord::Housekeeping;
         if self.free() > record.class().reserve() && !self.hk.is_full() {
             let queued = self.hk.push_back(*sample).is_ok()
@@ -233,7 +276,7 @@ impl TmQueue {
     }
 
     /// The sample of the oldest housekeeping record.
-    pub fn peek_housekeeping(&self) -> Option<&Housekeeping> {
+    pub fn peek_housekeeping(&self) -> Option<&HkSample> {
         self.hk.front()
     }
 
@@ -357,9 +400,12 @@ mod tests {
 
     #[test]
     fn housekeeping_samples_leave_with_their_records() {
-        let sample = |cycle: u32| Housekeeping {
-            cycle_counter: cycle,
-            ..Housekeeping::default()
+        let sample = |cycle: u32| HkSample {
+            report: Housekeeping {
+                cycle_counter: cycle,
+                ..Housekeeping::default()
+            },
+            ..HkSample::default()
         };
         let mut q = TmQueue::new();
         for c in 0..HK_SAMPLES as u32 {
@@ -371,7 +417,10 @@ mod tests {
         assert!(!q.push(0, TmRecord::Housekeeping), "only with a sample");
         for c in 0..HK_SAMPLES as u32 {
             assert_eq!(q.peek().map(|s| s.cycle), Some(c));
-            assert_eq!(q.peek_housekeeping().map(|h| h.cycle_counter), Some(c));
+            assert_eq!(
+                q.peek_housekeeping().map(|h| h.report.cycle_counter),
+                Some(c)
+            );
             assert!(matches!(
                 q.pop().map(|s| s.record),
                 Some(TmRecord::Housekeeping)
