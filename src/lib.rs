@@ -9,6 +9,7 @@
 //! * [`nominal`]: the compiled-in nominal geometry of the prototype.
 //! * [`selftest`]: the golden-vector self-test the firmware runs at boot.
 //! * [`units`]: the unit conversion factors, each defined once.
+//! * [`softfloat`]: the `f64` arithmetic of the target, written for size.
 //! * [`drivers`]: BiSS-C encoders, step/direction drives, limit switches on
 //!   embedded-hal 1.0 traits (no board imports).
 //! * `sim` (host): the simulated plant (true geometry, sliders, encoders).
@@ -27,6 +28,7 @@ pub mod nominal;
 #[cfg(any(feature = "host", feature = "firmware"))]
 pub mod plant;
 pub mod selftest;
+pub mod softfloat;
 pub mod supervision;
 pub mod table;
 pub mod timing;
