@@ -9,7 +9,8 @@
 //! * [`nominal`]: the compiled-in nominal geometry of the prototype.
 //! * [`selftest`]: the golden-vector self-test the firmware runs at boot.
 //! * [`units`]: the unit conversion factors, each defined once.
-//! * [`softfloat`]: the `f64` arithmetic of the target, written for size.
+//! * [`softfloat`], [`mem`]: the target's `f64` arithmetic and memory copy and fill,
+//!   written for size.
 //! * [`drivers`]: BiSS-C encoders, step/direction drives, limit switches on
 //!   embedded-hal 1.0 traits (no board imports).
 //! * `sim` (host): the simulated plant (true geometry, sliders, encoders).
@@ -23,6 +24,7 @@ pub mod drivers;
 pub mod hw;
 pub mod kinematics;
 pub mod link;
+pub mod mem;
 pub mod motion;
 pub mod nominal;
 #[cfg(any(feature = "host", feature = "firmware"))]
