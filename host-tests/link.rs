@@ -1068,6 +1068,28 @@ fn round_sat_i32_is_libm_round_saturated() {
             check(v);
         }
     }
+    // Half-integers and their neighbours near the saturation and at every exponent.
+    for e in 0..34 {
+        for k in [
+            (1i64 << e) - 1,
+            1i64 << e,
+            (1i64 << e) + 1,
+            2147483646,
+            2147483647,
+        ] {
+            for s in [1.0, -1.0] {
+                let half = s * (k as f64 + 0.5);
+                for v in [
+                    half,
+                    f64::from_bits(half.to_bits() + 1),
+                    f64::from_bits(half.to_bits() - 1),
+                    s * k as f64,
+                ] {
+                    check(v);
+                }
+            }
+        }
+    }
     let mut rng = common::TestRng(0x853c_49e6_748f_ea9b);
     for _ in 0..1_000_000 {
         check(f64::from_bits(rng.bits()));
