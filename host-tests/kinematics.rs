@@ -601,6 +601,20 @@ fn sqrt_f64_is_libm_bit_for_bit() {
         );
     }
     assert_eq!(sqrt_f64(-0.0).to_bits(), (-0.0f64).to_bits());
+    // NaN and negative input give exactly f64::NAN (whatever the input's payload).
+    for x in [
+        f64::NAN,
+        -f64::NAN,
+        f64::from_bits(0x7ff0_0000_0000_0001),
+        f64::from_bits(0xfff4_0000_0000_0abc),
+        -1.0,
+        -f64::from_bits(1),
+        -f64::MIN_POSITIVE,
+        f64::NEG_INFINITY,
+        -f64::MAX,
+    ] {
+        assert_eq!(sqrt_f64(x).to_bits(), f64::NAN.to_bits(), "sqrt({x:e})");
+    }
     let mut rng = TestRng(0x9e37_79b9_7f4a_7c15);
     let mut next = || rng.bits();
     for _ in 0..200_000 {

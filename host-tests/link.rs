@@ -1068,6 +1068,28 @@ fn round_sat_i32_is_libm_round_saturated() {
             check(v);
         }
     }
+    // Half-integers and their neighbours near the saturation and at every exponent.
+    for e in 0..34 {
+        for k in [
+            (1i64 << e) - 1,
+            1i64 << e,
+            (1i64 << e) + 1,
+            2147483646,
+            2147483647,
+        ] {
+            for s in [1.0, -1.0] {
+                let half = s * (k as f64 + 0.5);
+                for v in [
+                    half,
+                    f64::from_bits(half.to_bits() + 1),
+                    f64::from_bits(half.to_bits() - 1),
+                    s * k as f64,
+                ] {
+                    check(v);
+                }
+            }
+        }
+    }
     let mut rng = common::TestRng(0x853c_49e6_748f_ea9b);
     for _ in 0..1_000_000 {
         check(f64::from_bits(rng.bits()));
@@ -1128,4 +1150,143 @@ fn an_argument_out_of_range_names_its_index_not_counting_the_function_id() {
     // TC[9,1]'s rate.
     let rate = Command::SetTimeReportRate(TimeReportRate::Every { exponent: 1 });
     assert_eq!(data_of(&edit(&rate, &|p| p[AD] = 9)), (0x050d, 0));
+}
+
+#[test]
+fn nibble_crc16_equals_the_crc_crate() {
+    use m2ctl::link::tc::{NibbleCrc16, CRC16};
+    let reference = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740);
+    assert_eq!(CRC16.checksum(b"123456789"), crc::CRC_16_IBM_3740.check);
+    assert_eq!(CRC16.checksum(&[]), reference.checksum(&[]));
+    // Another catalogue entry through the same construction (its own check value).
+    let xmodem = NibbleCrc16::new(&crc::CRC_16_XMODEM);
+    assert_eq!(xmodem.checksum(b"123456789"), crc::CRC_16_XMODEM.check);
+    let mut rng = common::TestRng(0x5eed_c0de_1616_0001);
+    for _ in 0..20_000 {
+        let len = (rng.bits() % 300) as usize;
+        let bytes: Vec<u8> = (0..len).map(|_| rng.bits() as u8).collect();
+        assert_eq!(
+            CRC16.checksum(&bytes),
+            reference.checksum(&bytes),
+            "{bytes:02x?}"
+        );
+    }
+}
+
+/// The TM packet as spacepackets' creator writes it (what `TmWriter` used before its own
+/// header writer): the reference of `tm_packets_equal_spacepackets_creator`.
+fn spacepackets_tm(
+    seq_count: u16,
+    msg_counter: u16,
+    message: (u8, u8),
+    time: TmTime,
+    source: &[u8],
+) -> Vec<u8> {
+    use arbitrary_int::{u11, u14};
+    use spacepackets::ecss::tm::{PusTmCreator, PusTmSecondaryHeader};
+    use spacepackets::ecss::{CreatorConfig, MessageTypeId};
+    use spacepackets::{PacketId, PacketSequenceControl, SequenceFlags, SpHeader};
+    let stamp = time.to_bytes();
+    let sp = SpHeader::new(
+        PacketId::new_for_tm(true, u11::new(M2_APID)),
+        PacketSequenceControl::new(SequenceFlags::Unsegmented, u14::new(seq_count & 0x3fff)),
+        0,
+    );
+    let sec = PusTmSecondaryHeader::new(
+        MessageTypeId::new(message.0, message.1),
+        msg_counter,
+        0,
+        &stamp,
+    );
+    let tm = PusTmCreator::new(sp, sec, source, CreatorConfig::default());
+    let mut out = vec![0u8; MAX_TM_PACKET_LEN];
+    let n = tm.write_to_slice(&mut out).unwrap();
+    out.truncate(n);
+    out
+}
+
+#[test]
+fn tm_packets_equal_spacepackets_creator() {
+    use m2ctl::link::tm::MAX_TM_SOURCE_DATA_LEN;
+    use std::collections::BTreeMap;
+    // The services whose message type counters the writer keeps; others carry 0.
+    let counted = [
+        service::VERIFICATION,
+        service::HOUSEKEEPING,
+        service::EVENT,
+        service::MEMORY,
+        service::FUNCTION,
+        service::TEST,
+        service::PARAMETER,
+        service::TIME,
+        service::SCHEDULING,
+    ];
+    let mut rng = common::TestRng(0x7e1e_3e77_0000_0019);
+    let mut w = TmWriter::new();
+    let mut counters = BTreeMap::<u8, u16>::new();
+    let mut buf = [0u8; MAX_TM_FRAME_LEN];
+    // Past the 14-bit sequence count's wrap and the first message counters' 2^16 wrap
+    // (service 1 takes about half of the packets).
+    for i in 0..140_000u32 {
+        let svc = if rng.bits() % 2 == 0 {
+            service::VERIFICATION
+        } else {
+            (rng.bits() % 256) as u8
+        };
+        let sub = rng.bits() as u8;
+        let time = TmTime {
+            seconds: rng.bits() as u32,
+            fraction: rng.bits() as u16,
+        };
+        let len = if i % 7 == 0 {
+            MAX_TM_SOURCE_DATA_LEN
+        } else {
+            (rng.bits() % (MAX_TM_SOURCE_DATA_LEN as u64 + 1)) as usize
+        };
+        let source: Vec<u8> = (0..len).map(|_| rng.bits() as u8).collect();
+        let msg_counter = if counted.contains(&svc) {
+            *counters.entry(svc).or_insert(0)
+        } else {
+            0
+        };
+        let want = spacepackets_tm(i as u16, msg_counter, (svc, sub), time, &source);
+        let n = w.emit_packet(time, (svc, sub), &source, &mut buf).unwrap();
+        assert_eq!(tm_packet(&buf[..n]), want, "packet {i}");
+        if let Some(c) = counters.get_mut(&svc) {
+            *c = c.wrapping_add(1);
+        }
+    }
+    assert!(
+        counters[&service::VERIFICATION] < 10_000,
+        "service 1 wrapped"
+    );
+}
+
+/// What the one emit path (`TmSource`) refuses, as the per-packet emitters with their
+/// own buffers refused it: a summary beyond the schedule's 16 activities and a
+/// parameter report beyond the source data (a too-small buffer), a dump chunk empty or
+/// beyond 128 bytes (a bad chunk); nothing is counted.
+#[test]
+fn emitters_refuse_oversized_source_data_as_before() {
+    use m2ctl::link::schedule::SummaryEntry;
+    let mut w = TmWriter::new();
+    let mut buf = [0u8; MAX_TM_FRAME_LEN];
+    let t = TmTime::default();
+    let entries = vec![SummaryEntry::default(); 17];
+    assert_eq!(
+        w.emit_schedule_summary(t, &entries, &mut buf),
+        Err(EmitError::BufferTooSmall)
+    );
+    assert!(w.emit_schedule_summary(t, &entries[..16], &mut buf).is_ok());
+    let values = vec![(1u16, -1i32); 39];
+    assert_eq!(
+        w.emit_parameter_report(t, &values, &mut buf),
+        Err(EmitError::BufferTooSmall)
+    );
+    assert!(w.emit_parameter_report(t, &values[..38], &mut buf).is_ok());
+    assert_eq!(
+        w.emit_table_dump_chunk(t, MemoryId::ActiveTable, 0, &[7; 129], &mut buf),
+        Err(EmitError::BadChunk)
+    );
+    assert_eq!(w.next_seq_count(), 2);
 }

@@ -9,6 +9,8 @@
 //! * [`nominal`]: the compiled-in nominal geometry of the prototype.
 //! * [`selftest`]: the golden-vector self-test the firmware runs at boot.
 //! * [`units`]: the unit conversion factors, each defined once.
+//! * [`softfloat`], [`mem`]: the target's `f64` arithmetic and memory copy and fill,
+//!   written for size.
 //! * [`drivers`]: BiSS-C encoders, step/direction drives, limit switches on
 //!   embedded-hal 1.0 traits (no board imports).
 //! * `sim` (host): the simulated plant (true geometry, sliders, encoders).
@@ -22,11 +24,13 @@ pub mod drivers;
 pub mod hw;
 pub mod kinematics;
 pub mod link;
+pub mod mem;
 pub mod motion;
 pub mod nominal;
 #[cfg(any(feature = "host", feature = "firmware"))]
 pub mod plant;
 pub mod selftest;
+pub mod softfloat;
 pub mod supervision;
 pub mod table;
 pub mod timing;

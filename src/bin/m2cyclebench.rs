@@ -572,8 +572,10 @@ fn lock_bodies(r: &mut Rig, target: &WirePose) -> bool {
         let (rid, ack) = (job.request_id(), job.ack());
         r.lock_section("check_report", |c| c.finish_move_check(rid, ack, check));
     }
+    // A housekeeping record's content: the copy of its queued sample (the sample is
+    // taken in the control cycle, converted to wire units by the link unlocked).
     r.lock_section("hk_content", |c| {
-        core::hint::black_box(c.housekeeping());
+        core::hint::black_box(c.tm_queue().peek_housekeeping().copied());
     });
     r.lock_section("dump_chunk", |c| {
         core::hint::black_box(c.dump_chunk(m2ctl::link::MemoryId::ActiveTable, 0));

@@ -29,8 +29,8 @@ use super::telemetry::{Stamped, TmRecord};
 use super::{Controller, JobRequest, JobResult};
 use crate::hw::MechanismIo;
 use crate::link::framing::{max_cobs_len, Deframer};
-use crate::link::tm::TmWriter;
-use crate::link::{MAX_TC_PACKET_LEN, MAX_TM_FRAME_LEN};
+use crate::link::tm::{TmSource, TmWriter};
+use crate::link::{Housekeeping, MAX_TC_PACKET_LEN, MAX_TM_FRAME_LEN};
 
 /// Telecommands handled per pass (per control cycle): a table upload's five chunks and
 /// its commit arrive within two cycles; the budget per telecommand is measured by the
@@ -223,8 +223,8 @@ impl LinkService {
                 let content = match stamped.record {
                     TmRecord::Housekeeping => {
                         let mut hk = *c.tm_queue().peek_housekeeping()?;
-                        hk.words.tc_frames_dropped = counters.frames_dropped;
-                        hk.words.uart_overruns = counters.uart_overruns;
+                        hk.report.tc_frames_dropped = counters.frames_dropped;
+                        hk.report.uart_overruns = counters.uart_overruns;
                         Content::Hk(hk)
                     }
                     TmRecord::DumpChunk {
@@ -263,39 +263,51 @@ impl LinkService {
         }
     }
 
+    /// The framed packet of one record: its source data described once
+    /// ([`TmSource`]), written by the one emit path.
     #[inline(never)]
     fn encode(&mut self, stamped: &Stamped, content: &Content, out: &mut [u8]) -> Option<usize> {
         let time = super::schedule::obt_of_cycle(stamped.cycle);
-        match content {
-            Content::Plain(TmRecord::Verification { request_id, report }) => self
-                .tm
-                .emit_verification(time, *request_id, *report, out)
-                .ok(),
-            Content::Plain(TmRecord::Event { severity, id, aux }) => {
-                self.tm.emit_event(time, *severity, *id, *aux, out).ok()
+        let hk: Housekeeping;
+        let source = match content {
+            Content::Plain(TmRecord::Verification { request_id, report }) => {
+                TmSource::Verification {
+                    request_id: *request_id,
+                    report: *report,
+                }
             }
-            Content::Plain(TmRecord::PingReply) => self.tm.emit_ping_reply(time, out).ok(),
-            Content::Plain(TmRecord::MoveCheck { request_id, check }) => {
-                self.tm.emit_move_check(time, *request_id, check, out).ok()
+            Content::Plain(TmRecord::Event { severity, id, aux }) => TmSource::Event {
+                severity: *severity,
+                event_id: *id,
+                aux: *aux,
+            },
+            Content::Plain(TmRecord::PingReply) => TmSource::PingReply,
+            Content::Plain(TmRecord::MoveCheck { request_id, check }) => TmSource::MoveCheck {
+                request_id: *request_id,
+                check: *check,
+            },
+            Content::Params(values) => TmSource::Parameters(values),
+            Content::Plain(TmRecord::TimeReport { rate }) => TmSource::TimeReport(*rate),
+            Content::Summary(entries) => TmSource::ScheduleSummary(entries),
+            Content::Hk(sample) => {
+                // Converted here, below the control task (`HkSample`).
+                hk = sample.to_report();
+                TmSource::Housekeeping(&hk)
             }
-            Content::Params(values) => self.tm.emit_parameter_report(time, values, out).ok(),
-            Content::Plain(TmRecord::TimeReport { rate }) => {
-                self.tm.emit_time_report(time, *rate, out).ok()
-            }
-            Content::Summary(entries) => self.tm.emit_schedule_summary(time, entries, out).ok(),
-            Content::Hk(sample) => self.tm.emit_housekeeping(time, &sample.report(), out).ok(),
-            Content::Dump(memory, offset, chunk) => self
-                .tm
-                .emit_table_dump_chunk(time, *memory, *offset, chunk.bytes(), out)
-                .ok(),
+            Content::Dump(memory, offset, chunk) => TmSource::DumpChunk {
+                memory: *memory,
+                offset_bytes: *offset,
+                bytes: chunk.bytes(),
+            },
             Content::Plain(
                 TmRecord::Housekeeping
                 | TmRecord::DumpChunk { .. }
                 | TmRecord::Parameters { .. }
                 | TmRecord::ScheduleSummary,
             )
-            | Content::Nothing => None,
-        }
+            | Content::Nothing => return None,
+        };
+        self.tm.emit(time, &source, out).ok()
     }
 
     /// Moves job requests from the controller to the worker and results back.

@@ -76,7 +76,7 @@ use crate::kinematics::{
     fk, FkConfig, FkError, FkSolution, Frames, Geometry, GeometryError, Pose, LEGS,
 };
 use crate::link::tm::EventSeverity;
-use crate::link::Housekeeping;
+use crate::link::{Housekeeping, WirePose};
 use crate::motion::MotionLimits;
 use crate::supervision::{CycleInputs, FaultFlags, Supervisor};
 use crate::table::upload::UploadBuffer;
@@ -86,7 +86,7 @@ use crate::timing::{cycle_to_us, SCRUB_PERIOD_CYCLES};
 pub use error::CommandError;
 pub use jobs::{JobRequest, JobResult, Worker};
 pub use params::Parameters;
-pub use telemetry::{Stamped, TmQueue, TmRecord};
+pub use telemetry::{HkSample, Stamped, TmQueue, TmRecord};
 
 /// Event IDs of service 5 (the ICD's table; aux words in the link's `event_id` docs).
 pub use crate::link::tm::event_id as event;
@@ -756,37 +756,25 @@ impl<M: MechanismIo> Controller<M> {
     /// Queues a housekeeping report with the sample of now (stamped with this cycle,
     /// whose number it carries).
     fn queue_housekeeping(&mut self) {
-        let sample = self.housekeeping_sample();
+        let sample = self.hk_sample();
         self.tm.push_housekeeping(self.cycle, &sample);
     }
 
     /// The housekeeping report of now (the link service adds its own counters).
     pub fn housekeeping(&self) -> Housekeeping {
-        self.housekeeping_sample().report()
+        self.hk_sample().to_report()
     }
 
-    /// The housekeeping sample of now: the words, the poses and strokes still in
-    /// working units (a copy: the conversions are done when the report is encoded).
-    pub fn housekeeping_sample(&self) -> telemetry::HkSample {
-        telemetry::HkSample {
-            words: self.housekeeping_words(),
-            pose_fk: self.pose_fk,
-            pose_commanded: self.pose_commanded,
-            strokes_commanded_mm: self.strokes_commanded_mm,
-            encoders_mm: self.encoders_mm,
-            frames: self.ops.frames,
-        }
-    }
-
-    /// Every housekeeping word but the poses, strokes and encoders (zero here).
-    fn housekeeping_words(&self) -> Housekeeping {
+    /// The housekeeping sample of now, its poses and strokes in working units (the link
+    /// service converts them, [`HkSample::to_report`], and adds its own counters).
+    pub fn hk_sample(&self) -> HkSample {
         let moving_legs = match &self.motion {
             Motion::Hold | Motion::Planning(_) => 0,
             Motion::Path { .. } => crate::supervision::ALL_LEGS,
             Motion::Stroke { mv, .. } => 1u8.checked_shl(u32::from(mv.leg())).unwrap_or(0),
         };
         let latched = self.supervisor.latched();
-        Housekeeping {
+        let report = Housekeeping {
             state: self.state().code(),
             boot_source: self.boot.source.code(),
             active_bank: self.active.source.code(),
@@ -798,8 +786,8 @@ impl<M: MechanismIo> Controller<M> {
             refusal_bits: self.refusal_bits,
             active_table_id: self.active.table.table_id,
             active_table_crc32: self.active.crc32,
-            pose_fk: crate::link::WirePose::default(),
-            pose_commanded: crate::link::WirePose::default(),
+            pose_fk: WirePose::default(),
+            pose_commanded: WirePose::default(),
             strokes_commanded_nm: [0; LEGS],
             encoders_nm: [0; LEGS],
             tc_accepted: self.tc_accepted,
@@ -823,14 +811,23 @@ impl<M: MechanismIo> Controller<M> {
             boot_count: self.reset.boot_count,
             bank_health: self.bank_health,
             pivot_nm: self.pivot_nm(),
-            pose_fk_operator: crate::link::WirePose::default(),
-            pose_commanded_operator: crate::link::WirePose::default(),
+            pose_fk_operator: WirePose::default(),
+            pose_commanded_operator: WirePose::default(),
             parameters_set: self.params.params().set_mask(),
             schedule: self.schedule_hk(),
             limit_lower_legs: self.switches.lower,
             limit_upper_legs: self.switches.upper,
             reference_legs: self.switches.reference,
             switch_unreadable_legs: self.switches.unreadable,
+        };
+        HkSample {
+            report,
+            pose_fk: self.pose_fk,
+            pose_commanded: self.pose_commanded,
+            strokes_commanded_mm: self.strokes_commanded_mm,
+            encoders_mm: self.encoders_mm,
+            pose_fk_operator: self.ops.frames.to_operator(&self.pose_fk),
+            pose_commanded_operator: self.ops.frames.to_operator(&self.pose_commanded),
         }
     }
 

@@ -34,11 +34,12 @@
 
 use heapless::Deque;
 
-use crate::kinematics::{Frames, Pose, LEGS};
+use crate::kinematics::{Pose, LEGS};
 use crate::link::command::TABLE_CHUNK_MAX_LEN;
 use crate::link::tc::RequestId;
 use crate::link::time::TimeReportRate;
 use crate::link::tm::{EventSeverity, Verification};
+use crate::link::wire::{mm_to_nm_f32, pose_to_wire_f32};
 use crate::link::{Housekeeping, MemoryId};
 
 /// Records the queue holds.
@@ -67,42 +68,44 @@ const _: () = assert!(ADMISSION_FREE_SLOTS <= TM_QUEUE_LEN);
 /// periodic and one-shot reports beyond them are dropped and counted).
 pub const HK_SAMPLES: usize = 4;
 
-/// A housekeeping report as sampled in the cycle its record was made in: the words in
-/// wire units, and the poses, strokes and encoder readings still in working units
-/// with the frames in force, so the control cycle only copies them and the link
-/// service converts them when it encodes the report ([`HkSample::report`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// A housekeeping sample as the control cycle takes it: the report's other fields as
+/// they go on the wire, and its poses, strokes and encoder readings still in working
+/// units (mm, rad, `f32`). The link service converts those to nm and micro-arcseconds
+/// when it encodes the report ([`HkSample::to_report`]): the conversion of the rotations
+/// is exact in `f64`, software floating point on the Cortex-M4F (~5,000 instructions
+/// for the four poses), and taken in the control cycle it put a move's cycle with a
+/// housekeeping sample at 20,233 instructions. The result is the same: the same
+/// conversion of the same values, only later.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct HkSample {
-    /// Every word of the report but the six below (zero there).
-    pub words: Housekeeping,
-    /// Pose from FK of the encoders (internal frames, mm, rad).
+    /// Every field but the six below, which are zero here.
+    pub report: Housekeeping,
+    /// Pose from FK (mm, rad).
     pub pose_fk: Pose<f32>,
-    /// Commanded pose (internal frames, mm, rad).
+    /// Commanded pose (mm, rad).
     pub pose_commanded: Pose<f32>,
-    /// Commanded (or held) strokes (mm).
+    /// Commanded strokes (mm).
     pub strokes_commanded_mm: [f32; LEGS],
     /// Encoder readings (mm).
     pub encoders_mm: [f32; LEGS],
-    /// The pivot and user frame in force (for the poses in the operator's frames).
-    pub frames: Frames<f32>,
+    /// Pose from FK in the operator's frames (mm, rad).
+    pub pose_fk_operator: Pose<f32>,
+    /// Commanded pose in the operator's frames (mm, rad).
+    pub pose_commanded_operator: Pose<f32>,
 }
 
 impl HkSample {
-    /// The report: the sample's words with its poses, strokes and readings converted
-    /// to wire units.
-    pub fn report(&self) -> Housekeeping {
-        use crate::link::wire::{mm_to_nm_f32, pose_to_wire_f32};
-        Housekeeping {
-            pose_fk: pose_to_wire_f32(&self.pose_fk),
-            pose_commanded: pose_to_wire_f32(&self.pose_commanded),
-            strokes_commanded_nm: self.strokes_commanded_mm.map(mm_to_nm_f32),
-            encoders_nm: self.encoders_mm.map(mm_to_nm_f32),
-            pose_fk_operator: pose_to_wire_f32(&self.frames.to_operator(&self.pose_fk)),
-            pose_commanded_operator: pose_to_wire_f32(
-                &self.frames.to_operator(&self.pose_commanded),
-            ),
-            ..self.words
-        }
+    /// The report: the six fields in wire units (`link::wire::pose_to_wire_f32`,
+    /// `mm_to_nm_f32`).
+    pub fn to_report(&self) -> Housekeeping {
+        let mut h = self.report;
+        h.pose_fk = pose_to_wire_f32(&self.pose_fk);
+        h.pose_commanded = pose_to_wire_f32(&self.pose_commanded);
+        h.strokes_commanded_nm = self.strokes_commanded_mm.map(mm_to_nm_f32);
+        h.encoders_nm = self.encoders_mm.map(mm_to_nm_f32);
+        h.pose_fk_operator = pose_to_wire_f32(&self.pose_fk_operator);
+        h.pose_commanded_operator = pose_to_wire_f32(&self.pose_commanded_operator);
+        h
     }
 }
 
@@ -398,15 +401,11 @@ mod tests {
     #[test]
     fn housekeeping_samples_leave_with_their_records() {
         let sample = |cycle: u32| HkSample {
-            words: Housekeeping {
+            report: Housekeeping {
                 cycle_counter: cycle,
                 ..Housekeeping::default()
             },
-            pose_fk: Pose::home(),
-            pose_commanded: Pose::home(),
-            strokes_commanded_mm: [0.0; LEGS],
-            encoders_mm: [0.0; LEGS],
-            frames: Frames::identity(),
+            ..HkSample::default()
         };
         let mut q = TmQueue::new();
         for c in 0..HK_SAMPLES as u32 {
@@ -419,7 +418,7 @@ mod tests {
         for c in 0..HK_SAMPLES as u32 {
             assert_eq!(q.peek().map(|s| s.cycle), Some(c));
             assert_eq!(
-                q.peek_housekeeping().map(|h| h.words.cycle_counter),
+                q.peek_housekeeping().map(|h| h.report.cycle_counter),
                 Some(c)
             );
             assert!(matches!(

@@ -155,7 +155,7 @@ fn span(first: u32, last: u32) -> String {
 // Section 2: packets.
 
 fn packet_block() -> Result<String, String> {
-    let crc = crate::link::tc::CRC16.algorithm;
+    let crc = crate::link::tc::CRC16_ALGORITHM;
     let seq_bits = SEQ_COUNT_MASK.count_ones();
     let flag = |b: bool| if b { "reflected" } else { "no reflection" };
     let xorout = if crc.xorout == 0 {

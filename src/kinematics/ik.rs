@@ -111,7 +111,7 @@ pub(crate) fn leg_state<T: Real>(
 /// radicand is not positive (their stroke is left 0). The pose must be finite.
 #[inline]
 pub(crate) fn strokes_unchecked<T: Real>(geom: &Geometry<T>, pose: &Pose<T>) -> ([T; LEGS], u8) {
-    let rot = RotationDelta::new(&pose.rotation_rad);
+    let rot = RotationDelta::new_inline(&pose.rotation_rad);
     let mut strokes = [T::ZERO; LEGS];
     let mut bad = 0u8;
     for (i, (s, leg)) in strokes.iter_mut().zip(geom.legs.iter()).enumerate() {

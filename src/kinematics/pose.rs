@@ -82,8 +82,21 @@ pub struct RotationDelta<T: Real> {
 impl<T: Real> RotationDelta<T> {
     /// Builds `R - I` for `R = Rz(gamma) Ry(beta) Rx(alpha)`. Diagonal terms are sums of
     /// `cos - 1` values, never `cos - 1` computed as a difference.
-    #[inline(always)]
+    ///
+    /// Out of line: one copy serves the FK's evaluations and the frames (inlined at its
+    /// six call sites in the flight image it was 830 bytes of it; out of line, with the
+    /// IK's inlined copy below, 500 bytes less); the call costs a flight-profile FK
+    /// ~170 instructions of ~7,000.
+    #[inline(never)]
     pub fn new(rotation_rad: &[T; 3]) -> Self {
+        Self::new_inline(rotation_rad)
+    }
+
+    /// [`RotationDelta::new`] inlined into its caller: the IK's, whose goal at opt-level
+    /// 3 (600 instructions; 560 with it inlined, 598 with the call) leaves no room for a
+    /// call.
+    #[inline(always)]
+    pub fn new_inline(rotation_rad: &[T; 3]) -> Self {
         let [alpha, beta, gamma] = *rotation_rad;
         let (sa, cma) = alpha.sin_cosm1();
         let (sb, cmb) = beta.sin_cosm1();

@@ -207,7 +207,8 @@ impl Housekeeping {
         let _ = self.write(&mut w);
     }
 
-    fn write(&self, w: &mut Writer<'_>) -> Option<()> {
+    /// Writes the TM[3,25] source data (the layout of the module documentation).
+    pub fn write(&self, w: &mut Writer<'_>) -> Option<()> {
         w.put(&[
             HK_STRUCTURE_ID,
             self.state,

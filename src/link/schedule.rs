@@ -399,12 +399,19 @@ pub struct SummaryEntry {
 /// too short or there are more than 255 entries.
 pub fn emit_summary(entries: &[SummaryEntry], out: &mut [u8]) -> Option<usize> {
     let mut w = Writer::new(out, Order::Big);
+    write_summary(&mut w, entries)?;
+    Some(w.position())
+}
+
+/// Writes the TM[11,13] source data of `entries` (N u8, then release time and request
+/// ID of each); `None` if it does not fit or there are more than 255 entries.
+pub fn write_summary(w: &mut Writer<'_>, entries: &[SummaryEntry]) -> Option<()> {
     w.u8(u8::try_from(entries.len()).ok()?)?;
     for e in entries {
         w.put(&e.release.to_bytes())?;
         w.put(&e.request_id.to_bytes())?;
     }
-    Some(w.position())
+    Some(())
 }
 
 /// A checked view of a TM[11,13]'s source data.

@@ -85,10 +85,15 @@ impl TimeReportRate {
 /// The TM[9,2] source data: the rate in force and the OBT of the report.
 pub fn time_report_bytes(rate: TimeReportRate, obt: TmTime) -> [u8; TIME_REPORT_LEN] {
     let mut out = [0u8; TIME_REPORT_LEN];
-    let mut w = Writer::new(&mut out, Order::Big);
     // The buffer has exactly the layout's length: both puts fit.
-    let _ = w.u8(rate.code()).and_then(|_| w.put(&obt.to_bytes()));
+    let _ = write_time_report(&mut Writer::new(&mut out, Order::Big), rate, obt);
     out
+}
+
+/// Writes the TM[9,2] source data: the rate value u8, the OBT (CUC 4+2).
+pub fn write_time_report(w: &mut Writer<'_>, rate: TimeReportRate, obt: TmTime) -> Option<()> {
+    w.u8(rate.code())?;
+    w.put(&obt.to_bytes())
 }
 
 /// Checked parse of the TM[9,2] source data (exact length, a known rate value).

@@ -11,24 +11,22 @@
 //! [`TmTime`]), source data, CRC-16/CCITT-FALSE.
 
 use crate::units::{US_PER_MS, US_PER_S};
-use arbitrary_int::{u11, u14};
-use spacepackets::ecss::tm::{
-    GenericPusTmSecondaryHeader, PusTmCreator, PusTmReader, PusTmSecondaryHeader,
-};
-use spacepackets::ecss::{CreatorConfig, MessageTypeId};
-use spacepackets::{CcsdsPacket, PacketId, PacketSequenceControl, SequenceFlags, SpHeader};
+use spacepackets::ecss::tm::{GenericPusTmSecondaryHeader, PusTmReader};
+use spacepackets::CcsdsPacket;
 
 use super::command::{MemoryId, TABLE_CHUNK_MAX_LEN};
 use super::error::{sat_u16, LinkError};
 use super::framing::{encode_frame, FrameError};
 use super::hk::{Housekeeping, HK_REPORT_LEN};
-use super::schedule::{emit_summary, SummaryEntry, SummaryView, MAX_SUMMARY_LEN};
-use super::tc::{RequestId, APID_MASK, REQUEST_ID_LEN, SEQ_COUNT_MASK};
-use super::time::{parse_time_report, time_report_bytes, TimeReportRate, TIME_REPORT_LEN};
-use super::wire::{Order, Reader, Writer};
+use super::schedule::{
+    write_summary, SummaryEntry, SummaryView, MAX_SUMMARY_LEN, SCHEDULE_CAPACITY,
+};
+use super::tc::{RequestId, CRC16, REQUEST_ID_LEN, SEQ_COUNT_MASK};
+use super::time::{parse_time_report, write_time_report, TimeReportRate, TIME_REPORT_LEN};
+use super::wire::{copy_prefix, Order, Reader, Writer};
 use super::{
-    service, subtype, CCSDS_PRIMARY_HEADER_LEN, CRC16_LEN, DATA_LEN_FIELD_OFFSET, M2_APID,
-    MAX_TM_PACKET_LEN, PUS_TM_SEC_HEADER_LEN_NO_TIME, TM_TIMESTAMP_LEN,
+    service, subtype, CCSDS_PRIMARY_HEADER_LEN, CRC16_LEN, DATA_LEN_FIELD_OFFSET, DATA_LEN_OFFSET,
+    M2_APID, MAX_TM_PACKET_LEN, PUS_C_VERSION, PUS_TM_SEC_HEADER_LEN_NO_TIME, TM_TIMESTAMP_LEN,
 };
 
 /// Largest source data of any TM packet the controller emits (bytes): the schedule
@@ -51,6 +49,19 @@ pub const MAX_TM_SOURCE_DATA_LEN: usize = {
     }
     m
 };
+/// Bytes of the headers of a TM packet before its source data: primary header, PUS-C
+/// TM secondary header, timestamp.
+pub const TM_HEADER_LEN: usize =
+    CCSDS_PRIMARY_HEADER_LEN + PUS_TM_SEC_HEADER_LEN_NO_TIME + TM_TIMESTAMP_LEN;
+/// The packet ID of every TM packet: version 0, type TM (0), secondary header flag,
+/// APID [`M2_APID`].
+const TM_PACKET_ID: u16 = 0x0800 | (M2_APID & super::tc::APID_MASK);
+/// Sequence flags "unsegmented" in the packet sequence control.
+const SEQ_FLAGS_UNSEGMENTED: u16 = 0xc000;
+/// Shift of the PUS version in the first secondary-header byte (time reference status
+/// 0 below it).
+const PUS_VERSION_SHIFT: u8 = 4;
+
 /// Bytes of the TM[6,6] header before the data: memory ID u8, offset u16, length u16.
 pub const DUMP_HEADER_LEN: usize = 5;
 /// Bytes of a failure notice: code u16, data u32.
@@ -409,36 +420,101 @@ impl TmWriter {
         self.counters = checkpoint;
     }
 
-    /// Builds, frames and counts one packet; counters move only on success.
-    fn emit(
+    /// Builds, frames and counts the packet of `source`; counters move only on success.
+    /// Returns the frame length. The one path of every TM packet the controller sends:
+    /// the source data is written in place after the headers ([`TmSource::write`]), the
+    /// headers and CRC by [`TmWriter::finish`].
+    pub fn emit(
+        &mut self,
+        time: TmTime,
+        source: &TmSource<'_>,
+        out: &mut [u8],
+    ) -> Result<usize, EmitError> {
+        let mut packet = [0u8; MAX_TM_PACKET_LEN];
+        let area = packet
+            .get_mut(TM_HEADER_LEN..TM_HEADER_LEN + MAX_TM_SOURCE_DATA_LEN)
+            .ok_or(EmitError::BufferTooSmall)?;
+        let mut w = Writer::new(area, Order::Big);
+        source.write(time, &mut w).ok_or(source.refusal())?;
+        let len = w.position();
+        self.finish(time, source.message(), &mut packet, len, out)
+    }
+
+    /// Builds, frames and counts one packet of service and subtype `message` with this
+    /// source data (at most [`MAX_TM_SOURCE_DATA_LEN`] bytes); counters move only on
+    /// success. Returns the frame length. (Any packet: the ground's and the tests'.)
+    pub fn emit_packet(
         &mut self,
         time: TmTime,
         message: (u8, u8),
         source_data: &[u8],
         out: &mut [u8],
     ) -> Result<usize, EmitError> {
+        let mut packet = [0u8; MAX_TM_PACKET_LEN];
+        let area = packet
+            .get_mut(TM_HEADER_LEN..TM_HEADER_LEN + MAX_TM_SOURCE_DATA_LEN)
+            .ok_or(EmitError::BufferTooSmall)?;
+        copy_prefix(area, source_data).ok_or(EmitError::BufferTooSmall)?;
+        self.finish(time, message, &mut packet, source_data.len(), out)
+    }
+
+    /// Writes the headers before the `source_len` bytes of source data in `packet` and
+    /// the CRC after them, frames the packet into `out` and counts it.
+    ///
+    /// The headers are written here (the layout of the module documentation), not by
+    /// spacepackets' `PusTmCreator`, and the CRC-16 is [`CRC16`] (a 32-byte table), not
+    /// the `crc` crate's 512-byte table the creator used. Equal to the crate's packets
+    /// bit for bit (host test `link::tm_packets_equal_spacepackets_creator`, which keeps
+    /// the crate as the reference).
+    fn finish(
+        &mut self,
+        time: TmTime,
+        message: (u8, u8),
+        packet: &mut [u8; MAX_TM_PACKET_LEN],
+        source_len: usize,
+        out: &mut [u8],
+    ) -> Result<usize, EmitError> {
         let (svc, sub) = message;
+        let too_small = EmitError::BufferTooSmall;
         let slot = COUNTED_SERVICES.iter().position(|s| *s == svc);
         let msg_counter = slot
             .and_then(|i| self.counters.msg_counters.get(i).copied())
             .unwrap_or(0);
-        let stamp = time.to_bytes();
-        let sp = SpHeader::new(
-            PacketId::new_for_tm(true, u11::new(M2_APID & APID_MASK)),
-            PacketSequenceControl::new(
-                SequenceFlags::Unsegmented,
-                u14::new(self.counters.seq_count & SEQ_COUNT_MASK),
-            ),
+        let crc_at = TM_HEADER_LEN + source_len;
+        let len = crc_at + CRC16_LEN;
+        let data_len = u16::try_from(len - DATA_LEN_OFFSET).map_err(|_| too_small)?;
+        let [id0, id1] = TM_PACKET_ID.to_be_bytes();
+        let [sc0, sc1] =
+            (SEQ_FLAGS_UNSEGMENTED | (self.counters.seq_count & SEQ_COUNT_MASK)).to_be_bytes();
+        let [dl0, dl1] = data_len.to_be_bytes();
+        let [mc0, mc1] = msg_counter.to_be_bytes();
+        let [t0, t1, t2, t3, t4, t5] = time.to_bytes();
+        let header: [u8; TM_HEADER_LEN] = [
+            id0,
+            id1,
+            sc0,
+            sc1,
+            dl0,
+            dl1,
+            PUS_C_VERSION << PUS_VERSION_SHIFT,
+            svc,
+            sub,
+            mc0,
+            mc1,
             0,
-        );
-        let sec = PusTmSecondaryHeader::new(MessageTypeId::new(svc, sub), msg_counter, 0, &stamp);
-        let tm = PusTmCreator::new(sp, sec, source_data, CreatorConfig::default());
-        let mut packet = [0u8; MAX_TM_PACKET_LEN];
-        let n = tm
-            .write_to_slice(&mut packet)
-            .map_err(|_| EmitError::BufferTooSmall)?;
-        let bytes = packet.get(..n).ok_or(EmitError::BufferTooSmall)?;
-        let framed = encode_frame(bytes, out)?;
+            0,
+            t0,
+            t1,
+            t2,
+            t3,
+            t4,
+            t5,
+        ];
+        copy_prefix(packet, &header).ok_or(too_small)?;
+        let crc = CRC16.checksum(packet.get(..crc_at).ok_or(too_small)?);
+        let tail = packet.get_mut(crc_at..len).ok_or(too_small)?;
+        copy_prefix(tail, &crc.to_be_bytes()).ok_or(too_small)?;
+        let framed = encode_frame(packet.get(..len).ok_or(too_small)?, out)?;
         self.counters.seq_count = self.counters.seq_count.wrapping_add(1) & SEQ_COUNT_MASK;
         if let Some(c) = slot.and_then(|i| self.counters.msg_counters.get_mut(i)) {
             *c = c.wrapping_add(1);
@@ -455,18 +531,7 @@ impl TmWriter {
         report: Verification,
         out: &mut [u8],
     ) -> Result<usize, EmitError> {
-        let mut data = [0u8; REQUEST_ID_LEN + FAILURE_NOTICE_LEN];
-        let mut w = Writer::new(&mut data, Order::Big);
-        w.put(&request_id.to_bytes())
-            .ok_or(EmitError::BufferTooSmall)?;
-        if let Some((code, datum)) = report.failure() {
-            w.u16(code)
-                .and_then(|_| w.u32(datum))
-                .ok_or(EmitError::BufferTooSmall)?;
-        }
-        let len = w.position();
-        let src = data.get(..len).ok_or(EmitError::BufferTooSmall)?;
-        self.emit(time, (service::VERIFICATION, report.subtype()), src, out)
+        self.emit(time, &TmSource::Verification { request_id, report }, out)
     }
 
     /// TM[5,x] event report: event ID u16, aux words u32 x2. Returns the frame length.
@@ -478,13 +543,12 @@ impl TmWriter {
         aux: [u32; 2],
         out: &mut [u8],
     ) -> Result<usize, EmitError> {
-        let mut data = [0u8; EVENT_REPORT_LEN];
-        let mut w = Writer::new(&mut data, Order::Big);
-        w.u16(event_id)
-            .and_then(|_| w.u32(aux[0]))
-            .and_then(|_| w.u32(aux[1]))
-            .ok_or(EmitError::BufferTooSmall)?;
-        self.emit(time, (service::EVENT, severity.subtype()), &data, out)
+        let source = TmSource::Event {
+            severity,
+            event_id,
+            aux,
+        };
+        self.emit(time, &source, out)
     }
 
     /// TM[3,25] housekeeping report. Returns the frame length.
@@ -494,14 +558,7 @@ impl TmWriter {
         hk: &Housekeeping,
         out: &mut [u8],
     ) -> Result<usize, EmitError> {
-        let mut data = [0u8; HK_REPORT_LEN];
-        hk.emit(&mut data);
-        self.emit(
-            time,
-            (service::HOUSEKEEPING, subtype::HK_REPORT),
-            &data,
-            out,
-        )
+        self.emit(time, &TmSource::Housekeeping(hk), out)
     }
 
     /// TM[9,2] time report: the rate in force and the OBT the report was made at (the
@@ -512,8 +569,7 @@ impl TmWriter {
         rate: TimeReportRate,
         out: &mut [u8],
     ) -> Result<usize, EmitError> {
-        let data = time_report_bytes(rate, time);
-        self.emit(time, (service::TIME, subtype::TIME_REPORT), &data, out)
+        self.emit(time, &TmSource::TimeReport(rate), out)
     }
 
     /// TM[11,13] schedule summary: N u8, then release time and request ID of each
@@ -524,20 +580,12 @@ impl TmWriter {
         entries: &[SummaryEntry],
         out: &mut [u8],
     ) -> Result<usize, EmitError> {
-        let mut data = [0u8; MAX_SUMMARY_LEN];
-        let n = emit_summary(entries, &mut data).ok_or(EmitError::BufferTooSmall)?;
-        let src = data.get(..n).ok_or(EmitError::BufferTooSmall)?;
-        self.emit(
-            time,
-            (service::SCHEDULING, subtype::SCHEDULE_SUMMARY_REPORT),
-            src,
-            out,
-        )
+        self.emit(time, &TmSource::ScheduleSummary(entries), out)
     }
 
     /// TM[17,2] ping reply (no source data). Returns the frame length.
     pub fn emit_ping_reply(&mut self, time: TmTime, out: &mut [u8]) -> Result<usize, EmitError> {
-        self.emit(time, (service::TEST, subtype::PING_REPLY), &[], out)
+        self.emit(time, &TmSource::PingReply, out)
     }
 
     /// TM[8,130] move-check report: request ID (4), code u16 (0: the move would be
@@ -549,20 +597,11 @@ impl TmWriter {
         check: &MoveCheckReport,
         out: &mut [u8],
     ) -> Result<usize, EmitError> {
-        let mut data = [0u8; MOVE_CHECK_REPORT_LEN];
-        let mut w = Writer::new(&mut data, Order::Big);
-        w.put(&request_id.to_bytes())
-            .and_then(|_| w.u16(check.code))
-            .and_then(|_| w.u32(check.target_refusals))
-            .and_then(|_| w.u32(check.path_refusals))
-            .and_then(|_| w.u8(check.path_sample))
-            .ok_or(EmitError::BufferTooSmall)?;
-        self.emit(
-            time,
-            (service::FUNCTION, subtype::MOVE_CHECK_REPORT),
-            &data,
-            out,
-        )
+        let source = TmSource::MoveCheck {
+            request_id,
+            check: *check,
+        };
+        self.emit(time, &source, out)
     }
 
     /// TM[20,2] parameter report: count u8, then (ID u16, value i32) per parameter.
@@ -572,23 +611,7 @@ impl TmWriter {
         values: &[(u16, i32)],
         out: &mut [u8],
     ) -> Result<usize, EmitError> {
-        let mut data = [0u8; MAX_TM_SOURCE_DATA_LEN];
-        let mut w = Writer::new(&mut data, Order::Big);
-        w.u8(sat_u8(values.len()))
-            .ok_or(EmitError::BufferTooSmall)?;
-        for (id, v) in values {
-            w.u16(*id)
-                .and_then(|_| w.i32(*v))
-                .ok_or(EmitError::BufferTooSmall)?;
-        }
-        let len = w.position();
-        let src = data.get(..len).ok_or(EmitError::BufferTooSmall)?;
-        self.emit(
-            time,
-            (service::PARAMETER, subtype::PARAMETER_REPORT),
-            src,
-            out,
-        )
+        self.emit(time, &TmSource::Parameters(values), out)
     }
 
     /// TM[6,6] one dump chunk: memory ID u8, offset u16, length u16, bytes (1..=128).
@@ -601,24 +624,150 @@ impl TmWriter {
         bytes: &[u8],
         out: &mut [u8],
     ) -> Result<usize, EmitError> {
-        if bytes.is_empty() || bytes.len() > TABLE_CHUNK_MAX_LEN {
-            return Err(EmitError::BadChunk);
+        let source = TmSource::DumpChunk {
+            memory,
+            offset_bytes,
+            bytes,
+        };
+        self.emit(time, &source, out)
+    }
+}
+
+/// What one TM packet reports: its service and subtype and the content of its source
+/// data ([`TmWriter::emit`]). Each packet's layout is written once, in
+/// [`TmSource::write`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TmSource<'a> {
+    /// TM[1,x]: request ID (4 bytes), then for failures code u16 and data u32.
+    Verification {
+        /// The telecommand.
+        request_id: RequestId,
+        /// The report.
+        report: Verification,
+    },
+    /// TM[5,x]: event ID u16, aux words u32 x2.
+    Event {
+        /// Severity (= subtype).
+        severity: EventSeverity,
+        /// Event ID.
+        event_id: u16,
+        /// Auxiliary words.
+        aux: [u32; 2],
+    },
+    /// TM[3,25]: the housekeeping report ([`Housekeeping::write`]).
+    Housekeeping(&'a Housekeeping),
+    /// TM[9,2]: the rate in force and the OBT of the report (the packet time).
+    TimeReport(TimeReportRate),
+    /// TM[11,13]: N u8, then release time and request ID of each activity (at most
+    /// [`SCHEDULE_CAPACITY`]).
+    ScheduleSummary(&'a [SummaryEntry]),
+    /// TM[17,2]: no source data.
+    PingReply,
+    /// TM[8,130]: request ID (4), code u16, target refusal bits u32, path refusal bits
+    /// u32, refused path sample u8.
+    MoveCheck {
+        /// The telecommand.
+        request_id: RequestId,
+        /// The answer.
+        check: MoveCheckReport,
+    },
+    /// TM[20,2]: count u8, then (ID u16, value i32) per parameter.
+    Parameters(&'a [(u16, i32)]),
+    /// TM[6,6]: memory ID u8, offset u16, length u16, bytes (1..=128).
+    DumpChunk {
+        /// Memory area.
+        memory: MemoryId,
+        /// Offset of the chunk (bytes).
+        offset_bytes: u16,
+        /// The chunk.
+        bytes: &'a [u8],
+    },
+}
+
+impl TmSource<'_> {
+    /// PUS service and subtype.
+    pub const fn message(&self) -> (u8, u8) {
+        match self {
+            TmSource::Verification { report, .. } => (service::VERIFICATION, report.subtype()),
+            TmSource::Event { severity, .. } => (service::EVENT, severity.subtype()),
+            TmSource::Housekeeping(_) => (service::HOUSEKEEPING, subtype::HK_REPORT),
+            TmSource::TimeReport(_) => (service::TIME, subtype::TIME_REPORT),
+            TmSource::ScheduleSummary(_) => (service::SCHEDULING, subtype::SCHEDULE_SUMMARY_REPORT),
+            TmSource::PingReply => (service::TEST, subtype::PING_REPLY),
+            TmSource::MoveCheck { .. } => (service::FUNCTION, subtype::MOVE_CHECK_REPORT),
+            TmSource::Parameters(_) => (service::PARAMETER, subtype::PARAMETER_REPORT),
+            TmSource::DumpChunk { .. } => (service::MEMORY, subtype::MEMORY_DUMP_REPORT),
         }
-        let mut data = [0u8; DUMP_HEADER_LEN + TABLE_CHUNK_MAX_LEN];
-        let mut w = Writer::new(&mut data, Order::Big);
-        w.u8(memory.code())
-            .and_then(|_| w.u16(offset_bytes))
-            .and_then(|_| w.u16(sat_u16(bytes.len())))
-            .and_then(|_| w.put(bytes))
-            .ok_or(EmitError::BadChunk)?;
-        let len = w.position();
-        let src = data.get(..len).ok_or(EmitError::BadChunk)?;
-        self.emit(
-            time,
-            (service::MEMORY, subtype::MEMORY_DUMP_REPORT),
-            src,
-            out,
-        )
+    }
+
+    /// Why the source data could not be written: a dump chunk that is empty or too long
+    /// is a bad chunk, anything else a too-small buffer.
+    const fn refusal(&self) -> EmitError {
+        match self {
+            TmSource::DumpChunk { .. } => EmitError::BadChunk,
+            _ => EmitError::BufferTooSmall,
+        }
+    }
+
+    /// Writes the source data of a packet made at `time`; `None` if it does not fit (or
+    /// a dump chunk is empty or longer than [`TABLE_CHUNK_MAX_LEN`], or a summary has
+    /// more than [`SCHEDULE_CAPACITY`] entries).
+    pub fn write(&self, time: TmTime, w: &mut Writer<'_>) -> Option<()> {
+        match *self {
+            TmSource::Verification { request_id, report } => {
+                w.put(&request_id.to_bytes())?;
+                if let Some((code, datum)) = report.failure() {
+                    w.u16(code)?;
+                    w.u32(datum)?;
+                }
+            }
+            TmSource::Event {
+                event_id,
+                aux: [aux0, aux1],
+                ..
+            } => {
+                w.u16(event_id)?;
+                w.u32(aux0)?;
+                w.u32(aux1)?;
+            }
+            TmSource::Housekeeping(hk) => hk.write(w)?,
+            TmSource::TimeReport(rate) => write_time_report(w, rate, time)?,
+            TmSource::ScheduleSummary(entries) => {
+                if entries.len() > SCHEDULE_CAPACITY {
+                    return None;
+                }
+                write_summary(w, entries)?
+            }
+            TmSource::PingReply => {}
+            TmSource::MoveCheck { request_id, check } => {
+                w.put(&request_id.to_bytes())?;
+                w.u16(check.code)?;
+                w.u32(check.target_refusals)?;
+                w.u32(check.path_refusals)?;
+                w.u8(check.path_sample)?;
+            }
+            TmSource::Parameters(values) => {
+                w.u8(sat_u8(values.len()))?;
+                for (id, v) in values {
+                    w.u16(*id)?;
+                    w.i32(*v)?;
+                }
+            }
+            TmSource::DumpChunk {
+                memory,
+                offset_bytes,
+                bytes,
+            } => {
+                if bytes.is_empty() || bytes.len() > TABLE_CHUNK_MAX_LEN {
+                    return None;
+                }
+                w.u8(memory.code())?;
+                w.u16(offset_bytes)?;
+                w.u16(sat_u16(bytes.len()))?;
+                w.put(bytes)?;
+            }
+        }
+        Some(())
     }
 }
 

@@ -13,19 +13,33 @@ use crate::units::{NM_PER_MM, NM_PER_MM_F32, UAS_PER_RAD};
 
 /// Rounds half away from zero to the nearest i32, saturating; NaN gives 0.
 pub fn round_sat_i32(v: f64) -> i32 {
-    // Toward zero first (`as` saturates and maps NaN to 0), then the fraction decides.
-    let t = v as i32;
-    // Exact within the i32 range (Sterbenz' lemma: t is within a factor 2 of v, or 0).
-    // Beyond it t is saturated, and so is the result (above: frac >= 1, below: the
-    // subtraction saturates). Equal to `libm::round(v) as i32` (host test
-    // `link::round_sat_i32_is_libm_round_saturated`), without libm's f64 round.
-    let frac = v - f64::from(t);
-    if frac >= 0.5 {
-        t.saturating_add(1)
-    } else if frac <= -0.5 {
-        t.saturating_sub(1)
+    // On the bit pattern, integers only: f64 is software arithmetic on the target, and
+    // this serves the housekeeping's 24 rotations and lengths. Equal to
+    // `libm::round(v) as i32` (host test `link::round_sat_i32_is_libm_round_saturated`).
+    let bits = v.to_bits();
+    let abs = bits & !(1 << 63);
+    if abs > f64::INFINITY.to_bits() {
+        return 0;
+    }
+    // |v| = m 2^(e - 52), m with its leading one at bit 52.
+    let e = (abs >> 52) as i32 - 1023;
+    let magnitude: u64 = if e < -1 {
+        // Below one half.
+        0
+    } else if e < 31 {
+        let m = (abs & ((1 << 52) - 1)) | (1 << 52);
+        let shift = (52 - e) as u32;
+        // Adding one half and truncating rounds half away from zero: at most 2^31.
+        (m + (1 << (shift - 1))) >> shift
     } else {
-        t
+        // 2^31 or more (infinity included).
+        1 << 31
+    };
+    if bits >> 63 != 0 {
+        // -2^31 is i32::MIN itself.
+        (magnitude.min(1 << 31) as i64).wrapping_neg() as i32
+    } else {
+        magnitude.min(i32::MAX as u64) as i32
     }
 }
 

@@ -129,6 +129,8 @@ pub struct Bench {
     uplink: VecDeque<u8>,
     downlink: VecDeque<u8>,
     results: VecDeque<JobResult>,
+    /// Every byte the downlink carried to the station, once [`Bench::tap_downlink`] is on.
+    tap: Option<Vec<u8>>,
     /// Control cycles run since the bench was built (across reboots).
     pub cycles: u64,
 }
@@ -197,6 +199,7 @@ impl Bench {
             uplink: VecDeque::new(),
             downlink: VecDeque::new(),
             results: VecDeque::new(),
+            tap: None,
             cycles: 0,
         }
     }
@@ -240,7 +243,21 @@ impl Bench {
         // The line carries the queued bytes to the station.
         let n = budget.min(self.downlink.len());
         let bytes: Vec<u8> = self.downlink.drain(..n).collect();
+        if let Some(tap) = &mut self.tap {
+            tap.extend_from_slice(&bytes);
+        }
         self.st.receive(&bytes);
+    }
+
+    /// From now on, records every byte the downlink carries to the station (the frames
+    /// as the station receives them): [`Bench::downlink_tapped`].
+    pub fn tap_downlink(&mut self) {
+        self.tap.get_or_insert_with(Vec::new);
+    }
+
+    /// The downlink bytes recorded since [`Bench::tap_downlink`] (empty if not tapped).
+    pub fn downlink_tapped(&self) -> &[u8] {
+        self.tap.as_deref().unwrap_or(&[])
     }
 
     /// Runs `cycles` ticks.
