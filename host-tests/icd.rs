@@ -304,3 +304,41 @@ fn the_telemetry_queue_figures_in_section_1_are_the_codes() {
         );
     }
 }
+
+/// Every housekeeping offset the ICD names is where the code puts it: written
+/// "`name`, offset N" (prose and generated texts alike), field `name` is at N. (Section
+/// 10 named "HK offset 157", pivot y, for the failed-activity count at 221.)
+#[test]
+fn housekeeping_offsets_in_the_prose_are_the_codes() {
+    use m2ctl::ground::mdb::housekeeping_rows;
+    let fields: Vec<(String, usize)> = housekeeping_rows()
+        .into_iter()
+        .flat_map(|r| r.fields.into_iter().map(|(f, _)| f))
+        .map(|f| (f.name, f.offset))
+        .collect();
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/icd.md"))
+        .unwrap()
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ");
+    let number = |s: &str| -> Option<usize> {
+        let d: String = s.chars().take_while(|c| c.is_ascii_digit()).collect();
+        d.parse().ok()
+    };
+    let mut checked = 0;
+    // "`name`, offset N"
+    for (at, _) in text.match_indices("`, offset ") {
+        let name_start = text[..at].rfind('`').unwrap() + 1;
+        let name = &text[name_start..at];
+        let n = number(&text[at + "`, offset ".len()..]).unwrap();
+        let f = fields.iter().find(|f| f.0 == name);
+        assert_eq!(f.map(|f| f.1), Some(n), "docs/icd.md: `{name}`, offset {n}");
+        checked += 1;
+    }
+    // A bare "HK offset" cannot be checked against a name: the prose names its field.
+    assert!(
+        !text.contains("HK offset"),
+        "docs/icd.md: write housekeeping offsets as \"`name`, offset N\""
+    );
+    assert!(checked >= 14, "{checked} offsets checked");
+}

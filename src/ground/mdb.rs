@@ -3058,7 +3058,7 @@ pub fn failure_codes() -> Vec<FailureCode> {
             d(
                 Start,
                 "a table job is running",
-                &format!("job (HK offset {job_offset})"),
+                &format!("job (`job`, offset {job_offset})"),
             ),
         ),
         (
@@ -3451,7 +3451,7 @@ pub fn events() -> Vec<Event> {
             sev(&[(Info, "")]),
             (
                 "the parameters this TC[20,3] set (bit i = parameter index i)",
-                "every parameter set now (the set mask, HK offset 213)",
+                "every parameter set now (the set mask: `parameters_set`, offset 213)",
             ),
             "on-board parameters changed: {aux0} set (all set: {aux1})",
         ),
