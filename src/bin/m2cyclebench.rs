@@ -572,6 +572,10 @@ fn lock_bodies(r: &mut Rig, target: &WirePose) -> bool {
         let (rid, ack) = (job.request_id(), job.ack());
         r.lock_section("check_report", |c| c.finish_move_check(rid, ack, check));
     }
+    // What a per-cycle check of the running geometry would cost (issue 19: the
+    // flight image re-derives it in the 1 s scrub instead).
+    let word = r.lock_section("geometry_check_word", |c| c.geometry_check_word());
+    ok &= word != 0;
     // A housekeeping record's content: the copy of its queued sample (the sample is
     // taken in the control cycle, converted to wire units by the link unlocked).
     r.lock_section("hk_content", |c| {

@@ -837,6 +837,12 @@ impl<M: MechanismIo> Controller<M> {
         [0, 1, 2].map(|i| self.params.params().value(k + i, &self.active.table))
     }
 
+    /// The running geometry's check word ([`Geometry::check_word`]; the cycle
+    /// benchmark measures it).
+    pub fn geometry_check_word(&self) -> u32 {
+        self.active.geom.check_word()
+    }
+
     /// Control cycles since boot.
     pub fn cycle(&self) -> u32 {
         self.cycle

@@ -154,6 +154,37 @@ pub struct Geometry<T: Real> {
     pub workspace: Option<WorkspaceBounds<T>>,
 }
 
+impl Geometry<f32> {
+    /// A check word over every `f32` of the working geometry (each word's bits rotated
+    /// in): any single flipped bit changes it. Not used by the flight image, which
+    /// checks the geometry by re-deriving it in the scrub; it is what a per-cycle check
+    /// would cost, measured by `m2cyclebench` (`geometry_check_word`, README "Upsets").
+    pub fn check_word(&self) -> u32 {
+        let mut c = 0u32;
+        let mut fold = |x: f32| c = c.rotate_left(1) ^ x.to_bits();
+        for l in &self.legs {
+            for v in [&l.a_mm, &l.b_mm, &l.d0_mm] {
+                v.iter().for_each(|x| fold(*x));
+            }
+            l.two_d0_xy_mm.iter().for_each(|x| fold(*x));
+            for x in [l.rod_mm, l.d0z_sq_mm2, l.inv_two_d0z_per_mm, l.fast_sqrt_delta_mm2] {
+                fold(x);
+            }
+        }
+        self.p0_mm.iter().for_each(|x| fold(*x));
+        if let Some(s) = &self.stroke {
+            s.min_mm.iter().chain(&s.max_mm).for_each(|x| fold(*x));
+        }
+        if let Some(w) = &self.workspace {
+            w.translation_mm
+                .iter()
+                .chain(&w.rotation_rad)
+                .for_each(|x| fold(*x));
+        }
+        c
+    }
+}
+
 fn all_finite(v: &[f64]) -> bool {
     v.iter().all(|x| x.is_finite())
 }

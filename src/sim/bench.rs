@@ -113,6 +113,21 @@ impl TxBytes for Downlink<'_> {
     }
 }
 
+/// The controller behind the link service's lock, counting the acquisitions (on the
+/// target each is an RTIC resource lock: the architecture's figure "locks per
+/// telecommand, per telemetry record").
+struct Counted<'a> {
+    ctl: &'a mut Controller<SharedPlant>,
+    locks: &'a mut u64,
+}
+
+impl crate::controller::comms::Exclusive<Controller<SharedPlant>> for Counted<'_> {
+    fn lock<R>(&mut self, f: impl FnOnce(&mut Controller<SharedPlant>) -> R) -> R {
+        *self.locks += 1;
+        f(self.ctl)
+    }
+}
+
 /// Controller + plant + flash + ground station (module documentation).
 pub struct Bench {
     /// The controller.
@@ -133,6 +148,8 @@ pub struct Bench {
     tap: Option<Vec<u8>>,
     /// Control cycles run since the bench was built (across reboots).
     pub cycles: u64,
+    /// Locks of the controller the link service took (across reboots).
+    pub locks: u64,
 }
 
 impl Default for Bench {
@@ -201,6 +218,7 @@ impl Bench {
             results: VecDeque::new(),
             tap: None,
             cycles: 0,
+            locks: 0,
         }
     }
 
@@ -229,7 +247,10 @@ impl Bench {
             bytes: &mut self.uplink,
             budget,
         };
-        let mut ctl = &mut self.ctl;
+        let mut ctl = Counted {
+            ctl: &mut self.ctl,
+            locks: &mut self.locks,
+        };
         self.link.receive(&mut ctl, &mut rx);
         let mut port = WorkerPort {
             worker: &mut self.worker,
@@ -363,12 +384,14 @@ impl Bench {
             st,
             cfg,
             cycles,
+            locks,
             ..
         } = self;
         let mut flash = worker.into_store().into_inner();
         flash.power_cycle();
         let mut b = Self::build(plant, flash, cfg, st);
         b.cycles = cycles;
+        b.locks = locks;
         b
     }
 }
