@@ -715,7 +715,7 @@ fn telemetry_numbers_are_gapless_and_replies_are_never_dropped_under_a_full_down
         // Until every telecommand has finished and the downlink has drained.
         for _ in 0..20_000 {
             r.tick();
-            if sent.iter().all(|(rid, _)| r.st.finished(*rid)) && r.ctl.tm_queue().is_empty() {
+            if sent.iter().all(|(rid, _)| r.st.finished(*rid)) && r.link.queue().is_empty() {
                 break;
             }
         }

@@ -5,6 +5,8 @@
 
 mod common;
 
+use m2ctl::controller::comms::deliver;
+
 use common::{activate, all_ok, calibrated_table, install, tick_packet, upload, wire, JOB_CYCLES};
 
 use m2ctl::controller::{event, State};
@@ -406,9 +408,8 @@ fn fuzzed_packets_never_panic_and_rejected_ones_change_nothing() {
         let rejected_before = r.ctl.housekeeping().tc_rejected;
         let log_before = r.st.log.len();
         // No plant time passes: only the packet may change anything.
-        r.ctl.handle_telecommand(&pkt);
-        let mut ctl = &mut r.ctl;
-        r.link.transmit(&mut ctl, &mut StationSink(&mut r.st));
+        deliver(&mut r.ctl, &pkt);
+        r.link.transmit(&mut StationSink(&mut r.st));
         if r.ctl.housekeeping().tc_rejected != rejected_before {
             rejected += 1;
             if kind == 2 {
@@ -578,11 +579,11 @@ fn a_move_check_is_evaluated_outside_the_telecommands_lock_body() {
     // A far target: the whole straight path is sampled.
     let target = wire(800.0, -600.0, 400.0, 45.0, -30.0, 20.0);
     let (pkt, rid) = r.st.packet(&Command::CheckMove(target)).unwrap();
-    while r.ctl.tm_queue().pop().is_some() {}
+    while r.link.queue().pop().is_some() {}
     // What the link service runs under the lock for this TC.
-    r.ctl.handle_telecommand(&pkt);
+    deliver(&mut r.ctl, &pkt);
     let mut queued = Vec::new();
-    while let Some(s) = r.ctl.tm_queue().pop() {
+    while let Some(s) = r.link.queue().pop() {
         queued.push(s.record);
     }
     assert!(

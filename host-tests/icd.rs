@@ -276,8 +276,8 @@ fn activate_of_a_pending_table_reports_each_stage_and_the_boot_follows() {
 fn the_telemetry_queue_figures_in_section_1_are_the_codes() {
     use m2ctl::controller::comms::MAX_TC_PER_PASS;
     use m2ctl::controller::telemetry::{
-        ADMISSION_FREE_SLOTS, HK_SAMPLES, MAX_BULK_PER_TC, MAX_DEFERRED_REPLIES,
-        MAX_REPLIES_PER_TC, REPLY_RESERVE, TM_QUEUE_LEN, TM_RESERVED_SLOTS,
+        ADMISSION_FREE_SLOTS, MAX_BULK_PER_TC, MAX_DEFERRED_REPLIES, MAX_REPLIES_PER_TC,
+        REPLY_RESERVE, TM_QUEUE_LEN, TM_RESERVED_SLOTS,
     };
     let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/icd.md"))
         .unwrap()
@@ -296,7 +296,6 @@ fn the_telemetry_queue_figures_in_section_1_are_the_codes() {
         format!("queued while more than {REPLY_RESERVE} places are free"),
         format!("queued while more than {TM_RESERVED_SLOTS} places are free"),
         format!("taken with {ADMISSION_FREE_SLOTS} free places gets all {MAX_BULK_PER_TC} chunks"),
-        format!("at most {HK_SAMPLES} wait to be sent"),
     ] {
         assert!(
             text.contains(&phrase),

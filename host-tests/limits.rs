@@ -17,7 +17,7 @@ use embedded_hal_mock::eh1::digital::{
 };
 
 use common::{all_ok, wire};
-use m2ctl::controller::{event, Controller, State, TmRecord};
+use m2ctl::controller::{event, Controller, State, TmConsumer, TmRecord};
 use m2ctl::drivers::stepper::{
     StepDirDrives, StepPulses, StepperConfig, StepperLeg, StepperPolarity,
 };
@@ -675,7 +675,7 @@ impl Pins {
 fn rig(
     cycles: usize,
     switch_level: impl Fn(usize, usize, usize) -> bool,
-) -> (Controller<Rig>, SharedMotors, Pins, Station) {
+) -> (Controller<Rig>, SharedMotors, Pins, Station, TmConsumer) {
     let motors = SharedMotors::default();
     let enable: Vec<PinMock> = (0..LEGS)
         .map(|_| PinMock::new(&[PinTransaction::set(PinState::Low)]))
@@ -749,7 +749,8 @@ fn rig(
         .map_err(|(_, e)| e)
         .unwrap();
     let (table, boot) = store.boot(&ValidationConfig::flight());
-    let ctl = Controller::new(mech, table, boot);
+    let (producer, consumer) = m2ctl::controller::telemetry::host_queue();
+    let ctl = Controller::new(mech, table, boot, producer);
     (
         ctl,
         motors,
@@ -759,19 +760,22 @@ fn rig(
             switches,
         },
         Station::new(),
+        consumer,
     )
 }
 
-/// Hands a telecommand to the controller (between cycles, as the link service does).
+/// Hands a telecommand to the controller (between cycles, decoded as the link service
+/// does).
 fn tc(ctl: &mut Controller<Rig>, st: &mut Station, cmd: &Command) -> RequestId {
     let (packet, rid) = st.packet(cmd).unwrap();
-    ctl.handle_telecommand(&packet);
+    let decoded = m2ctl::link::tc::decode_telecommand(&packet).unwrap();
+    ctl.execute_telecommand(&decoded);
     rid
 }
 
 /// Takes the controller's queued telemetry records.
-fn drain(ctl: &mut Controller<Rig>, log: &mut Vec<(u32, TmRecord)>) {
-    while let Some(s) = ctl.tm_queue().pop() {
+fn drain(tm: &mut TmConsumer, log: &mut Vec<(u32, TmRecord)>) {
+    while let Some(s) = tm.pop() {
         log.push((s.cycle, s.record));
     }
 }
@@ -794,7 +798,7 @@ fn missed_steps_of_the_real_stepper_driver_are_detected_by_the_encoders() {
     const CYCLES: usize = 6_000;
     const SLIP_AT: usize = 1_200;
     const SLIP_USTEPS: i64 = 700;
-    let (mut ctl, motors, mut pins, mut st) = rig(CYCLES, |_, _, _| false);
+    let (mut ctl, motors, mut pins, mut st, mut tm) = rig(CYCLES, |_, _, _| false);
     let mut log = Vec::new();
     let rid = tc(
         &mut ctl,
@@ -807,7 +811,7 @@ fn missed_steps_of_the_real_stepper_driver_are_detected_by_the_encoders() {
             motors.borrow_mut().position[3] -= SLIP_USTEPS;
         }
         ctl.control_cycle();
-        drain(&mut ctl, &mut log);
+        drain(&mut tm, &mut log);
         if c < SLIP_AT {
             assert!(ctl.faults().is_empty(), "cycle {c}: {:?}", ctl.faults());
         } else if detected.is_none() && !ctl.faults().is_empty() {
@@ -860,7 +864,7 @@ fn a_switch_pin_stops_the_stepper_leg_in_the_cycle_it_reads_active() {
     // fault latches; a direct stroke down is the recovery and sends only negative pulses.
     const CYCLES: usize = 5_000;
     const TRIP_AT: usize = 900;
-    let (mut ctl, motors, mut pins, mut st) = rig(CYCLES, |leg, input, read| {
+    let (mut ctl, motors, mut pins, mut st, mut tm) = rig(CYCLES, |leg, input, read| {
         leg == 1 && input == 1 && (TRIP_AT..TRIP_AT + 1_500).contains(&read)
     });
     let mut log = Vec::new();
@@ -875,7 +879,7 @@ fn a_switch_pin_stops_the_stepper_leg_in_the_cycle_it_reads_active() {
     for c in 1..=CYCLES {
         let up_before = motors.borrow().pulses_positive[1];
         ctl.control_cycle();
-        drain(&mut ctl, &mut log);
+        drain(&mut tm, &mut log);
         let m = motors.borrow();
         if c < TRIP_AT {
             assert!(ctl.faults().is_empty());
@@ -915,7 +919,7 @@ fn a_switch_pin_stops_the_stepper_leg_in_the_cycle_it_reads_active() {
                     delta_nm: 5_000,
                 },
             );
-            drain(&mut ctl, &mut log);
+            drain(&mut tm, &mut log);
             assert_eq!(
                 reports(&log, up).last(),
                 Some(&Verification::StartFailure {
@@ -948,7 +952,7 @@ fn a_switch_pin_stops_the_stepper_leg_in_the_cycle_it_reads_active() {
     drop(m);
     // The switch released (read TRIP_AT + 1500 on): the clear is accepted.
     let clear = tc(&mut ctl, &mut st, &Command::ClearFault);
-    drain(&mut ctl, &mut log);
+    drain(&mut tm, &mut log);
     assert_eq!(
         reports(&log, clear).last(),
         Some(&Verification::CompletionSuccess)

@@ -864,7 +864,7 @@ fn time_reports_and_summaries_yield_to_reports_and_events_in_the_queue() {
         rate: TimeReportRate::Every { exponent: 0 }
     }
     .is_bulk());
-    assert!(TmRecord::ScheduleSummary.is_bulk());
+    assert!(TmRecord::ScheduleSummary(Default::default()).is_bulk());
 }
 
 #[test]

@@ -27,6 +27,7 @@ pub mod link;
 pub mod mem;
 pub mod motion;
 pub mod nominal;
+pub mod pass;
 #[cfg(any(feature = "host", feature = "firmware"))]
 pub mod plant;
 pub mod selftest;

@@ -52,7 +52,10 @@
 use core::mem::MaybeUninit;
 use m2ctl::board::active as board;
 use m2ctl::controller::comms::{Exclusive, JobPort, RxBytes, TxBytes};
-use m2ctl::controller::{Controller, JobRequest, JobResult, ResetCause, ResetInfo, Worker};
+use m2ctl::controller::{
+    Controller, JobRequest, JobResult, ResetCause, ResetInfo, TmConsumer, TmProducer, TmQueue,
+    Worker,
+};
 use m2ctl::hw::SliderDrives;
 use m2ctl::kinematics::Geometry;
 use m2ctl::table::{BootReport, Table, TableStore, ValidationConfig};
@@ -166,6 +169,7 @@ fn build_core(
     flash: board::TableFlash,
     sliders: board::Sliders,
     reset: ResetInfo,
+    tm: TmProducer,
     ctl_slot: &'static mut MaybeUninit<Controller<board::Sliders>>,
     worker_slot: &'static mut MaybeUninit<Worker<board::TableFlash>>,
 ) -> Option<(
@@ -174,7 +178,7 @@ fn build_core(
 )> {
     let worker = build_worker(worker_slot, flash)?;
     let (table, boot) = boot_selection(worker);
-    let ctl = build_controller(ctl_slot, sliders, table, boot, reset);
+    let ctl = build_controller(ctl_slot, sliders, table, boot, reset, tm);
     // The on-board parameters persisted with the selection record (pivot, limits...).
     ctl.restore_parameters(&worker.store_mut().parameters());
     Some((ctl, worker))
@@ -205,9 +209,10 @@ fn build_controller(
     table: Table,
     boot: BootReport,
     reset: ResetInfo,
+    tm: TmProducer,
 ) -> &'static mut Controller<board::Sliders> {
     sliders.hold();
-    let ctl = Controller::unstarted_in(slot, sliders, table, boot);
+    let ctl = Controller::unstarted_in(slot, sliders, table, boot, tm);
     // Called out of line (through a pointer the optimiser cannot see through), so that
     // its frame (FK of the held strokes) and the construction's are not on the stack
     // together.
@@ -222,8 +227,9 @@ fn build_controller(
 #[inline(never)]
 fn build_link(
     slot: &'static mut MaybeUninit<m2ctl::controller::comms::LinkService>,
+    tm: TmConsumer,
 ) -> &'static mut m2ctl::controller::comms::LinkService {
-    slot.write(m2ctl::controller::comms::LinkService::new())
+    slot.write(m2ctl::controller::comms::LinkService::new(tm))
 }
 
 /// The worker's request side: hands the next request to the worker where it lies in
@@ -304,6 +310,7 @@ mod app {
         tx_q: Queue<u8, TX_QUEUE_LEN> = Queue::new(),
         req_q: Queue<JobRequest, JOB_QUEUE_LEN> = Queue::new(),
         res_q: Queue<JobResult, JOB_QUEUE_LEN> = Queue::new(),
+        tm_q: TmQueue = TmQueue::new(),
         ctl_slot: MaybeUninit<Controller<board::Sliders>> = MaybeUninit::uninit(),
         worker_slot: MaybeUninit<Worker<board::TableFlash>> = MaybeUninit::uninit(),
         link_slot: MaybeUninit<LinkService> = MaybeUninit::uninit(),
@@ -316,10 +323,13 @@ mod app {
         if !boot_selftest_passes() {
             halt()
         }
+        // The telemetry queue: the controller produces, the link service consumes.
+        let (tm_in, tm_out) = cx.local.tm_q.split();
         let Some((ctl, worker)) = build_core(
             b.flash,
             b.sliders,
             b.reset,
+            TmProducer::new(tm_in),
             cx.local.ctl_slot,
             cx.local.worker_slot,
         ) else {
@@ -346,7 +356,7 @@ mod app {
                 rx_in,
                 uart_tx,
                 tx_out,
-                link: build_link(cx.local.link_slot),
+                link: build_link(cx.local.link_slot, TmConsumer::new(tm_out)),
                 rx_out,
                 tx_in,
                 uart_errors,
@@ -397,19 +407,19 @@ mod app {
         }
         let mut shared = cx.shared.ctl;
         let mut ctl = Locked(&mut shared);
-        link.receive(&mut ctl, &mut RxQueue(cx.local.rx_out));
-        link.exchange_jobs(
-            &mut ctl,
-            &mut WorkerQueues {
-                requests: cx.local.requests_tx,
-                results: cx.local.results_rx,
-            },
-        );
         let mut tx = TxQueue {
             queue: cx.local.tx_in,
             pushed: false,
         };
-        link.transmit(&mut ctl, &mut tx);
+        link.pass(
+            &mut ctl,
+            &mut RxQueue(cx.local.rx_out),
+            &mut WorkerQueues {
+                requests: cx.local.requests_tx,
+                results: cx.local.results_rx,
+            },
+            &mut tx,
+        );
         if tx.pushed {
             rtic::pend(interrupt::UART_TX);
         }

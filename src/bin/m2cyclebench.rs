@@ -183,13 +183,12 @@ impl Rig {
     fn link_part(&mut self) {
         hw::bench_start();
         let mut ctl: &mut Controller<Sliders> = self.ctl;
-        self.link.receive(&mut ctl, &mut self.up);
         let mut port = Port {
             worker: self.worker,
             results: &mut self.results,
         };
-        self.link.exchange_jobs(&mut ctl, &mut port);
-        self.link.transmit(&mut ctl, &mut self.down);
+        self.link
+            .pass(&mut ctl, &mut self.up, &mut port, &mut self.down);
         hw::bench_end();
     }
 
@@ -258,7 +257,7 @@ impl Rig {
         };
         self.seq = self.seq.wrapping_add(1);
         let Some(p) = pkt.get(..n) else { return false };
-        self.lock_section(name, |c| c.handle_telecommand(p));
+        self.lock_section(name, |c| m2ctl::controller::comms::deliver(c, p));
         true
     }
 
@@ -321,7 +320,18 @@ fn run() -> bool {
         );
         return false;
     }
-    let Some((ctl, worker)) = boot(b.flash, b.sliders) else {
+    let tm_queue =
+        cortex_m::singleton!(: m2ctl::controller::TmQueue = m2ctl::controller::TmQueue::new());
+    let Some(tm_queue) = tm_queue else {
+        return false;
+    };
+    let (tm_in, tm_out) = tm_queue.split();
+    let tm_out = m2ctl::controller::TmConsumer::new(tm_out);
+    let Some((ctl, worker)) = boot(
+        b.flash,
+        b.sliders,
+        m2ctl::controller::TmProducer::new(tm_in),
+    ) else {
         return false;
     };
     defmt::info!(
@@ -333,7 +343,7 @@ fn run() -> bool {
     let Some(rig) = cortex_m::singleton!(: Rig = Rig {
         ctl,
         worker,
-        link: LinkService::new(),
+        link: LinkService::new(tm_out),
         timer: b.timer,
         up: Uplink(Deque::new()),
         down: Downlink {
@@ -372,6 +382,7 @@ fn run() -> bool {
 fn boot(
     flash: TableFlash,
     sliders: Sliders,
+    tm: m2ctl::controller::TmProducer,
 ) -> Option<(
     &'static mut Controller<Sliders>,
     &'static mut Worker<TableFlash>,
@@ -388,7 +399,7 @@ fn boot(
     let (table, boot) = worker.store_mut().boot(&validation);
     let mut sliders = sliders;
     sliders.hold();
-    let ctl = ctl_slot.write(Controller::unstarted(sliders, table, boot));
+    let ctl = ctl_slot.write(Controller::unstarted(sliders, table, boot, tm));
     ctl.start();
     ctl.restore_parameters(&worker.store_mut().parameters());
     defmt::info!(
@@ -436,7 +447,7 @@ fn scenarios(r: &mut Rig) -> bool {
         return false;
     }
     let burst_done = r.group_until("tc_burst", |r| {
-        r.up.0.is_empty() && r.ctl.tm_queue().is_empty()
+        r.up.0.is_empty() && r.link.queue().is_empty()
     });
 
     // Table upload (chunks in one write), commit (background job: validation, erase,
@@ -482,7 +493,7 @@ fn scenarios(r: &mut Rig) -> bool {
         return false;
     }
     let checked = r.group_until("check_move", |r| {
-        r.up.0.is_empty() && r.ctl.tm_queue().is_empty()
+        r.up.0.is_empty() && r.link.queue().is_empty()
     });
 
     // Set parameters TC[20,3] (housekeeping period, the default value): persisted by
@@ -495,7 +506,7 @@ fn scenarios(r: &mut Rig) -> bool {
     }
     let generation_before = r.ctl.housekeeping().tc_accepted;
     let params_set = r.group_until("set_parameters", |r| {
-        r.ctl.housekeeping().job == 0 && r.ctl.tm_queue().is_empty() && r.up.0.is_empty()
+        r.ctl.housekeeping().job == 0 && r.link.queue().is_empty() && r.up.0.is_empty()
     }) && r.ctl.housekeeping().tc_accepted == generation_before.wrapping_add(1);
 
     // Four time-tagged move checks released by the schedule (ST[11]) in one pass: two
@@ -516,7 +527,7 @@ fn scenarios(r: &mut Rig) -> bool {
     let released = r.group_until("releases", |r| {
         r.ctl.housekeeping().schedule.released
             == released_before.wrapping_add(SCHEDULED_CHECKS as u16)
-            && r.ctl.tm_queue().is_empty()
+            && r.link.queue().is_empty()
     });
     let clean = clean && r.ctl.faults().is_empty();
     if !(moved
@@ -576,14 +587,12 @@ fn lock_bodies(r: &mut Rig, target: &WirePose) -> bool {
     // flight image re-derives it in the 1 s scrub instead).
     let word = r.lock_section("geometry_check_word", |c| c.geometry_check_word());
     ok &= word != 0;
-    // A housekeeping record's content: the copy of its queued sample (the sample is
-    // taken in the control cycle, converted to wire units by the link unlocked).
-    r.lock_section("hk_content", |c| {
-        core::hint::black_box(c.tm_queue().peek_housekeeping().copied());
-    });
-    r.lock_section("dump_chunk", |c| {
-        core::hint::black_box(c.dump_chunk(m2ctl::link::MemoryId::ActiveTable, 0));
-    });
+    // Telemetry records are complete when queued: the link takes them without the
+    // controller's lock (no lock body to measure; the dump's is its telecommand's).
+    ok &= r.lock_tc(
+        "tc_dump",
+        &Command::DumpTable(m2ctl::link::MemoryId::ActiveTable),
+    );
     // A move: accepted, its planning started (the samples come in the control cycles).
     // (Back toward home: the bench is at `target` already.)
     let back = WirePose {
@@ -637,8 +646,6 @@ fn lock_bodies(r: &mut Rig, target: &WirePose) -> bool {
     r.lock_section("job_finished_selected", |c| c.job_finished(&result));
     ok &= r.ctl.active_table().table_id == table.table_id;
     // Drain what these queued.
-    while !r.ctl.tm_queue().is_empty() {
-        let _ = r.ctl.tm_queue().pop();
-    }
+    while r.link.queue().pop().is_some() {}
     ok
 }

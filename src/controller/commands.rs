@@ -1,44 +1,51 @@
-//! Telecommand dispatch: checked decode, acceptance, execution, start/completion.
+//! Telecommand dispatch: a decoded telecommand (the link decided its acceptance)
+//! executed, with its start and completion reports.
 
 use super::error::CommandError;
 use super::jobs::{JobKind, JobRequest};
+use super::telemetry::DumpChunk;
 use super::verification::{Outcome, PendingKind, PendingTc};
 use super::{event, Controller, TmRecord};
 use crate::hw::MechanismIo;
 use crate::link::command::TABLE_CHUNK_MAX_LEN;
-use crate::link::tc::{decode_telecommand, Telecommand};
+use crate::link::tc::{Rejection, Telecommand};
 use crate::link::tm::{EventSeverity, Verification};
 use crate::link::{Command, MemoryId};
 use crate::table::TABLE_LEN;
 use crate::units::NM_PER_MM_F32;
 
 impl<M: MechanismIo> Controller<M> {
-    /// One telecommand packet (the bytes of one deframed frame): decode, report,
-    /// execute. A refused telecommand changes nothing but the counters and the reports.
-    pub fn handle_telecommand(&mut self, packet: &[u8]) {
-        // A move check a caller without a link service left uncollected: evaluated and
-        // reported now, before this telecommand (none is lost, the order is kept).
-        if self.move_check.is_some() {
-            self.run_move_check();
+    /// A telecommand the link refused (its decoder's code): counted and reported
+    /// (TM[1,2] if the packet named a request); nothing else changes.
+    pub fn refuse_telecommand(&mut self, rej: &Rejection) {
+        self.settle_move_check();
+        self.tc_rejected = self.tc_rejected.wrapping_add(1);
+        match rej.request_id {
+            Some(rid) => self.verify(rid, Verification::acceptance_failure(&rej.error)),
+            None => self.last_failure_code = rej.error.code(),
         }
-        let tc = match decode_telecommand(packet) {
-            Ok(tc) => tc,
-            Err(rej) => {
-                self.tc_rejected = self.tc_rejected.wrapping_add(1);
-                match rej.request_id {
-                    Some(rid) => self.verify(rid, Verification::acceptance_failure(&rej.error)),
-                    None => self.last_failure_code = rej.error.code(),
-                }
-                return;
-            }
-        };
+    }
+
+    /// A telecommand the link decoded and accepted: acceptance reported (if asked),
+    /// executed, its start and completion reported as they come. A refused telecommand
+    /// changes nothing but the counters and the reports.
+    pub fn execute_telecommand(&mut self, tc: &Telecommand) {
+        self.settle_move_check();
         self.tc_accepted = self.tc_accepted.wrapping_add(1);
         if tc.ack.acceptance() {
             self.verify(tc.request_id, Verification::AcceptanceSuccess);
         }
-        let result = self.execute(&tc);
-        self.report_outcome(&tc, result);
+        let result = self.execute(tc);
+        self.report_outcome(tc, result);
         self.publish_state();
+    }
+
+    /// A move check a caller without a link service left uncollected: evaluated and
+    /// reported now, before the next telecommand (none is lost, the order is kept).
+    fn settle_move_check(&mut self) {
+        if self.move_check.is_some() {
+            self.run_move_check();
+        }
     }
 
     fn report_outcome(&mut self, tc: &Telecommand, result: Result<Outcome, CommandError>) {
@@ -151,7 +158,8 @@ impl<M: MechanismIo> Controller<M> {
                 let mask = super::params::named_mask(ids.ids().iter().copied())
                     .map_err(CommandError::Parameter)?;
                 self.intact_parameters()?;
-                self.tm.push(self.cycle, TmRecord::Parameters { mask });
+                let values = self.parameter_values(mask);
+                self.tm.push(self.cycle, TmRecord::Parameters(values));
                 Ok(Outcome::Done)
             }
             Command::SetParameters(ref values) => self.set_parameters(values.entries()),
@@ -214,15 +222,7 @@ impl<M: MechanismIo> Controller<M> {
             Command::Schedule(ref op) => self.execute_schedule(op),
             Command::SetTimeReportRate(rate) => Ok(self.set_time_report_rate(rate)),
             Command::DumpTable(memory) => {
-                for offset in (0..TABLE_LEN).step_by(TABLE_CHUNK_MAX_LEN) {
-                    self.tm.push(
-                        self.cycle,
-                        TmRecord::DumpChunk {
-                            memory,
-                            offset_bytes: offset as u16,
-                        },
-                    );
-                }
+                self.queue_dump(memory);
                 Ok(Outcome::Done)
             }
         }
@@ -277,12 +277,9 @@ impl<M: MechanismIo> Controller<M> {
         Ok(Outcome::JobStarted)
     }
 
-    /// The effective values (ID, value) of the parameters in `mask`, in index order (the
-    /// link service reads them when it encodes TM[20,2]).
-    pub fn parameter_values(
-        &self,
-        mask: u32,
-    ) -> heapless::Vec<(u16, i32), { super::params::N_PARAMETERS }> {
+    /// The effective values (ID, value) of the parameters in `mask`, in index order
+    /// (TM[20,2]).
+    pub fn parameter_values(&self, mask: u32) -> super::telemetry::ParameterValues {
         let mut out = heapless::Vec::new();
         for (k, def) in super::params::PARAMETERS.iter().enumerate() {
             if mask & (1 << k) != 0 {
@@ -292,35 +289,22 @@ impl<M: MechanismIo> Controller<M> {
         out
     }
 
-    /// The bytes of a dump chunk (the link service reads them when it encodes the
-    /// chunk's record). `None` outside the image.
-    pub fn dump_chunk(&self, memory: MemoryId, offset_bytes: u16) -> Option<DumpChunk> {
+    /// TC[6,5]: the image of `memory` as it is now, queued as chunks of at most
+    /// [`TABLE_CHUNK_MAX_LEN`] bytes in offset order. Out of line: the 516-byte image
+    /// is on the stack here only.
+    #[inline(never)]
+    fn queue_dump(&mut self, memory: MemoryId) {
         let image = match memory {
             MemoryId::ActiveTable => self.active.table.to_bytes(),
             MemoryId::UploadBuffer => *self.upload.bytes(),
         };
-        let start = usize::from(offset_bytes);
-        let end = start.saturating_add(TABLE_CHUNK_MAX_LEN).min(image.len());
-        let bytes = image.get(start..end)?;
-        let mut chunk = DumpChunk {
-            len: bytes.len(),
-            bytes: [0; TABLE_CHUNK_MAX_LEN],
-        };
-        crate::link::wire::copy_prefix(&mut chunk.bytes, bytes)?;
-        Some(chunk)
-    }
-}
-
-/// One table-dump chunk's bytes, copied out of the controller.
-#[derive(Clone, Copy, Debug)]
-pub struct DumpChunk {
-    len: usize,
-    bytes: [u8; TABLE_CHUNK_MAX_LEN],
-}
-
-impl DumpChunk {
-    /// The chunk's bytes.
-    pub fn bytes(&self) -> &[u8] {
-        self.bytes.get(..self.len).unwrap_or(&[])
+        for offset in (0..TABLE_LEN).step_by(TABLE_CHUNK_MAX_LEN) {
+            let chunk = u16::try_from(offset)
+                .ok()
+                .and_then(|o| DumpChunk::of(memory, &image, o));
+            if let Some(chunk) = chunk {
+                self.tm.push(self.cycle, TmRecord::DumpChunk(chunk));
+            }
+        }
     }
 }

@@ -1,34 +1,42 @@
 //! The link service: between the UART byte queues and the controller, below the
-//! control task's priority.
+//! control task's priority. It owns the bytes and the packets; the controller never
+//! sees either.
 //!
-//! One [`LinkService::pass`] (run after every control cycle):
+//! One [`LinkService::pass`] (run after every control cycle; the period's order is
+//! `crate::pass`):
 //! 1. **receive**: first the time-based schedule's due activities (ST[11]): each is
-//!    released through [`Controller::release_next_due`] (and a due time report ST[9]
-//!    queued, [`Controller::link_pass_start`]); then it takes bytes from the RX queue
-//!    through the deframer; each complete
-//!    frame is one telecommand for [`Controller::handle_telecommand`]; at most
-//!    [`MAX_TC_PER_PASS`] telecommands per pass (the rest of the bytes wait in the
-//!    queue for the next pass). A frame too long for the deframer (longer than the
-//!    largest telecommand's frame) or not valid COBS is dropped and counted
-//!    (`tc_frames_dropped`): it carries no request ID to report on. A frame that
-//!    decodes into a packet longer than [`crate::link::MAX_TC_PACKET_LEN`] still
-//!    reaches the controller, which refuses it with TM[1,2] 0x0503.
-//! 2. **transmit**: encodes queued telemetry records into framed PUS packets while the
-//!    TX queue has room for the whole frame (frames are never split or truncated; a
-//!    record waits in the telemetry queue until its frame fits).
+//!    taken from the controller ([`Controller::take_due_activity`]), decoded here and
+//!    executed as a received telecommand; then bytes from the RX queue through the
+//!    deframer: each complete frame is decoded here (`link::tc::decode_telecommand`)
+//!    and the controller gets the decoded [`Telecommand`]
+//!    ([`Controller::execute_telecommand`]) or the refusal
+//!    ([`Controller::refuse_telecommand`]): acceptance is decided here. At most
+//!    [`MAX_TC_PER_PASS`] telecommands per pass, each only while the telemetry queue
+//!    has room for all it can report (the rest wait in the RX queue). A frame too long
+//!    for the deframer (longer than the largest telecommand's frame) or not valid COBS
+//!    is dropped and counted (`tc_frames_dropped`): it carries no request ID to report
+//!    on. A frame that decodes into a packet longer than
+//!    [`crate::link::MAX_TC_PACKET_LEN`] is refused with TM[1,2] 0x0503.
+//! 2. **jobs**: job requests from the controller to the background worker, results
+//!    back ([`LinkService::exchange_jobs`]).
+//! 3. **transmit**: takes the complete telemetry records from its end of the telemetry
+//!    queue ([`TmConsumer`], lock-free) and encodes them into framed PUS packets while
+//!    the TX queue has room for the whole frame (frames are never split or truncated;
+//!    a record waits in the queue until its frame fits).
 //!
 //! The controller is reached through [`Exclusive`]: on the target an RTIC resource
-//! lock, held only for one telecommand or one record at a time; on the host a plain
-//! `&mut`. Encoding happens outside the lock, and so does a move check's evaluation
-//! (TC[8,1] 0x0006: the whole path's IK and FK): the telecommand leaves a copy of what
-//! the check reads ([`MoveCheckJob`]), the link service evaluates it unlocked and
-//! reports it under the lock.
+//! lock, held for one telecommand or one job message at a time; on the host a plain
+//! `&mut`. Decoding and encoding happen outside the lock, and so does a move check's
+//! evaluation (TC[8,1] 0x0006: the whole path's IK and FK): the telecommand leaves a
+//! copy of what the check reads ([`MoveCheckJob`]), the link service evaluates it
+//! unlocked and reports it under the lock.
 
 use super::motion::MoveCheckJob;
-use super::telemetry::{Stamped, TmRecord};
+use super::telemetry::{Stamped, TmConsumer, TmRecord};
 use super::{Controller, JobRequest, JobResult};
 use crate::hw::MechanismIo;
 use crate::link::framing::{max_cobs_len, Deframer};
+use crate::link::tc::{decode_telecommand, Telecommand};
 use crate::link::tm::{TmSource, TmWriter};
 use crate::link::{Housekeeping, MAX_TC_PACKET_LEN, MAX_TM_FRAME_LEN};
 
@@ -87,38 +95,24 @@ pub struct LinkCounters {
 }
 
 /// The link service (module documentation).
-#[derive(Clone, Debug)]
 pub struct LinkService {
     deframer: Deframer<RX_FRAME_BUFFER_LEN>,
     tm: TmWriter,
+    /// Its end of the telemetry queue.
+    queue: TmConsumer,
     counters: LinkCounters,
     /// The move check being evaluated ([`LinkService::run_move_check`]; here, not on
     /// the stack).
     move_check: Option<MoveCheckJob>,
 }
 
-impl Default for LinkService {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-/// What one record needs from the controller to be encoded.
-enum Content {
-    Plain(TmRecord),
-    Hk(super::telemetry::HkSample),
-    Params(heapless::Vec<(u16, i32), { super::params::N_PARAMETERS }>),
-    Dump(crate::link::MemoryId, u16, super::commands::DumpChunk),
-    Summary(super::schedule::ScheduleSummary),
-    Nothing,
-}
-
 impl LinkService {
-    /// A fresh link (TM counters at 0).
-    pub const fn new() -> Self {
+    /// A fresh link (TM counters at 0) taking telemetry from `queue`.
+    pub const fn new(queue: TmConsumer) -> Self {
         Self {
             deframer: Deframer::new(),
             tm: TmWriter::new(),
+            queue,
             counters: LinkCounters {
                 frames_dropped: 0,
                 uart_overruns: 0,
@@ -137,14 +131,32 @@ impl LinkService {
         self.counters
     }
 
-    /// One pass: receive, then transmit (module documentation).
-    pub fn pass<M, C>(&mut self, ctl: &mut C, rx: &mut impl RxBytes, tx: &mut impl TxBytes)
-    where
+    /// The telemetry records waiting to be sent.
+    pub fn queue(&mut self) -> &mut TmConsumer {
+        &mut self.queue
+    }
+
+    /// Gives its end of the telemetry queue back (a simulated reboot hands it to the
+    /// next link, after dropping what it held: records queued at a reset are lost).
+    pub fn into_queue(mut self) -> TmConsumer {
+        while self.queue.pop().is_some() {}
+        self.queue
+    }
+
+    /// One pass: receive, jobs, transmit (module documentation).
+    pub fn pass<M, C>(
+        &mut self,
+        ctl: &mut C,
+        rx: &mut impl RxBytes,
+        port: &mut impl JobPort,
+        tx: &mut impl TxBytes,
+    ) where
         M: MechanismIo,
         C: Exclusive<Controller<M>>,
     {
         self.receive(ctl, rx);
-        self.transmit(ctl, tx);
+        self.exchange_jobs(ctl, port);
+        self.transmit(tx);
     }
 
     /// Step 1: at most [`MAX_TC_PER_PASS`] telecommands: the schedule's due activities
@@ -160,29 +172,39 @@ impl LinkService {
         // Time-tagged activities due now (ST[11]) share the pass's budget, first. A
         // telecommand is taken only while the telemetry queue has room for all it can
         // report (`telemetry`, "Why replies always find room"); else it waits.
-        while handled < MAX_TC_PER_PASS
-            && ctl.lock(|c| c.tm_queue().admits_telecommand() && c.release_next_due())
-        {
+        while handled < MAX_TC_PER_PASS && self.queue.admits_telecommand() {
+            let Some(activity) = ctl.lock(|c| c.take_due_activity()) else {
+                break;
+            };
+            let decoded = decode_telecommand(activity.packet());
+            ctl.lock(|c| c.execute_released(&activity, &decoded));
             self.run_move_check(ctl);
             handled += 1;
         }
-        let mut admitted = false;
-        while handled < MAX_TC_PER_PASS {
-            if !admitted {
-                admitted = ctl.lock(|c| c.tm_queue().admits_telecommand());
-                if !admitted {
-                    break;
-                }
+        while handled < MAX_TC_PER_PASS && self.queue.admits_telecommand() {
+            let Some(decoded) = self.next_packet(rx) else {
+                break;
+            };
+            match &decoded {
+                Ok(tc) => ctl.lock(|c| c.execute_telecommand(tc)),
+                Err(rejection) => ctl.lock(|c| c.refuse_telecommand(rejection)),
             }
-            let Some(byte) = rx.pop() else { break };
+            self.run_move_check(ctl);
+            handled += 1;
+        }
+    }
+
+    /// The next complete frame of `rx` decoded (`None`: no complete frame in the bytes
+    /// received so far). Frames that do not deframe are dropped and counted here.
+    fn next_packet(
+        &mut self,
+        rx: &mut impl RxBytes,
+    ) -> Option<Result<Telecommand, crate::link::tc::Rejection>> {
+        loop {
+            let byte = rx.pop()?;
             match self.deframer.push_byte(byte) {
                 None => {}
-                Some(Ok(packet)) => {
-                    ctl.lock(|c| c.handle_telecommand(packet));
-                    self.run_move_check(ctl);
-                    handled += 1;
-                    admitted = false;
-                }
+                Some(Ok(packet)) => return Some(decode_telecommand(packet)),
                 Some(Err(_)) => {
                     self.counters.frames_dropped = self.counters.frames_dropped.wrapping_add(1);
                 }
@@ -200,7 +222,9 @@ impl LinkService {
         C: Exclusive<Controller<M>>,
     {
         let slot = &mut self.move_check;
-        ctl.lock(|c| c.take_move_check(slot));
+        if !ctl.lock(|c| c.take_move_check(slot)) {
+            return;
+        }
         if let Some(job) = &self.move_check {
             let check = job.evaluate();
             let (request_id, ack) = (job.request_id(), job.ack());
@@ -209,45 +233,16 @@ impl LinkService {
         self.move_check = None;
     }
 
-    /// Step 2: encode queued records while their frames fit in the TX queue.
+    /// Step 3: encode queued records while their frames fit in the TX queue (lock-free:
+    /// the records are complete, module documentation).
     #[inline(never)]
-    pub fn transmit<M, C>(&mut self, ctl: &mut C, tx: &mut impl TxBytes)
-    where
-        M: MechanismIo,
-        C: Exclusive<Controller<M>>,
-    {
-        loop {
-            let counters = self.counters;
-            let peeked = ctl.lock(|c| {
-                let stamped = *c.tm_queue().peek()?;
-                let content = match stamped.record {
-                    TmRecord::Housekeeping => {
-                        let mut hk = *c.tm_queue().peek_housekeeping()?;
-                        hk.report.tc_frames_dropped = counters.frames_dropped;
-                        hk.report.uart_overruns = counters.uart_overruns;
-                        Content::Hk(hk)
-                    }
-                    TmRecord::DumpChunk {
-                        memory,
-                        offset_bytes,
-                    } => match c.dump_chunk(memory, offset_bytes) {
-                        Some(chunk) => Content::Dump(memory, offset_bytes, chunk),
-                        None => Content::Nothing,
-                    },
-                    TmRecord::Parameters { mask } => Content::Params(c.parameter_values(mask)),
-                    TmRecord::ScheduleSummary => Content::Summary(c.schedule_summary()),
-                    other => Content::Plain(other),
-                };
-                Some((stamped, content))
-            });
-            let Some((stamped, content)) = peeked else {
-                return;
-            };
+    pub fn transmit(&mut self, tx: &mut impl TxBytes) {
+        while let Some(stamped) = self.queue.peek() {
             let mut frame = [0u8; MAX_TM_FRAME_LEN];
             // A number is consumed only by a packet that is sent: a frame that does not
             // fit gives its sequence count and message counter back.
             let numbers = self.tm.checkpoint();
-            let len = self.encode(&stamped, &content, &mut frame);
+            let len = encode(&mut self.tm, self.counters, stamped, &mut frame);
             match (len, frame.get(..len.unwrap_or(0))) {
                 (Some(n), Some(f)) if n > 0 => {
                     if tx.free() < n {
@@ -259,55 +254,8 @@ impl LinkService {
                 // Not encodable (a defect guard): drop it rather than block the queue.
                 _ => {}
             }
-            ctl.lock(|c| c.tm_queue().pop());
+            self.queue.pop();
         }
-    }
-
-    /// The framed packet of one record: its source data described once
-    /// ([`TmSource`]), written by the one emit path.
-    #[inline(never)]
-    fn encode(&mut self, stamped: &Stamped, content: &Content, out: &mut [u8]) -> Option<usize> {
-        let time = super::schedule::obt_of_cycle(stamped.cycle);
-        let hk: Housekeeping;
-        let source = match content {
-            Content::Plain(TmRecord::Verification { request_id, report }) => {
-                TmSource::Verification {
-                    request_id: *request_id,
-                    report: *report,
-                }
-            }
-            Content::Plain(TmRecord::Event { severity, id, aux }) => TmSource::Event {
-                severity: *severity,
-                event_id: *id,
-                aux: *aux,
-            },
-            Content::Plain(TmRecord::PingReply) => TmSource::PingReply,
-            Content::Plain(TmRecord::MoveCheck { request_id, check }) => TmSource::MoveCheck {
-                request_id: *request_id,
-                check: *check,
-            },
-            Content::Params(values) => TmSource::Parameters(values),
-            Content::Plain(TmRecord::TimeReport { rate }) => TmSource::TimeReport(*rate),
-            Content::Summary(entries) => TmSource::ScheduleSummary(entries),
-            Content::Hk(sample) => {
-                // Converted here, below the control task (`HkSample`).
-                hk = sample.to_report();
-                TmSource::Housekeeping(&hk)
-            }
-            Content::Dump(memory, offset, chunk) => TmSource::DumpChunk {
-                memory: *memory,
-                offset_bytes: *offset,
-                bytes: chunk.bytes(),
-            },
-            Content::Plain(
-                TmRecord::Housekeeping
-                | TmRecord::DumpChunk { .. }
-                | TmRecord::Parameters { .. }
-                | TmRecord::ScheduleSummary,
-            )
-            | Content::Nothing => return None,
-        };
-        self.tm.emit(time, &source, out).ok()
     }
 
     /// Moves job requests from the controller to the worker and results back.
@@ -323,4 +271,60 @@ impl LinkService {
         // A request the port has no room for stays with the controller until the next pass.
         while ctl.lock(|c| c.offer_job_request(|r| port.send(r))) {}
     }
+}
+
+/// One telecommand packet decoded and handed to `ctl` as the link service does it
+/// (executed, or refused with its decoder's code): for callers without a link
+/// service (tests, the cycle benchmark).
+pub fn deliver<M: MechanismIo>(ctl: &mut Controller<M>, packet: &[u8]) {
+    match decode_telecommand(packet) {
+        Ok(tc) => ctl.execute_telecommand(&tc),
+        Err(rejection) => ctl.refuse_telecommand(&rejection),
+    }
+}
+
+/// The framed packet of one record: its source data described once ([`TmSource`]),
+/// written by the one emit path; housekeeping gets the link's own counters here.
+#[inline(never)]
+fn encode(
+    tm: &mut TmWriter,
+    counters: LinkCounters,
+    stamped: &Stamped,
+    out: &mut [u8],
+) -> Option<usize> {
+    let time = super::schedule::obt_of_cycle(stamped.cycle);
+    let hk: Housekeeping;
+    let source = match &stamped.record {
+        TmRecord::Verification { request_id, report } => TmSource::Verification {
+            request_id: *request_id,
+            report: *report,
+        },
+        TmRecord::Event { severity, id, aux } => TmSource::Event {
+            severity: *severity,
+            event_id: *id,
+            aux: *aux,
+        },
+        TmRecord::PingReply => TmSource::PingReply,
+        TmRecord::MoveCheck { request_id, check } => TmSource::MoveCheck {
+            request_id: *request_id,
+            check: *check,
+        },
+        TmRecord::Parameters(values) => TmSource::Parameters(values),
+        TmRecord::TimeReport { rate } => TmSource::TimeReport(*rate),
+        TmRecord::ScheduleSummary(entries) => TmSource::ScheduleSummary(entries),
+        TmRecord::Housekeeping(sample) => {
+            // Converted here, below the control task (`HkSample`).
+            let mut report = sample.to_report();
+            report.tc_frames_dropped = counters.frames_dropped;
+            report.uart_overruns = counters.uart_overruns;
+            hk = report;
+            TmSource::Housekeeping(&hk)
+        }
+        TmRecord::DumpChunk(chunk) => TmSource::DumpChunk {
+            memory: chunk.memory,
+            offset_bytes: chunk.offset_bytes,
+            bytes: chunk.bytes(),
+        },
+    };
+    tm.emit(time, &source, out).ok()
 }

@@ -86,7 +86,7 @@ use crate::timing::{cycle_to_us, SCRUB_PERIOD_CYCLES};
 pub use error::CommandError;
 pub use jobs::{JobRequest, JobResult, Worker};
 pub use params::Parameters;
-pub use telemetry::{HkSample, Stamped, TmQueue, TmRecord};
+pub use telemetry::{HkSample, Stamped, TmConsumer, TmProducer, TmQueue, TmRecord};
 
 /// Event IDs of service 5 (the ICD's table; aux words in the link's `event_id` docs).
 pub use crate::link::tm::event_id as event;
@@ -315,7 +315,8 @@ pub struct Controller<M> {
     end_of_travel_reported: u32,
     /// Control cycles run since boot: the motion time base and the telemetry clock.
     cycle: u32,
-    tm: TmQueue,
+    /// Its end of the telemetry queue (the link service holds the other).
+    tm: TmProducer,
     tc_accepted: u16,
     tc_rejected: u16,
     last_failure_code: u16,
@@ -337,9 +338,10 @@ pub struct Controller<M> {
 
 impl<M: MechanismIo> Controller<M> {
     /// Starts on the table boot selected (`table`, `boot`: [`crate::table::TableStore::boot`]),
-    /// holds the sliders where their drives are, and takes the first reading.
-    pub fn new(mech: M, table: Table, boot: BootReport) -> Self {
-        let mut c = Self::unstarted(mech, table, boot);
+    /// queuing its telemetry through `tm`; holds the sliders where their drives are and
+    /// takes the first reading.
+    pub fn new(mech: M, table: Table, boot: BootReport, tm: TmProducer) -> Self {
+        let mut c = Self::unstarted(mech, table, boot, tm);
         c.start();
         c
     }
@@ -349,7 +351,7 @@ impl<M: MechanismIo> Controller<M> {
     /// ~6 KB struct is never copied on the stack. Until [`Controller::start`] the
     /// drives are not held and no reading was taken: call it before the first cycle.
     #[inline(always)]
-    pub fn unstarted(mech: M, table: Table, boot: BootReport) -> Self {
+    pub fn unstarted(mech: M, table: Table, boot: BootReport, tm: TmProducer) -> Self {
         let (active, geometry_ok) = match ActiveTable::new(table, boot.source) {
             Ok(a) => (a, true),
             // A booted table was validated, so this is a defect guard: fall back to the
@@ -401,7 +403,7 @@ impl<M: MechanismIo> Controller<M> {
             clamp_positive: 0,
             end_of_travel_reported: 0,
             cycle: 0,
-            tm: TmQueue::new(),
+            tm,
             tc_accepted: 0,
             tc_rejected: 0,
             last_failure_code: 0,
@@ -427,8 +429,9 @@ impl<M: MechanismIo> Controller<M> {
         mech: M,
         table: Table,
         boot: BootReport,
+        tm: TmProducer,
     ) -> &mut Self {
-        slot.write(Self::unstarted(mech, table, boot))
+        slot.write(Self::unstarted(mech, table, boot, tm))
     }
 
     /// Second step of [`Controller::unstarted`]: holds the sliders where their drives
@@ -757,7 +760,7 @@ impl<M: MechanismIo> Controller<M> {
     /// whose number it carries).
     fn queue_housekeeping(&mut self) {
         let sample = self.hk_sample();
-        self.tm.push_housekeeping(self.cycle, &sample);
+        self.tm.push(self.cycle, TmRecord::Housekeeping(sample));
     }
 
     /// The housekeeping report of now (the link service adds its own counters).
@@ -888,9 +891,10 @@ impl<M: MechanismIo> Controller<M> {
         &self.mech
     }
 
-    /// The telemetry records waiting for the link service.
-    pub fn tm_queue(&mut self) -> &mut TmQueue {
-        &mut self.tm
+    /// Gives its end of the telemetry queue back (a simulated reboot hands it to the
+    /// next controller).
+    pub fn into_tm_producer(self) -> TmProducer {
+        self.tm
     }
 
     /// Test hook (host): flips a bit of the parameters in force or of their check word

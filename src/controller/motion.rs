@@ -495,11 +495,15 @@ impl<M: MechanismIo> Controller<M> {
     }
 
     /// Moves the move check waiting for evaluation (if any) into `slot` (the link
-    /// service's; copied once, not via the stack).
-    pub fn take_move_check(&mut self, slot: &mut Option<MoveCheckJob>) {
-        if let Some(job) = &self.move_check {
-            *slot = Some(*job);
-            self.move_check = None;
+    /// service's; copied once, not via the stack). Returns whether there was one.
+    pub fn take_move_check(&mut self, slot: &mut Option<MoveCheckJob>) -> bool {
+        match &self.move_check {
+            Some(job) => {
+                *slot = Some(*job);
+                self.move_check = None;
+                true
+            }
+            None => false,
         }
     }
 

@@ -398,7 +398,8 @@ impl<M: MechanismIo> Controller<M> {
                 self.schedule.time_shift(*offset, now).map_err(refused)?
             }
             ScheduleCommand::SummaryReport => {
-                self.tm.push(self.cycle, TmRecord::ScheduleSummary);
+                let summary = self.schedule_summary();
+                self.tm.push(self.cycle, TmRecord::ScheduleSummary(summary));
             }
         }
         Ok(Outcome::Done)
@@ -427,26 +428,37 @@ impl<M: MechanismIo> Controller<M> {
     }
 
     /// Releases the first activity if its time has come (module documentation): it
-    /// leaves the schedule, then its telecommand runs as a received one. Returns whether
-    /// one was released.
-    pub fn release_next_due(&mut self) -> bool {
+    /// leaves the schedule (it can never run twice) and event 0x00B0 announces it; the
+    /// link service decodes its packet and hands it to
+    /// [`Controller::execute_released`].
+    pub fn take_due_activity(&mut self) -> Option<Activity> {
         let now = self.obt();
-        let Some(a) = self.schedule.take_due(now) else {
-            return false;
-        };
+        let a = self.schedule.take_due(now)?;
         self.schedule.released = self.schedule.released.wrapping_add(1);
         self.event(
             EventSeverity::Info,
             event::ACTIVITY_RELEASED,
             [request_id_word(a.request_id), a.release.seconds],
         );
+        Some(a)
+    }
+
+    /// A released activity's telecommand, as the link decoded it: executed (or
+    /// refused) exactly as a received one, its failures watched for event 0x00B1.
+    pub fn execute_released(
+        &mut self,
+        a: &Activity,
+        decoded: &Result<crate::link::tc::Telecommand, crate::link::tc::Rejection>,
+    ) {
         self.schedule.executing = Some(a.request_id);
-        self.handle_telecommand(a.packet());
+        match decoded {
+            Ok(tc) => self.execute_telecommand(tc),
+            Err(rejection) => self.refuse_telecommand(rejection),
+        }
         self.schedule.executing = None;
         if self.tc_pending.map(|p| p.request_id) == Some(a.request_id) {
             self.schedule.watched = Some(a.request_id);
         }
-        true
     }
 
     /// Every service-1 report passes here: a failure of a released activity's

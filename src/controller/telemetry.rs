@@ -1,9 +1,14 @@
-//! What the controller tells the ground: telemetry *records* in a bounded queue, and
-//! the housekeeping sample.
+//! What the controller tells the ground: telemetry *records*, complete when queued,
+//! through a lock-free single-producer single-consumer queue to the link service.
 //!
-//! The controller never encodes or sends bytes itself: it queues small records
-//! ([`TmRecord`], stamped with the control cycle) and the link service (`comms`, below
-//! the control task's priority) encodes them into framed PUS packets for the UART.
+//! The controller never encodes or sends bytes itself: it queues records ([`TmRecord`],
+//! stamped with the control cycle, every value in them taken when they are made: the
+//! housekeeping sample, a dump's bytes, a parameter report's values, a schedule
+//! summary) through its [`TmProducer`]; the link service (`comms`, below the control
+//! task's priority) takes them from its [`TmConsumer`] and encodes them into framed PUS
+//! packets, without locking the controller and without reaching back into it. The
+//! controller is the one producer: the control task, and the telecommands it executes
+//! under its lock in the link task, queue through it.
 //!
 //! ## When the queue is full
 //! The queue holds [`TM_QUEUE_LEN`] records in three classes ([`TmClass`]):
@@ -15,15 +20,14 @@
 //!   while more than [`TM_RESERVED_SLOTS`] places are free.
 //!
 //! A housekeeping record carries its sample, taken when it is queued (the report's
-//! content is the state of the cycle its time stamp names); the queue keeps at most
-//! [`HK_SAMPLES`] samples waiting, and a housekeeping record beyond them is dropped too.
+//! content is the state of the cycle its time stamp names).
 //!
-//! A record that finds no room in its class is dropped and counted ([`TmQueue::dropped`],
+//! A record that finds no room in its class is dropped and counted ([`TmProducer::dropped`],
 //! housekeeping `tm_dropped`). Nothing already queued is ever dropped or reordered.
 //!
 //! **Why replies always find room.** The link service takes a telecommand (from the
 //! uplink or the schedule) only while [`ADMISSION_FREE_SLOTS`] places are free
-//! ([`TmQueue::admits_telecommand`]). One telecommand queues at most
+//! ([`TmConsumer::admits_telecommand`]). One telecommand queues at most
 //! [`MAX_REPLIES_PER_TC`] replies at once; the one long-running telecommand still owes
 //! at most [`MAX_DEFERRED_REPLIES`] (a move's start and completion). Events and bulk
 //! never take the last [`REPLY_RESERVE`] = the sum of the two, so the replies of an
@@ -32,7 +36,7 @@
 //! [`MAX_BULK_PER_TC`] chunks) above the bulk reserve, so a telecommand taken is answered
 //! whole; a telecommand that finds less room waits in the receive queue.
 
-use heapless::Deque;
+use heapless::spsc::{Consumer, Producer, Queue};
 
 use crate::kinematics::{Pose, LEGS};
 use crate::link::command::TABLE_CHUNK_MAX_LEN;
@@ -63,10 +67,6 @@ pub const ADMISSION_FREE_SLOTS: usize =
     TM_RESERVED_SLOTS + MAX_BULK_PER_TC + MAX_REPLIES_PER_TC + MAX_DEFERRED_REPLIES;
 const _: () = assert!(REPLY_RESERVE <= TM_RESERVED_SLOTS);
 const _: () = assert!(ADMISSION_FREE_SLOTS <= TM_QUEUE_LEN);
-
-/// Housekeeping samples the queue keeps waiting to be sent (a backed-up downlink's
-/// periodic and one-shot reports beyond them are dropped and counted).
-pub const HK_SAMPLES: usize = 4;
 
 /// A housekeeping sample as the control cycle takes it: the report's other fields as
 /// they go on the wire, and its poses, strokes and encoder readings still in working
@@ -132,8 +132,10 @@ impl TmClass {
     }
 }
 
-/// One telemetry packet to be: what the link service encodes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// One telemetry packet to be, complete: what the link service encodes.
+#[derive(Clone, Debug, PartialEq)]
+// The housekeeping sample is the large variant; records live in the static queue only.
+#[allow(clippy::large_enum_variant)]
 pub enum TmRecord {
     /// TM[1,x] for a telecommand.
     Verification {
@@ -151,9 +153,8 @@ pub enum TmRecord {
         /// Auxiliary words.
         aux: [u32; 2],
     },
-    /// TM[3,25]: the housekeeping sample taken when the record was queued (kept by the
-    /// queue beside the record, [`TmQueue::push_housekeeping`]).
-    Housekeeping,
+    /// TM[3,25]: the housekeeping sample of the cycle the record was made in.
+    Housekeeping(HkSample),
     /// TM[17,2].
     PingReply,
     /// TM[8,130]: the answer of a move check for a telecommand.
@@ -163,26 +164,53 @@ pub enum TmRecord {
         /// The answer.
         check: super::motion::MoveCheck,
     },
-    /// TM[20,2]: the effective values of the parameters in `mask` (bit i = index i),
-    /// read when it is encoded.
-    Parameters {
-        /// The parameters to report.
-        mask: u32,
-    },
-    /// TM[6,6]: the chunk of `memory` at `offset_bytes`, read when it is encoded.
-    DumpChunk {
-        /// Memory area.
-        memory: MemoryId,
-        /// Offset of the chunk (bytes).
-        offset_bytes: u16,
-    },
+    /// TM[20,2]: (ID, effective value) of the parameters named, in index order.
+    Parameters(ParameterValues),
+    /// TM[6,6]: one chunk of a memory area, its bytes as they were when queued.
+    DumpChunk(DumpChunk),
     /// TM[9,2]: a time report (its OBT is the record's cycle).
     TimeReport {
         /// The generation rate in force.
         rate: TimeReportRate,
     },
-    /// TM[11,13]: the schedule summary, read when it is encoded.
-    ScheduleSummary,
+    /// TM[11,13]: the schedule's activities when the record was made.
+    ScheduleSummary(super::schedule::ScheduleSummary),
+}
+
+/// The values of a TM[20,2] report.
+pub type ParameterValues = heapless::Vec<(u16, i32), { super::params::N_PARAMETERS }>;
+
+/// One TM[6,6] chunk: the memory area, the offset and the bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DumpChunk {
+    /// Memory area.
+    pub memory: MemoryId,
+    /// Offset of the chunk (bytes).
+    pub offset_bytes: u16,
+    len: u8,
+    bytes: [u8; TABLE_CHUNK_MAX_LEN],
+}
+
+impl DumpChunk {
+    /// The chunk of `memory` at `offset_bytes` of `image` (`None` outside it).
+    pub fn of(memory: MemoryId, image: &[u8], offset_bytes: u16) -> Option<DumpChunk> {
+        let start = usize::from(offset_bytes);
+        let end = start.saturating_add(TABLE_CHUNK_MAX_LEN).min(image.len());
+        let src = image.get(start..end)?;
+        let mut bytes = [0u8; TABLE_CHUNK_MAX_LEN];
+        crate::link::wire::copy_prefix(&mut bytes, src)?;
+        Some(DumpChunk {
+            memory,
+            offset_bytes,
+            len: u8::try_from(src.len()).ok()?,
+            bytes,
+        })
+    }
+
+    /// The chunk's bytes.
+    pub fn bytes(&self) -> &[u8] {
+        self.bytes.get(..usize::from(self.len)).unwrap_or(&[])
+    }
 }
 
 impl TmRecord {
@@ -192,12 +220,12 @@ impl TmRecord {
             TmRecord::Verification { .. }
             | TmRecord::PingReply
             | TmRecord::MoveCheck { .. }
-            | TmRecord::Parameters { .. } => TmClass::Reply,
+            | TmRecord::Parameters(_) => TmClass::Reply,
             TmRecord::Event { .. } => TmClass::Event,
-            TmRecord::Housekeeping
-            | TmRecord::DumpChunk { .. }
+            TmRecord::Housekeeping(_)
+            | TmRecord::DumpChunk(_)
             | TmRecord::TimeReport { .. }
-            | TmRecord::ScheduleSummary => TmClass::Bulk,
+            | TmRecord::ScheduleSummary(_) => TmClass::Bulk,
         }
     }
 
@@ -209,7 +237,7 @@ impl TmRecord {
 }
 
 /// A record and the control cycle it was made in (its telemetry time).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Stamped {
     /// Control cycle of the record.
     pub cycle: u32,
@@ -217,76 +245,66 @@ pub struct Stamped {
     pub record: TmRecord,
 }
 
-/// The bounded telemetry queue (module documentation for its policy).
-#[derive(Clone, Debug, Default)]
-pub struct TmQueue {
-    queue: Deque<Stamped, TM_QUEUE_LEN>,
-    /// The samples of the queued housekeeping records, in queue order.
-    hk: Deque<HkSample, HK_SAMPLES>,
+/// Slots of the queue's storage: `heapless::spsc::Queue<_, N>` holds `N - 1` records.
+pub const TM_QUEUE_SLOTS: usize = TM_QUEUE_LEN + 1;
+
+/// The queue's storage (a `static` on the target: the firmware splits it once at init).
+pub type TmQueue = Queue<Stamped, TM_QUEUE_SLOTS>;
+
+/// The controller's end of the telemetry queue (module documentation for its policy).
+pub struct TmProducer {
+    queue: Producer<'static, Stamped, TM_QUEUE_SLOTS>,
     dropped: u16,
 }
 
-impl TmQueue {
-    /// Empty.
-    pub const fn new() -> Self {
-        Self {
-            queue: Deque::new(),
-            hk: Deque::new(),
-            dropped: 0,
-        }
+impl TmProducer {
+    /// The producer half of a split [`TmQueue`].
+    pub const fn new(queue: Producer<'static, Stamped, TM_QUEUE_SLOTS>) -> Self {
+        Self { queue, dropped: 0 }
     }
 
     /// Queues `record` made in `cycle`, or drops and counts it (policy above). Returns
-    /// whether it was queued. A housekeeping record goes through
-    /// [`TmQueue::push_housekeeping`] (this drops it).
+    /// whether it was queued.
     pub fn push(&mut self, cycle: u32, record: TmRecord) -> bool {
-        let room =
-            self.free() > record.class().reserve() && !matches!(record, TmRecord::Housekeeping);
-        if room && self.queue.push_back(Stamped { cycle, record }).is_ok() {
+        let room = self.free() > record.class().reserve();
+        if room && self.queue.enqueue(Stamped { cycle, record }).is_ok() {
             true
         } else {
-            self.count_drop();
+            self.dropped = self.dropped.wrapping_add(1);
             false
         }
     }
 
-    fn count_drop(&mut self) {
-        self.dropped = self.dropped.wrapping_add(1);
+    /// Free places.
+    pub fn free(&self) -> usize {
+        TM_QUEUE_LEN.saturating_sub(self.queue.len())
     }
 
-    /// Queues a housekeeping report made in `cycle` with its sample, or drops and
-    /// counts it when the bulk reserve or the [`HK_SAMPLES`] are used up. Returns
-    /// whether it was queued.
-    pub fn push_housekeeping(&mut self, cycle: u32, sample: &HkSample) -> bool {
-        let record = TmRecord::Housekeeping;
-        if self.free() > record.class().reserve() && !self.hk.is_full() {
-            let queued = self.hk.push_back(*sample).is_ok()
-                && self.queue.push_back(Stamped { cycle, record }).is_ok();
-            if queued {
-                return true;
-            }
-        }
-        self.count_drop();
-        false
+    /// Records dropped since boot (wrapping).
+    pub fn dropped(&self) -> u16 {
+        self.dropped
+    }
+}
+
+/// The link service's end of the telemetry queue.
+pub struct TmConsumer {
+    queue: Consumer<'static, Stamped, TM_QUEUE_SLOTS>,
+}
+
+impl TmConsumer {
+    /// The consumer half of a split [`TmQueue`].
+    pub const fn new(queue: Consumer<'static, Stamped, TM_QUEUE_SLOTS>) -> Self {
+        Self { queue }
     }
 
     /// The oldest record, still queued.
     pub fn peek(&self) -> Option<&Stamped> {
-        self.queue.front()
+        self.queue.peek()
     }
 
-    /// The sample of the oldest housekeeping record.
-    pub fn peek_housekeeping(&self) -> Option<&HkSample> {
-        self.hk.front()
-    }
-
-    /// Takes the oldest record (and its sample).
+    /// Takes the oldest record.
     pub fn pop(&mut self) -> Option<Stamped> {
-        let s = self.queue.pop_front()?;
-        if matches!(s.record, TmRecord::Housekeeping) {
-            self.hk.pop_front();
-        }
-        Some(s)
+        self.queue.dequeue()
     }
 
     /// Records queued.
@@ -296,24 +314,23 @@ impl TmQueue {
 
     /// Nothing queued.
     pub fn is_empty(&self) -> bool {
-        self.queue.is_empty()
-    }
-
-    /// Free places.
-    pub fn free(&self) -> usize {
-        TM_QUEUE_LEN - self.queue.len()
+        self.queue.len() == 0
     }
 
     /// Whether the link service may take a telecommand now: everything it and the
     /// pending one can queue fits ([`ADMISSION_FREE_SLOTS`]).
     pub fn admits_telecommand(&self) -> bool {
-        self.free() >= ADMISSION_FREE_SLOTS
+        TM_QUEUE_LEN.saturating_sub(self.queue.len()) >= ADMISSION_FREE_SLOTS
     }
+}
 
-    /// Records dropped since boot (wrapping).
-    pub fn dropped(&self) -> u16 {
-        self.dropped
-    }
+/// A queue for one host bench or test: its storage leaked once (`'static`, as the
+/// firmware's is); the halves outlive a simulated reboot by being handed on.
+#[cfg(feature = "host")]
+pub fn host_queue() -> (TmProducer, TmConsumer) {
+    let q: &'static mut TmQueue = Box::leak(Box::new(TmQueue::new()));
+    let (p, c) = q.split();
+    (TmProducer::new(p), TmConsumer::new(c))
 }
 
 #[cfg(test)]
@@ -335,101 +352,65 @@ mod tests {
         }
     }
 
+    fn chunk() -> TmRecord {
+        TmRecord::DumpChunk(DumpChunk::of(MemoryId::ActiveTable, &[7; 10], 0).unwrap())
+    }
+
     #[test]
     fn each_class_leaves_its_reserve_and_replies_take_the_last_places() {
-        let mut q = TmQueue::new();
+        let (mut p, mut c) = host_queue();
         let mut bulk = 0;
-        while q.push(
-            0,
-            TmRecord::DumpChunk {
-                memory: MemoryId::ActiveTable,
-                offset_bytes: 0,
-            },
-        ) {
+        while p.push(0, chunk()) {
             bulk += 1;
         }
         assert_eq!(bulk, TM_QUEUE_LEN - TM_RESERVED_SLOTS);
-        assert_eq!(q.dropped(), 1);
+        assert_eq!(p.dropped(), 1);
         let mut events = 0;
-        while q.push(1, event()) {
+        while p.push(1, event()) {
             events += 1;
         }
         assert_eq!(events, TM_RESERVED_SLOTS - REPLY_RESERVE);
-        assert_eq!(q.dropped(), 2);
-        assert!(!q.admits_telecommand());
+        assert_eq!(p.dropped(), 2);
+        assert!(!c.admits_telecommand());
         for _ in 0..REPLY_RESERVE {
-            assert!(q.push(2, report()));
+            assert!(p.push(2, report()));
         }
-        assert!(!q.push(3, report()), "full");
-        assert_eq!(q.dropped(), 3);
+        assert!(!p.push(3, report()), "full");
+        assert_eq!(p.dropped(), 3);
         // Nothing queued is reordered: the oldest comes out first.
         assert!(matches!(
-            q.pop().map(|s| s.record),
-            Some(TmRecord::DumpChunk { .. })
+            c.pop().map(|s| s.record),
+            Some(TmRecord::DumpChunk(_))
         ));
-        assert_eq!(q.len(), TM_QUEUE_LEN - 1);
+        assert_eq!(c.len(), TM_QUEUE_LEN - 1);
     }
 
     #[test]
     fn a_telecommand_is_admitted_only_with_room_for_all_it_can_queue() {
-        let mut q = TmQueue::new();
-        while q.free() > ADMISSION_FREE_SLOTS {
-            assert!(q.push(0, event()));
+        let (mut p, c) = host_queue();
+        while p.free() > ADMISSION_FREE_SLOTS {
+            assert!(p.push(0, event()));
         }
-        assert!(q.admits_telecommand());
+        assert!(c.admits_telecommand());
         // What an admitted dump queues, with the pending move's two deferred replies.
-        assert!(q.push(1, report()));
+        assert!(p.push(1, report()));
         for _ in 0..MAX_BULK_PER_TC {
-            assert!(
-                q.push(
-                    1,
-                    TmRecord::DumpChunk {
-                        memory: MemoryId::ActiveTable,
-                        offset_bytes: 0
-                    }
-                ),
-                "a dump's chunks fit"
-            );
+            assert!(p.push(1, chunk()), "a dump's chunks fit");
         }
         for _ in 0..MAX_REPLIES_PER_TC - 1 + MAX_DEFERRED_REPLIES {
-            assert!(q.push(1, report()));
+            assert!(p.push(1, report()));
         }
-        assert_eq!(q.dropped(), 0);
-        assert!(!q.admits_telecommand());
+        assert_eq!(p.dropped(), 0);
+        assert!(!c.admits_telecommand());
     }
 
     #[test]
-    fn housekeeping_samples_leave_with_their_records() {
-        let sample = |cycle: u32| HkSample {
-            report: Housekeeping {
-                cycle_counter: cycle,
-                ..Housekeeping::default()
-            },
-            ..HkSample::default()
-        };
-        let mut q = TmQueue::new();
-        for c in 0..HK_SAMPLES as u32 {
-            assert!(q.push_housekeeping(c, &sample(c)));
-            assert!(q.push(c, event()));
-        }
-        assert!(!q.push_housekeeping(99, &sample(99)));
-        assert_eq!(q.dropped(), 1);
-        assert!(!q.push(0, TmRecord::Housekeeping), "only with a sample");
-        for c in 0..HK_SAMPLES as u32 {
-            assert_eq!(q.peek().map(|s| s.cycle), Some(c));
-            assert_eq!(
-                q.peek_housekeeping().map(|h| h.report.cycle_counter),
-                Some(c)
-            );
-            assert!(matches!(
-                q.pop().map(|s| s.record),
-                Some(TmRecord::Housekeeping)
-            ));
-            assert!(matches!(
-                q.pop().map(|s| s.record),
-                Some(TmRecord::Event { .. })
-            ));
-        }
-        assert!(q.peek_housekeeping().is_none());
+    fn a_dump_chunk_holds_the_bytes_it_was_made_of() {
+        let image: Vec<u8> = (0..=255u8).cycle().take(516).collect();
+        let last = DumpChunk::of(MemoryId::UploadBuffer, &image, 512).unwrap();
+        assert_eq!(last.bytes(), &image[512..]);
+        let first = DumpChunk::of(MemoryId::UploadBuffer, &image, 0).unwrap();
+        assert_eq!(first.bytes(), &image[..TABLE_CHUNK_MAX_LEN]);
+        assert!(DumpChunk::of(MemoryId::UploadBuffer, &image, 517).is_none());
     }
 }

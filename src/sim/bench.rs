@@ -14,6 +14,7 @@ use std::collections::VecDeque;
 
 use super::plant::{Plant, PlantConfig, SharedPlant};
 use crate::controller::comms::{JobPort, LinkService, RxBytes, TxBytes};
+use crate::controller::telemetry::{host_queue, TmConsumer, TmProducer};
 use crate::controller::{Controller, JobRequest, JobResult, ResetInfo, State, Worker};
 use crate::ground::station::Station;
 use crate::link::{Command, Housekeeping, RequestId};
@@ -179,6 +180,7 @@ impl Bench {
             flash,
             BenchConfig::default(),
             Station::new(),
+            host_queue(),
         )
     }
 
@@ -189,28 +191,35 @@ impl Bench {
             MockFlash::new(SIM_FLASH_BYTES),
             BenchConfig::default(),
             Station::new(),
+            host_queue(),
         )
     }
 
     /// Everything chosen.
     pub fn with(plant: Plant, flash: MockFlash, cfg: BenchConfig) -> Self {
-        Self::build(plant.shared(), flash, cfg, Station::new())
+        Self::build(plant.shared(), flash, cfg, Station::new(), host_queue())
     }
 
-    fn build(plant: SharedPlant, mut flash: MockFlash, cfg: BenchConfig, st: Station) -> Self {
+    fn build(
+        plant: SharedPlant,
+        mut flash: MockFlash,
+        cfg: BenchConfig,
+        st: Station,
+        (producer, consumer): (TmProducer, TmConsumer),
+    ) -> Self {
         flash.set_timing(cfg.erase_cycles, cfg.program_cycles);
         let mut store = TableStore::new(flash, SIM_LAYOUT)
             .unwrap_or_else(|(_, e)| panic!("simulated flash layout: {e:?}"));
         let (table, boot) = store.boot(&cfg.validation);
         // The drives come up holding where they are.
         plant.with(crate::hw::SliderDrives::hold);
-        let mut ctl = Controller::new(plant.clone(), table, boot);
+        let mut ctl = Controller::new(plant.clone(), table, boot, producer);
         ctl.restore_parameters(&store.parameters());
         Self {
             ctl,
             plant,
             worker: Worker::new(store, cfg.validation),
-            link: LinkService::new(),
+            link: LinkService::new(consumer),
             st,
             cfg,
             uplink: VecDeque::new(),
@@ -227,16 +236,11 @@ impl Bench {
         self.ctl.set_reset_info(info);
     }
 
-    /// One millisecond (module documentation).
+    /// One millisecond (module documentation): the plant moves, then one period
+    /// (`crate::pass`).
     pub fn tick(&mut self) {
         self.plant.with(|p| p.step(f64::from(CYCLE_S)));
-        self.ctl.control_cycle();
-        self.link_pass();
-        for _ in 0..self.cfg.worker_steps_per_cycle {
-            if let Some(r) = self.worker.step(self.ctl.cycle()) {
-                self.results.push_back(r);
-            }
-        }
+        crate::pass::period(self);
         self.cycles += 1;
     }
 
@@ -251,16 +255,14 @@ impl Bench {
             ctl: &mut self.ctl,
             locks: &mut self.locks,
         };
-        self.link.receive(&mut ctl, &mut rx);
         let mut port = WorkerPort {
             worker: &mut self.worker,
             results: &mut self.results,
         };
-        self.link.exchange_jobs(&mut ctl, &mut port);
         let mut tx = Downlink {
             queue: &mut self.downlink,
         };
-        self.link.transmit(&mut ctl, &mut tx);
+        self.link.pass(&mut ctl, &mut rx, &mut port, &mut tx);
         // The line carries the queued bytes to the station.
         let n = budget.min(self.downlink.len());
         let bytes: Vec<u8> = self.downlink.drain(..n).collect();
@@ -379,6 +381,8 @@ impl Bench {
     /// keeps its log.
     pub fn reboot(self) -> Self {
         let Bench {
+            ctl,
+            link,
             plant,
             worker,
             st,
@@ -387,11 +391,32 @@ impl Bench {
             locks,
             ..
         } = self;
+        // The telemetry queue's storage outlives the controller: its halves are handed
+        // to the next ones, emptied (what was queued at the cut is lost).
+        let queue = (ctl.into_tm_producer(), link.into_queue());
         let mut flash = worker.into_store().into_inner();
         flash.power_cycle();
-        let mut b = Self::build(plant, flash, cfg, st);
+        let mut b = Self::build(plant, flash, cfg, st, queue);
         b.cycles = cycles;
         b.locks = locks;
         b
+    }
+}
+
+impl crate::pass::Period for Bench {
+    fn control(&mut self) {
+        self.ctl.control_cycle();
+    }
+
+    fn link(&mut self) {
+        self.link_pass();
+    }
+
+    fn worker(&mut self) {
+        for _ in 0..self.cfg.worker_steps_per_cycle {
+            if let Some(r) = self.worker.step(self.ctl.cycle()) {
+                self.results.push_back(r);
+            }
+        }
     }
 }

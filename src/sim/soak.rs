@@ -224,10 +224,9 @@ pub struct Soak<C> {
     rest_cycles: u32,
     /// The last actions, printed at the first violation.
     history: Vec<String>,
-    /// Every parameter set the operator's telecommands can have made (persisted forms):
-    /// invariant 9.
-    param_sets: Vec<[u8; crate::table::store::PARAMETERS_LEN]>,
-    /// TC[20,3]s in flight and their pairs (applied to the model when they complete).
+    /// The parameter set known persisted (its persisted form): invariant 9.
+    params_confirmed: [u8; crate::table::store::PARAMETERS_LEN],
+    /// TC[20,3]s in flight and their pairs: each may have been applied, in order.
     setting: Vec<(RequestId, Vec<(u16, i32)>)>,
     /// Speed limits in force (mm per cycle): coordinated, direct (invariant 8).
     step_limits_mm: (f64, f64),
@@ -301,7 +300,7 @@ impl<C: Choices> Soak<C> {
             tm_dropped_seen: 0,
             rest_cycles: 0,
             history: Vec::new(),
-            param_sets: vec![crate::controller::Parameters::none().encode()],
+            params_confirmed: crate::controller::Parameters::none().encode(),
             setting: Vec::new(),
             step_limits_mm: (0.0, 0.0),
             corrupt_since: None,
@@ -602,23 +601,6 @@ impl<C: Choices> Soak<C> {
         }
         let values = crate::link::command::ParameterValues::new(&pairs);
         let Ok(values) = values else { return };
-        // The model: any set the operator had may be the one this builds on.
-        let table = *self.r.ctl.active_table();
-        let grown: Vec<_> = self
-            .param_sets
-            .iter()
-            .filter_map(|b| {
-                crate::controller::Parameters::decode(b)
-                    .with(&pairs, &table)
-                    .ok()
-                    .map(|p| p.encode())
-            })
-            .collect();
-        for g in grown {
-            if !self.param_sets.contains(&g) {
-                self.param_sets.push(g);
-            }
-        }
         let rid = self.send(&Command::SetParameters(values));
         self.setting.push((rid, pairs));
     }
@@ -802,22 +784,49 @@ impl<C: Choices> Soak<C> {
         self.prev_faulted = !self.r.ctl.faults().is_empty();
         self.tm_dropped_seen = 0;
         self.rest_cycles = 0;
-        self.setting.clear();
         self.corrupt_since = None;
         self.read_step_limits();
-        self.check_persisted_parameters();
+        let _ = self.check_persisted_parameters();
+        self.setting.clear();
     }
 
-    /// Invariant 9: the parameters in flash are a set the operator's telecommands made.
-    fn check_persisted_parameters(&mut self) {
+    /// Invariant 9: the parameters in flash are a set the operator's telecommands made:
+    /// the one known persisted, or it with the sets in flight applied in order (each
+    /// may or may not have been). What flash holds then becomes the one known.
+    /// Returns whether it could check (not while a cut has struck: the reboot checks
+    /// again once power is back, with the sets still in flight).
+    fn check_persisted_parameters(&mut self) -> bool {
+        use crate::controller::Parameters;
+        if !self.r.flash_mut().is_powered() {
+            return false;
+        }
         let stored = self.r.worker.store_mut().persisted_parameters();
-        let decoded = crate::controller::Parameters::decode(&stored).encode();
-        if !self.param_sets.contains(&decoded) {
+        let decoded = Parameters::decode(&stored).encode();
+        // The running table as uploaded (the RAM copy may be upset).
+        let crc = self.r.ctl.housekeeping().active_table_crc32;
+        let table = self
+            .known
+            .get(&crc)
+            .copied()
+            .unwrap_or(*self.r.ctl.active_table());
+        let mut allowed = vec![self.params_confirmed];
+        for (_, pairs) in &self.setting {
+            let grown: Vec<_> = allowed
+                .iter()
+                .filter_map(|b| Parameters::decode(b).with(pairs, &table).ok())
+                .map(|p| p.encode())
+                .collect();
+            allowed.extend(grown);
+        }
+        if allowed.contains(&decoded) {
+            self.params_confirmed = decoded;
+        } else {
             self.violation(format!(
                 "persisted parameters no telecommand made (an upset adopted?): {:?}",
-                crate::controller::Parameters::decode(&stored)
+                Parameters::decode(&stored)
             ));
         }
+        true
     }
 
     /// Checks the report order of every telecommand in flight; retires finished ones.
@@ -838,12 +847,12 @@ impl<C: Choices> Soak<C> {
                 self.tcs_done += 1;
                 // A parameter set that completed is in force now (invariant 8's model),
                 // and persisted (invariant 9 checks the flash).
-                if let Some(k) = self.setting.iter().position(|(r, _)| *r == rid) {
-                    let (_, _pairs) = self.setting.remove(k);
+                let set = self.setting.iter().position(|(r, _)| *r == rid);
+                if let Some(k) = set.filter(|_| self.check_persisted_parameters()) {
+                    self.setting.remove(k);
                     if reps.last() == Some(&Verification::CompletionSuccess) {
                         self.read_step_limits_from_model();
                     }
-                    self.check_persisted_parameters();
                 }
                 // A selection refused at start changed nothing; one that completed (or
                 // failed after starting) is known from the events.
@@ -1028,10 +1037,22 @@ impl<C: Choices> Soak<C> {
         // 8. The speed limit in force (the output stage's, whatever is upset): each
         //    command's step within the coordinated or the direct limit of the motion.
         if moving(state) && moving(self.prev_state) && !skip {
+            // A set in flight may be in force before its completion reaches the model.
+            let dt = f64::from(CYCLE_S);
+            let in_flight = |id: u16| {
+                self.setting
+                    .iter()
+                    .flat_map(|(_, pairs)| pairs.iter())
+                    .filter(|(p, _)| *p == id)
+                    .map(|(_, v)| f64::from(*v) / crate::units::NM_PER_MM * dt)
+                    .fold(0.0, f64::max)
+            };
+            let coordinated = self.step_limits_mm.0.max(in_flight(0x0010));
+            let direct = self.step_limits_mm.1.max(in_flight(0x0012));
             let limit = match state {
-                State::StrokeMoving => self.step_limits_mm.1,
-                State::Moving => self.step_limits_mm.0,
-                _ => self.step_limits_mm.0.max(self.step_limits_mm.1),
+                State::StrokeMoving => direct,
+                State::Moving => coordinated,
+                _ => coordinated.max(direct),
             } + f64::from(crate::motion::limiter::STEP_TOLERANCE_MM);
             for i in 0..LEGS {
                 let d = (f64::from(c[i]) - f64::from(self.prev_cmd[i])).abs();
