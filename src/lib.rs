@@ -36,6 +36,7 @@ pub mod supervision;
 pub mod table;
 pub mod timing;
 pub mod units;
+pub mod worker;
 
 #[cfg(feature = "firmware")]
 pub mod board;

@@ -83,8 +83,9 @@ use crate::table::upload::UploadBuffer;
 use crate::table::{BootReport, BootSource, CommitReport, Table};
 use crate::timing::{cycle_to_us, SCRUB_PERIOD_CYCLES};
 
+pub use crate::worker::Worker;
 pub use error::CommandError;
-pub use jobs::{JobRequest, JobResult, Worker};
+pub use jobs::{JobRequest, JobResult};
 pub use params::Parameters;
 pub use telemetry::{HkSample, Stamped, TmConsumer, TmProducer, TmQueue, TmRecord};
 
