@@ -1018,6 +1018,385 @@ fn m2ground_tc_cli_writes_frames() {
     assert_eq!(unframed.trim(), "18b2c00000062f11010000ee7d");
 }
 
+/// Issue 19, item 6: `m2ground tc` checks every argument against the controller's own
+/// range. For each range the edge value is encoded (as the controller reads it back) and
+/// the value just outside is refused with the argument's name and range, nothing written;
+/// where the controller's check is a function of its own, that function is asked too, so
+/// that the ground's range is the controller's.
+#[test]
+fn m2ground_tc_refuses_what_the_controller_refuses_and_takes_its_edges() {
+    use m2ctl::controller::params::{ParamError, Parameters, PARAMETERS};
+    use m2ctl::controller::schedule::MAX_OBT;
+    use m2ctl::ground::tc::request_id_of;
+    use m2ctl::motion::stroke::{DirectStrokeLimits, StrokeMoveError};
+    use m2ctl::motion::StrokeMove;
+    let exe = env!("CARGO_BIN_EXE_m2ground");
+    let run = |args: &[String]| {
+        let o = std::process::Command::new(exe)
+            .arg("tc")
+            .args(args)
+            .output()
+            .unwrap();
+        (
+            o.status.success(),
+            o.stdout,
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let words = |s: &str| -> Vec<String> { s.split_whitespace().map(str::to_string).collect() };
+    // The edge: accepted, one telecommand the flight decoder reads as `expected`.
+    let accepted = |args: Vec<String>, expected: &dyn Fn(&Telecommand) -> bool| {
+        let (ok, out, err) = run(&args);
+        assert!(ok, "{args:?} refused: {err}");
+        let frames = parse_hex_lines(&String::from_utf8_lossy(&out)).unwrap();
+        assert_eq!(frames.len(), 1, "{args:?}");
+        let tc = decode_telecommand(deframe_all(&frames[0])[0].as_ref().unwrap()).unwrap();
+        assert!(expected(&tc), "{args:?}: {tc:?}");
+    };
+    // Just outside: refused, naming the argument and its range, nothing written.
+    let refused = |args: Vec<String>, says: &[&str]| {
+        let (ok, out, err) = run(&args);
+        assert!(!ok, "{args:?} accepted");
+        assert!(out.is_empty(), "{args:?} wrote {out:?}");
+        for s in says {
+            assert!(err.contains(s), "{args:?}: {err:?} does not say {s:?}");
+        }
+    };
+    let mut cases = 0;
+
+    // TC[20,3]: the value's range is that of the parameter named.
+    let nominal = Table::nominal();
+    for p in &PARAMETERS {
+        let name = p.name.to_ascii_uppercase();
+        let set = |v: i64| words(&format!("set-parameter parameter_id={name} value={v}"));
+        for v in [p.min, p.max] {
+            accepted(set(i64::from(v)), &|tc| {
+                tc.command
+                    == Command::SetParameters(command::ParameterValues::new(&[(p.id, v)]).unwrap())
+            });
+            let on_board = Parameters::default().with(&[(p.id, v)], &nominal);
+            assert!(
+                !matches!(on_board, Err(ParamError::OutOfRange(_))),
+                "{name} {v}"
+            );
+        }
+        for v in [i64::from(p.min) - 1, i64::from(p.max) + 1] {
+            refused(
+                set(v),
+                &[
+                    &format!("value = {v}: outside {}..={} {}", p.min, p.max, p.unit),
+                    &name,
+                ],
+            );
+            let on_board = Parameters::default().with(&[(p.id, v as i32)], &nominal);
+            assert_eq!(on_board, Err(ParamError::OutOfRange(p.id)), "{name} {v}");
+        }
+        cases += 4;
+    }
+
+    // TC[11,4] release times: within the on-board clock, 0 ..= MAX_OBT (4,294,967.295 s).
+    let release_of = |tc: &Telecommand| match tc.command {
+        Command::Schedule(ScheduleCommand::Insert(b)) => b.activities().next().map(|a| a.release),
+        _ => None,
+    };
+    let max_s = "4294967.295";
+    accepted(words(&format!("schedule at={max_s} ping")), &|tc| {
+        release_of(tc) == Some(MAX_OBT)
+    });
+    accepted(words("schedule at=0 ping"), &|tc| {
+        release_of(tc)
+            == Some(TmTime {
+                seconds: 0,
+                fraction: 0,
+            })
+    });
+    refused(
+        words("schedule at=4294967.296 ping"),
+        &["at = 4294967.296", "outside 0..=4294967.295 s"],
+    );
+    refused(
+        words("schedule at=-0.0001 ping"),
+        &["at = -0.0001", "outside 0..=4294967.295 s"],
+    );
+    // The same in the mission database's form (Yamcs' arguments).
+    let ping = |seq: u16| {
+        let mut p = [0u8; MAX_TC_PACKET_LEN];
+        let n = encode_telecommand(&Command::Ping, TcHeader::new(seq), &mut p).unwrap();
+        p[..n]
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect::<String>()
+    };
+    let insert = |s: &str, f: &str, tc: &str| {
+        words(&format!(
+            "schedule-insert-activity release_seconds={s} release_fraction={f} telecommand={tc}"
+        ))
+    };
+    accepted(insert("4294967", "0.295", &ping(1)), &|tc| {
+        release_of(tc) == Some(MAX_OBT)
+    });
+    refused(
+        insert("4294967", "0.2951", &ping(1)),
+        &["release time", "outside 0..=4294967.295 s"],
+    );
+    refused(
+        insert("4294968", "0", &ping(1)),
+        &["release_seconds = 4294968: outside 0..=4294967"],
+    );
+    refused(
+        insert("0", "1", &ping(1)),
+        &["release_fraction = 1: outside 0..="],
+    );
+    // The embedded telecommand: 13..64 bytes, one of this controller's, schedulable.
+    let hex = |c: &Command| {
+        let mut p = [0u8; MAX_TC_PACKET_LEN];
+        let n = encode_telecommand(c, TcHeader::new(2), &mut p).unwrap();
+        p[..n]
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect::<String>()
+    };
+    assert_eq!(ping(1).len(), 2 * MIN_TC_PACKET_LEN);
+    refused(
+        insert("1", "0", &ping(1)[2..]),
+        &["telecommand: 12 bytes, outside 13..=64"],
+    );
+    refused(
+        insert("1", "0", &"00".repeat(65)),
+        &["telecommand: 65 bytes, outside 13..=64"],
+    );
+    let mut bad_crc = ping(1);
+    let last = if bad_crc.ends_with('0') { "1" } else { "0" };
+    bad_crc.replace_range(bad_crc.len() - 1.., last);
+    refused(
+        insert("1", "0", &bad_crc),
+        &["not a telecommand of this controller (link code 0x0505"],
+    );
+    refused(
+        insert("1", "0", &hex(&Command::Schedule(ScheduleCommand::Reset))),
+        &["SCHEDULE_RESET cannot be scheduled", "0x0510"],
+    );
+    let chunk = Command::LoadTableChunk(TableChunk::new(0, &[1]).unwrap());
+    refused(
+        insert("1", "0", &hex(&chunk)),
+        &["LOAD_TABLE_CHUNK cannot be scheduled"],
+    );
+    refused(
+        words("schedule at=1 load-table-chunk offset=0 data=01"),
+        &["cannot be scheduled"],
+    );
+    cases += 13;
+
+    // Direct stroke: legs 1..6; |delta| up to the largest DIRECT_MAX_DELTA (1,000 um).
+    for leg in [1u8, 6] {
+        accepted(words(&format!("direct-stroke leg={leg} delta=1")), &|tc| {
+            tc.command
+                == Command::DirectStroke {
+                    leg,
+                    delta_nm: 1_000,
+                }
+        });
+    }
+    for leg in [0, 7] {
+        refused(
+            words(&format!("direct-stroke leg={leg} delta=1")),
+            &[&format!("leg = {leg}: outside 1..=6")],
+        );
+    }
+    let max_delta_nm = PARAMETERS[m2ctl::controller::params::index::DIRECT_MAX_DELTA].max;
+    assert_eq!(max_delta_nm, 1_000_000);
+    for sign in [1, -1] {
+        accepted(
+            words(&format!("direct-stroke leg=2 delta={}", sign * 1000)),
+            &|tc| {
+                tc.command
+                    == Command::DirectStroke {
+                        leg: 2,
+                        delta_nm: sign * max_delta_nm,
+                    }
+            },
+        );
+        refused(
+            words(&format!(
+                "direct-stroke leg=2 delta={}",
+                f64::from(sign) * 1000.001
+            )),
+            &["delta = ", "outside -1000..=1000 um"],
+        );
+    }
+    // On board, with DIRECT_MAX_DELTA at its largest: 1 mm is planned, 1.000001 mm refused.
+    let in_force = Parameters::default()
+        .with(&[(0x0014, max_delta_nm)], &nominal)
+        .unwrap()
+        .direct_limits(&nominal)
+        .2;
+    let limits = DirectStrokeLimits {
+        max_delta_mm: in_force,
+        ..DirectStrokeLimits::default()
+    };
+    assert!(StrokeMove::plan(&[0.0; 6], 1, 1.0, &limits).is_ok());
+    assert_eq!(
+        StrokeMove::plan(&[0.0; 6], 1, 1.000_001, &limits).err(),
+        Some(StrokeMoveError::DeltaTooLarge)
+    );
+    cases += 8;
+
+    // Table chunks: offset 0..515, 1..128 bytes, offset + length <= 516.
+    let load = |offset: usize, n: usize| {
+        words(&format!(
+            "load-table-chunk offset={offset} data={}",
+            "5a".repeat(n)
+        ))
+    };
+    for (offset, n) in [
+        (TABLE_LEN - 4, 4),
+        (TABLE_LEN - 1, 1),
+        (0, TABLE_CHUNK_MAX_LEN),
+    ] {
+        accepted(load(offset, n), &|tc| {
+            tc.command
+                == Command::LoadTableChunk(TableChunk::new(offset as u16, &vec![0x5a; n]).unwrap())
+        });
+    }
+    for (offset, n, says) in [
+        (
+            TABLE_LEN - 3,
+            4,
+            "data: 4 bytes at offset 513 end at 517, outside the table (offset + length <= 516)",
+        ),
+        (TABLE_LEN, 1, "offset = 516: outside 0..=515 byte"),
+        (
+            0,
+            TABLE_CHUNK_MAX_LEN + 1,
+            "data: 129 bytes, outside 1..=128",
+        ),
+        (0, 0, "data: 0 bytes, outside 1..=128"),
+    ] {
+        refused(load(offset, n), &[says]);
+        assert!(
+            TableChunk::new(offset as u16, &vec![0x5a; n]).is_err(),
+            "{offset} {n}"
+        );
+    }
+    cases += 7;
+
+    // TC[11,5]: only request IDs a schedule can hold (this controller's unsegmented TCs).
+    let (first, last) = (request_id_of(0), request_id_of(0x3fff));
+    assert_eq!(
+        (
+            first.packet_id,
+            first.sequence_control,
+            last.sequence_control
+        ),
+        (0x18b2, 0xc000, 0xffff)
+    );
+    for seq_control in [0xc000u16, 0xffff] {
+        accepted(
+            words(&format!(
+                "schedule-delete-activity activity_packet_id=0x18b2 activity_sequence_control={seq_control:#06x}"
+            )),
+            &|tc| {
+                tc.command
+                    == Command::Schedule(ScheduleCommand::Delete(
+                        RequestIdList::new(&[RequestId { packet_id: 0x18b2, sequence_control: seq_control }]).unwrap(),
+                    ))
+            },
+        );
+    }
+    for (pid, sc, says) in [
+        (
+            "0x18b1",
+            "0xc000",
+            "activity_packet_id = 6321 (0x18b1): outside 6322 (0x18b2)..=6322 (0x18b2)",
+        ),
+        (
+            "0x18b3",
+            "0xc000",
+            "activity_packet_id = 6323 (0x18b3): outside",
+        ),
+        (
+            "0x18b2",
+            "0xbfff",
+            "activity_sequence_control = 49151 (0xbfff): outside 49152 (0xc000)..=65535 (0xffff)",
+        ),
+        (
+            "0x18b2",
+            "0x10000",
+            "activity_sequence_control = 65536: outside 0..=65535",
+        ),
+    ] {
+        refused(
+            words(&format!(
+                "schedule-delete-activity activity_packet_id={pid} activity_sequence_control={sc}"
+            )),
+            &[says],
+        );
+    }
+    cases += 6;
+
+    // Everything else within its wire type, or its enumeration.
+    accepted(
+        words("schedule-time-shift-all shift_seconds=2147483647 shift_fraction=0.9999847412109375"),
+        &|tc| {
+            tc.command
+                == Command::Schedule(ScheduleCommand::TimeShiftAll(ObtOffset::from_parts(
+                    i32::MAX,
+                    0xffff,
+                )))
+        },
+    );
+    refused(
+        words("schedule-time-shift-all shift_seconds=2147483648 shift_fraction=0"),
+        &["shift_seconds = 2147483648: outside -2147483648..=2147483647 s"],
+    );
+    refused(
+        words("schedule-time-shift-all shift_seconds=0 shift_fraction=1"),
+        &["shift_fraction = 1: outside 0..="],
+    );
+    accepted(
+        words("move-absolute x=2147483.647 rz=-2147.483648"),
+        &|tc| {
+            tc.command
+                == Command::MoveAbsolute(WirePose::from_array([i32::MAX, 0, 0, 0, 0, i32::MIN]))
+        },
+    );
+    refused(
+        words("move-absolute x=2147483.648"),
+        &["x = 2147483.648: outside -2147483.648..=2147483.647 um"],
+    );
+    refused(
+        words("check-move rz=-2147.483649"),
+        &["rz = -2147.483649: outside -2147.483648..=2147.483647 arcsec"],
+    );
+    accepted(words("commit-table crc32=0xffffffff"), &|tc| {
+        tc.command == Command::CommitTable { crc32: u32::MAX }
+    });
+    refused(
+        words("commit-table crc32=0x100000000"),
+        &["crc32 = 4294967296: outside 0..=4294967295"],
+    );
+    accepted(words("set-time-report-rate rate=8"), &|tc| {
+        tc.command == Command::SetTimeReportRate(TimeReportRate::Every { exponent: 8 })
+    });
+    refused(
+        words("set-time-report-rate rate=9"),
+        &["rate = 9: not one of"],
+    );
+    cases += 10;
+
+    // The options: a 14-bit sequence count, 4-bit acknowledgement flags.
+    accepted(words("--seq 16383 --ack 15 ping"), &|tc| {
+        tc.request_id.seq_count() == 0x3fff && tc.ack == AckFlags::ALL
+    });
+    refused(
+        words("--seq 16384 ping"),
+        &["--seq", "16384 is not in 0..=16383"],
+    );
+    refused(words("--ack 16 ping"), &["--ack", "16 is not in 0..=15"]);
+    cases += 3;
+    println!("{cases} edge and outside cases");
+}
+
 /// The wire's rounding to whole nm / uas is libm's round-half-away-from-zero then a
 /// saturating conversion, value for value: halves, their neighbours, the i32 range's
 /// ends and 1,000,000 random f64 bit patterns. Negative control: truncation differs.

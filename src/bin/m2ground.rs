@@ -18,6 +18,7 @@ use m2ctl::ground::tc::{
     command_from_args, run_tc, schedule_from_args, telecommand_list, upload_procedure, TcOutput,
     TcSequencer,
 };
+use m2ctl::link::tc::SEQ_COUNT_MASK;
 use m2ctl::link::AckFlags;
 use m2ctl::sim::tracker::PoseTracker;
 
@@ -239,14 +240,16 @@ fn gateway_cmd(a: &GatewayCli) -> Result<(), String> {
 
 #[derive(clap::Args)]
 struct TcCli {
-    /// Sequence count of the first telecommand (14 bits); later ones count up.
-    #[arg(long, default_value_t = 0, global = true)]
+    /// Sequence count of the first telecommand (14 bits: 0..=16383); later ones count up.
+    #[arg(long, default_value_t = 0, global = true,
+          value_parser = clap::value_parser!(u16).range(0..=i64::from(SEQ_COUNT_MASK)))]
     seq: u16,
     /// Source ID in the PUS secondary header.
     #[arg(long, default_value_t = 0, global = true)]
     source_id: u16,
-    /// Acknowledgement flags (4 bits: acceptance, start, progress, completion).
-    #[arg(long, default_value_t = 0b1111, global = true)]
+    /// Acknowledgement flags (4 bits, 0..=15: acceptance, start, progress, completion).
+    #[arg(long, default_value_t = 0b1111, global = true,
+          value_parser = clap::value_parser!(u8).range(0..=i64::from(AckFlags::ALL.0)))]
     ack: u8,
     /// Write raw frames back to back to this file instead of hex lines on stdout.
     #[arg(long, global = true)]
@@ -281,8 +284,9 @@ enum TcWhat {
         activate: bool,
     },
     /// Any telecommand of the mission database by name, arguments as name=value in
-    /// engineering units (`move-absolute x=1.5 rx=-2`; `m2ground tc list`), or
-    /// `schedule at=SECONDS NAME [arg=value ...]` (TC[11,4]: the named telecommand
+    /// engineering units (`move-absolute x=1.5 rx=-2`; `m2ground tc list`), each checked
+    /// against the controller's range; or `schedule at=SECONDS NAME [arg=value ...]`
+    /// (SCHEDULE_INSERT_ACTIVITY, TC[11,4]: the named telecommand, numbered first,
     /// released at that on-board time).
     #[command(external_subcommand)]
     Named(Vec<String>),
@@ -321,7 +325,7 @@ impl TcWhat {
 fn tc_cmd(a: &TcCli) -> Result<(), String> {
     let mut seq = TcSequencer::new(a.seq);
     seq.source_id = a.source_id;
-    seq.ack = AckFlags(a.ack & 0b1111);
+    seq.ack = AckFlags(a.ack);
     let output = if a.out.is_some() && !a.hex {
         TcOutput::Binary
     } else {

@@ -503,6 +503,15 @@ fn calibrated(
     )
 }
 
+/// `f` with its valid range narrowed to `lo..=hi` (engineering units): the controller's
+/// own, where it is narrower than the wire's.
+fn ranged(mut f: Field, lo: f64, hi: f64) -> Field {
+    if let Meaning::Number { range, .. } = &mut f.meaning {
+        *range = Some((lo, hi));
+    }
+    f
+}
+
 /// Axis names of a pose, in wire order.
 pub const POSE_AXES: [&str; 6] = ["x", "y", "z", "rx", "ry", "rz"];
 
@@ -665,6 +674,10 @@ fn build_time_report_rate(a: &[ArgValue]) -> Result<Command, String> {
 /// The Yamcs description inserts or deletes one activity per telecommand (N = 1);
 /// the flight link accepts several (docs/icd.md).
 fn schedule_telecommands() -> Vec<Telecommand> {
+    // Packet ID of this controller's telecommands (TC, secondary header, APID) and the
+    // sequence flags of an unsegmented packet: the only request IDs a schedule holds.
+    const TC_PACKET_ID: u16 = (1 << 12) | (1 << 11) | (M2_APID & APID_MASK);
+    const TC_UNSEGMENTED: u16 = 0b11 << 14;
     let tc = |name: &str,
               sub: u8,
               fields: Vec<Field>,
@@ -696,11 +709,20 @@ fn schedule_telecommands() -> Vec<Telecommand> {
         )
     };
     let mut insert = vec![n1("activity")];
+    // Release times beyond the clock are refused on board (0x0B06): the seconds here,
+    // the fraction of the last second where the ground tool encodes (`m2ground tc`).
     insert.extend(obt_fields(
         "release_",
         ACTIVITY_COUNT_LEN,
         "release time (on-board time)",
     ));
+    if let Some(f) = insert.iter_mut().find(|f| f.name == "release_seconds") {
+        *f = ranged(
+            f.clone(),
+            0.0,
+            f64::from(crate::controller::schedule::MAX_OBT.seconds),
+        );
+    }
     insert.push(field(
         "telecommand",
         ACTIVITY_COUNT_LEN + RELEASE_TIME_LEN,
@@ -710,7 +732,7 @@ fn schedule_telecommands() -> Vec<Telecommand> {
         },
         Meaning::Binary,
         "the telecommand to release: a whole PUS-C TC packet of this controller \
-         (e.g. `m2ground tc --unframed move ...`), not a TC[11,x]",
+         (e.g. `m2ground tc --unframed move-absolute x=3`), not a TC[11,x]",
     ));
     let mut shift = vec![field(
         "shift_seconds",
@@ -803,17 +825,27 @@ fn schedule_telecommands() -> Vec<Telecommand> {
             subtype::SCHEDULE_DELETE,
             vec![
                 n1("request ID"),
-                count(
-                    "activity_packet_id",
-                    ACTIVITY_COUNT_LEN,
-                    Wire::U16,
-                    "request ID: packet ID of the embedded TC",
+                // Only this controller's unsegmented TCs can be scheduled: their packet ID
+                // and sequence flags (another ID is never scheduled: 0x0B04).
+                ranged(
+                    count(
+                        "activity_packet_id",
+                        ACTIVITY_COUNT_LEN,
+                        Wire::U16,
+                        "request ID: packet ID of the embedded TC",
+                    ),
+                    f64::from(TC_PACKET_ID),
+                    f64::from(TC_PACKET_ID),
                 ),
-                count(
-                    "activity_sequence_control",
-                    ACTIVITY_COUNT_LEN + 2,
-                    Wire::U16,
-                    "request ID: sequence flags and count of the embedded TC",
+                ranged(
+                    count(
+                        "activity_sequence_control",
+                        ACTIVITY_COUNT_LEN + 2,
+                        Wire::U16,
+                        "request ID: sequence flags and count of the embedded TC",
+                    ),
+                    f64::from(TC_UNSEGMENTED),
+                    f64::from(TC_UNSEGMENTED | SEQ_COUNT_MASK),
                 ),
             ],
             "Delete the activity with this request ID.",
@@ -850,6 +882,13 @@ fn schedule_telecommands() -> Vec<Telecommand> {
             |_| schedule(ScheduleCommand::SummaryReport),
         ),
     ]
+}
+
+/// The largest direct-stroke delta any DIRECT_MAX_DELTA admits (nm).
+fn max_direct_delta_nm() -> i32 {
+    PARAMETERS
+        .get(crate::controller::params::index::DIRECT_MAX_DELTA)
+        .map_or(0, |p| p.max)
 }
 
 /// What the description says of one TC[8,1] function.
@@ -950,13 +989,18 @@ fn function_args(f: FunctionId) -> FunctionDesc {
                         },
                         "slider 1..6",
                     ),
-                    calibrated(
-                        "delta",
-                        at + 1,
-                        Wire::I32,
-                        UNIT_UM,
-                        UM_PER_NM,
-                        "stroke increment along base z (um; wire i32 in nm)",
+                    // No DIRECT_MAX_DELTA admits more (refused on board: 0x0614).
+                    ranged(
+                        calibrated(
+                            "delta",
+                            at + 1,
+                            Wire::I32,
+                            UNIT_UM,
+                            UM_PER_NM,
+                            "stroke increment along base z (um; wire i32 in nm)",
+                        ),
+                        -f64::from(max_direct_delta_nm()) * UM_PER_NM,
+                        f64::from(max_direct_delta_nm()) * UM_PER_NM,
                     ),
                 ],
                 build_direct_stroke,

@@ -290,16 +290,34 @@ const OPTIONAL_POSE_AXES: [&str; 6] = crate::ground::mdb::POSE_AXES;
 /// `_`: `move-absolute`), with its arguments as `name=value` in engineering units
 /// (`x=1.5` um, `rx=-2` arcsec, `leg=3`, `parameter_id=PIVOT_Z` or `0x0003`,
 /// `crc32=0x1234abcd`, `data=` hex bytes). Every argument is required except the pose
-/// axes of a move (0 when omitted). A value outside the description's range, an unknown
-/// or a repeated argument is refused with its name. The mission database is the one
-/// vocabulary: its `build` makes the flight [`Command`], which the link then encodes.
+/// axes of a move (0 when omitted). An unknown or a repeated argument is refused with
+/// its name, and so is a value the controller would refuse for its own range
+/// ([`check_arguments`]). The mission database is the one vocabulary: its `build`
+/// makes the flight [`Command`], which the link then encodes.
 pub fn command_from_args(name: &str, args: &[String]) -> Result<Command, String> {
-    use crate::ground::mdb::{mdb, ArgValue, Meaning, Wire};
-    let db = mdb();
+    let db = crate::ground::mdb::mdb();
+    let tc = named_telecommand(&db, name)?;
+    let values = argument_values(&db, tc, args)?;
+    checked_build(tc, &values)
+}
+
+/// The mission database's telecommand `name` (`move-absolute` or `MOVE_ABSOLUTE`).
+fn named_telecommand<'a>(
+    db: &'a crate::ground::mdb::Mdb,
+    name: &str,
+) -> Result<&'a crate::ground::mdb::Telecommand, String> {
     let wanted = name.to_ascii_uppercase().replace('-', "_");
-    let tc = db
-        .telecommand(&wanted)
-        .ok_or_else(|| format!("{name}: no such telecommand (`m2ground tc list` shows them)"))?;
+    db.telecommand(&wanted)
+        .ok_or_else(|| format!("{name}: no such telecommand (`m2ground tc list` shows them)"))
+}
+
+/// The raw argument values (description order) of `name=value` words.
+fn argument_values(
+    db: &crate::ground::mdb::Mdb,
+    tc: &crate::ground::mdb::Telecommand,
+    args: &[String],
+) -> Result<Vec<crate::ground::mdb::ArgValue>, String> {
+    use crate::ground::mdb::{ArgValue, Meaning, Wire};
     let mut given: Vec<(String, String)> = Vec::new();
     for a in args {
         let (k, v) = a
@@ -363,12 +381,239 @@ pub fn command_from_args(name: &str, args: &[String]) -> Result<Command, String>
                 let eng: f64 = v
                     .parse()
                     .map_err(|e| format!("{} = {v}: not a number ({e})", f.name))?;
+                if let Some(e) = outside_range(f, eng) {
+                    return Err(e);
+                }
                 ArgValue::Int(f.to_raw(eng)?)
             }
         };
         values.push(value);
     }
-    (tc.build)(&values).map_err(|e| format!("{}: {e}", tc.name))
+    Ok(values)
+}
+
+/// The seconds of on-board time of `t`.
+fn obt_seconds(t: TmTime) -> f64 {
+    f64::from(t.seconds) + f64::from(t.fraction) / TIME_FRACTIONS_PER_SECOND as f64
+}
+
+/// Checks raw argument values (description order) against the controller's ranges,
+/// refusing the first value outside with the argument's name and its range:
+/// * every number within the description's range (mission database, the same in
+///   Yamcs; else its wire type's), whatever notation it was given in, every enumerated
+///   value one of its enumeration, every byte string's length;
+/// * what one argument's range owes to another, which a per-argument range cannot
+///   state: TC[20,3]'s value within the range of its parameter
+///   ([`crate::controller::params::PARAMETERS`], refused on board with 0x0721), a
+///   TC[11,4] release time within the on-board clock
+///   ([`crate::controller::schedule::MAX_OBT`], 0x0B06), a table chunk inside the
+///   table image (0x050E), a scheduled telecommand one of this controller that may be
+///   scheduled (0x050F).
+///
+/// What depends on the controller's state (a pose inside the workspace of the table and
+/// frames in force, a time not yet past, a request ID scheduled) cannot be checked here:
+/// `check-move` asks the controller.
+pub fn check_arguments(
+    tc: &crate::ground::mdb::Telecommand,
+    values: &[crate::ground::mdb::ArgValue],
+) -> Result<(), String> {
+    use crate::controller::params::PARAMETERS;
+    use crate::controller::schedule::MAX_OBT;
+    use crate::ground::mdb::{ArgValue, Meaning, Wire};
+    use crate::table::TABLE_LEN;
+    let fields: Vec<&crate::ground::mdb::Field> = tc.arguments().collect();
+    if fields.len() != values.len() {
+        return Err(format!(
+            "{}: {} arguments, {} given",
+            tc.name,
+            fields.len(),
+            values.len()
+        ));
+    }
+    let int = |name: &str| {
+        fields
+            .iter()
+            .zip(values)
+            .find(|(f, _)| f.name == name)
+            .and_then(|(_, v)| match v {
+                ArgValue::Int(i) => Some(*i),
+                ArgValue::Bytes(_) => None,
+            })
+    };
+    let bytes = |name: &str| {
+        fields
+            .iter()
+            .zip(values)
+            .find(|(f, _)| f.name == name)
+            .and_then(|(_, v)| match v {
+                ArgValue::Bytes(b) => Some(b.as_slice()),
+                ArgValue::Int(_) => None,
+            })
+    };
+    for (f, v) in fields.iter().zip(values) {
+        match (v, f.wire) {
+            (ArgValue::Bytes(b), Wire::Bytes { min_len, max_len })
+            | (ArgValue::Bytes(b), Wire::Packet { min_len, max_len }) => {
+                if !(min_len..=max_len).contains(&b.len()) {
+                    return Err(format!(
+                        "{}: {} bytes, outside {min_len}..={max_len}",
+                        f.name,
+                        b.len()
+                    ));
+                }
+            }
+            (ArgValue::Int(raw), w) => {
+                let (lo, hi) = w
+                    .raw_range()
+                    .ok_or_else(|| format!("{}: expected bytes", f.name))?;
+                if !(lo..=hi).contains(raw) {
+                    return Err(format!("{} = {raw}: outside {lo}..={hi}", f.name));
+                }
+                match f.meaning {
+                    Meaning::Number { scale, .. } => {
+                        if let Some(e) = outside_range(f, *raw as f64 * scale) {
+                            return Err(e);
+                        }
+                    }
+                    Meaning::Enum { enumeration } => {
+                        let db = crate::ground::mdb::mdb();
+                        let e = db.enums.iter().find(|e| e.name == enumeration);
+                        if !e.is_some_and(|e| e.values.iter().any(|(n, _, _)| n == raw)) {
+                            return Err(format!("{} = {raw}: not a {enumeration}", f.name));
+                        }
+                    }
+                    _ => {}
+                }
+            }
+            (ArgValue::Bytes(_), _) => return Err(format!("{}: expected a number", f.name)),
+        }
+    }
+    match tc.name.as_str() {
+        "SET_PARAMETER" => {
+            let (Some(id), Some(value)) = (int("parameter_id"), int("value")) else {
+                return Err("SET_PARAMETER: parameter_id and value".into());
+            };
+            let p = PARAMETERS
+                .iter()
+                .find(|p| i64::from(p.id) == id)
+                .ok_or_else(|| format!("parameter_id = {id:#06x}: no such parameter"))?;
+            if !(i64::from(p.min)..=i64::from(p.max)).contains(&value) {
+                return Err(format!(
+                    "value = {value}: outside {}..={} {} (the range of {}, parameter {:#06x})",
+                    p.min,
+                    p.max,
+                    p.unit,
+                    p.name.to_ascii_uppercase(),
+                    p.id
+                ));
+            }
+        }
+        "SCHEDULE_INSERT_ACTIVITY" => {
+            let (Some(seconds), Some(fraction), Some(packet)) = (
+                int("release_seconds"),
+                int("release_fraction"),
+                bytes("telecommand"),
+            ) else {
+                return Err("SCHEDULE_INSERT_ACTIVITY: release time and telecommand".into());
+            };
+            let release = TmTime {
+                seconds: u32::try_from(seconds).map_err(|e| e.to_string())?,
+                fraction: u16::try_from(fraction).map_err(|e| e.to_string())?,
+            };
+            if release > MAX_OBT {
+                return Err(format!(
+                    "release time = {} s: outside 0..={:.3} s (the on-board clock's range: \
+                     release_seconds {} and release_fraction at most {:.6} s)",
+                    obt_seconds(release),
+                    obt_seconds(MAX_OBT),
+                    MAX_OBT.seconds,
+                    f64::from(MAX_OBT.fraction) / TIME_FRACTIONS_PER_SECOND as f64
+                ));
+            }
+            check_schedulable(packet, "telecommand")?;
+        }
+        "LOAD_TABLE_CHUNK" => {
+            let (Some(offset), Some(data)) = (int("offset"), bytes("data")) else {
+                return Err("LOAD_TABLE_CHUNK: offset and data".into());
+            };
+            let end = usize::try_from(offset).unwrap_or(usize::MAX) + data.len();
+            if end > TABLE_LEN {
+                return Err(format!(
+                    "data: {} bytes at offset {offset} end at {end}, outside the table \
+                     (offset + length <= {TABLE_LEN})",
+                    data.len()
+                ));
+            }
+        }
+        _ => {}
+    }
+    Ok(())
+}
+
+/// The refusal of an engineering value outside a number field's range (the described
+/// one, else its wire type's), with the field's name, range and unit (identifiers also
+/// in hex); `None` inside.
+fn outside_range(f: &crate::ground::mdb::Field, eng: f64) -> Option<String> {
+    use crate::ground::mdb::{Meaning, Wire};
+    let Meaning::Number { unit, range, scale } = f.meaning else {
+        return None;
+    };
+    let (lo, hi) = range.or_else(|| {
+        f.wire
+            .raw_range()
+            .map(|(lo, hi)| (lo as f64 * scale, hi as f64 * scale))
+    })?;
+    if (lo..=hi).contains(&eng) {
+        return None;
+    }
+    let identifier = unit.is_none() && matches!(f.wire, Wire::U16 | Wire::U32);
+    let show = |v: f64| {
+        if identifier && v >= 0.0 {
+            format!("{v} ({:#x})", v as u64)
+        } else {
+            format!("{v}")
+        }
+    };
+    Some(format!(
+        "{} = {}: outside {}..={}{}",
+        f.name,
+        show(eng),
+        show(lo),
+        show(hi),
+        unit.map_or(String::new(), |u| format!(" {u}"))
+    ))
+}
+
+/// Refuses, naming `what`, a packet the controller would not schedule: not a
+/// telecommand of this controller (its own link code), or a TC[11,x] or a table chunk
+/// TC[6,2] (0x0510).
+fn check_schedulable(packet: &[u8], what: &str) -> Result<(), String> {
+    let tc = crate::link::decode_telecommand(packet).map_err(|r| {
+        format!(
+            "{what}: not a telecommand of this controller (link code {:#06x}, data {:#x})",
+            r.error.code(),
+            r.error.data()
+        )
+    })?;
+    if matches!(
+        tc.command,
+        Command::Schedule(_) | Command::LoadTableChunk(_)
+    ) {
+        return Err(format!(
+            "{what}: {} cannot be scheduled (a TC[11,x] or a table chunk TC[6,2]; code 0x0510)",
+            crate::ground::mdb::telecommand_name(&tc.command)
+        ));
+    }
+    Ok(())
+}
+
+/// [`check_arguments`], then the description's `build`.
+fn checked_build(
+    tc: &crate::ground::mdb::Telecommand,
+    values: &[crate::ground::mdb::ArgValue],
+) -> Result<Command, String> {
+    check_arguments(tc, values)?;
+    (tc.build)(values).map_err(|e| format!("{}: {e}", tc.name))
 }
 
 /// A decimal or `0x` hexadecimal integer.
@@ -379,15 +624,36 @@ fn parse_integer(s: &str) -> Result<i64, String> {
     }
 }
 
-/// `m2ground tc schedule at=SECONDS NAME [arg=value ...]`: a TC[11,4] inserting the
-/// named telecommand (as [`command_from_args`]) with release time `at` (on-board time,
-/// s since the controller's boot, to 1/65536 s). The embedded telecommand is numbered
-/// by `sequencer` first, then the insert; returns the insert and the embedded request
-/// ID (what a delete names).
+/// A TC[11,4] release time from seconds of on-board time (nearest 1/65536 s); refused,
+/// with the range, outside 0 ..= the clock's last time
+/// ([`crate::controller::schedule::MAX_OBT`], 4,294,967.295 s), which the controller
+/// refuses (0x0B06).
+pub fn release_time_from_seconds(s: f64) -> Result<TmTime, String> {
+    use crate::controller::schedule::MAX_OBT;
+    let refused = || {
+        format!(
+            "at = {s}: not an on-board time of the clock, outside 0..={:.3} s",
+            obt_seconds(MAX_OBT)
+        )
+    };
+    let t = obt_from_seconds(s).map_err(|_| refused())?;
+    if t > MAX_OBT {
+        return Err(refused());
+    }
+    Ok(t)
+}
+
+/// `m2ground tc schedule at=SECONDS NAME [arg=value ...]`: the mission database's
+/// SCHEDULE_INSERT_ACTIVITY (TC[11,4]) whose `telecommand` argument is the named
+/// telecommand (as [`command_from_args`]), released at `at` (on-board time, s since the
+/// controller's boot, to 1/65536 s; the release time's range is checked). The embedded
+/// telecommand is numbered by `sequencer` first, then the insert; returns the insert and
+/// the embedded request ID (what a delete names).
 pub fn schedule_from_args(
     args: &[String],
     sequencer: &mut TcSequencer,
 ) -> Result<(Command, RequestId), String> {
+    use crate::ground::mdb::ArgValue;
     let (at, rest) = args
         .split_first()
         .ok_or("schedule: at=SECONDS, then the telecommand")?;
@@ -396,11 +662,24 @@ pub fn schedule_from_args(
         .ok_or_else(|| format!("{at}: schedule takes at=SECONDS first"))?
         .parse()
         .map_err(|e| format!("{at}: {e}"))?;
+    let release = release_time_from_seconds(release_s)?;
     let (name, targs) = rest.split_first().ok_or("schedule: which telecommand?")?;
     let command = command_from_args(name, targs)?;
-    let release = obt_from_seconds(release_s)?;
-    let (insert, ids) = sequencer.schedule_insert(&[(release, command)])?;
-    Ok((insert, ids.first().copied().unwrap_or_default()))
+    if matches!(command, Command::Schedule(_) | Command::LoadTableChunk(_)) {
+        return Err(format!(
+            "{name}: cannot be scheduled (a TC[11,x] or a table chunk TC[6,2]; code 0x0510)"
+        ));
+    }
+    let packet = sequencer.packet(&command)?;
+    let id = RequestId::from_packet(&packet).unwrap_or_default();
+    let db = crate::ground::mdb::mdb();
+    let insert = named_telecommand(&db, "SCHEDULE_INSERT_ACTIVITY")?;
+    let values = [
+        ArgValue::Int(i64::from(release.seconds)),
+        ArgValue::Int(i64::from(release.fraction)),
+        ArgValue::Bytes(packet),
+    ];
+    Ok((checked_build(insert, &values)?, id))
 }
 
 /// Hex digits, two per byte, no separators.
@@ -419,9 +698,11 @@ fn parse_hex_bytes(s: &str) -> Result<Vec<u8>, String> {
 }
 
 /// The telecommands of the mission database, one per line with their arguments, unit
-/// and range (`m2ground tc list`).
+/// and range (`m2ground tc list`); TC[20,3]'s value with the range of each parameter,
+/// TC[11,4] with the `schedule` form that fills it.
 pub fn telecommand_list() -> String {
-    use crate::ground::mdb::{mdb, Meaning};
+    use crate::controller::params::PARAMETERS;
+    use crate::ground::mdb::{mdb, Meaning, Wire};
     let db = mdb();
     let labels = |name: &str| -> String {
         db.enums
@@ -440,19 +721,32 @@ pub fn telecommand_list() -> String {
     for tc in &db.telecommands {
         let args: Vec<String> = tc
             .arguments()
-            .map(|f| match &f.meaning {
-                Meaning::Number {
-                    unit,
-                    range: Some((lo, hi)),
-                    ..
-                } => format!(
-                    "{}=<{}..{}{}>",
-                    f.name,
-                    lo,
-                    hi,
-                    unit.map_or(String::new(), |u| format!(" {u}"))
-                ),
-                Meaning::Enum { enumeration } => format!("{}=<{}>", f.name, labels(enumeration)),
+            .map(|f| match (&f.meaning, f.wire) {
+                (Meaning::Number { .. }, _) if tc.name == "SET_PARAMETER" => {
+                    format!("{}=<the range of parameter_id, below>", f.name)
+                }
+                (Meaning::Number { unit, range, scale }, w) => {
+                    let (lo, hi) = range
+                        .or_else(|| {
+                            w.raw_range()
+                                .map(|(lo, hi)| (lo as f64 * scale, hi as f64 * scale))
+                        })
+                        .unwrap_or_default();
+                    format!(
+                        "{}=<{}..{}{}>",
+                        f.name,
+                        lo,
+                        hi,
+                        unit.map_or(String::new(), |u| format!(" {u}"))
+                    )
+                }
+                (Meaning::Enum { enumeration }, _) => {
+                    format!("{}=<{}>", f.name, labels(enumeration))
+                }
+                (Meaning::Binary, Wire::Bytes { min_len, max_len })
+                | (Meaning::Binary, Wire::Packet { min_len, max_len }) => {
+                    format!("{}=<hex, {min_len}..{max_len} bytes>", f.name)
+                }
                 _ => format!("{}=<{}>", f.name, f.name),
             })
             .collect();
@@ -462,6 +756,25 @@ pub fn telecommand_list() -> String {
             args.join(" "),
             tc.description
         ));
+        if tc.name == "SET_PARAMETER" {
+            for p in &PARAMETERS {
+                out.push_str(&format!(
+                    "    value of {:<17} ({:#06x}): {}..{} {}\n",
+                    p.name.to_ascii_uppercase(),
+                    p.id,
+                    p.min,
+                    p.max,
+                    p.unit
+                ));
+            }
+        }
+        if tc.name == "SCHEDULE_INSERT_ACTIVITY" {
+            out.push_str(&format!(
+                "    or: schedule at=<0..{:.3} s> NAME [arg=value ...] (the named telecommand, \
+                 numbered first)\n",
+                obt_seconds(crate::controller::schedule::MAX_OBT)
+            ));
+        }
     }
     out
 }
