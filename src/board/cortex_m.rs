@@ -12,7 +12,7 @@ use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use super::memory_x;
-use crate::controller::{ResetCause, ResetInfo};
+use crate::hw::{ResetCause, ResetInfo};
 
 // ---------------------------------------------------------------------------------
 // Reset record: four words in `.uninit` (cortex-m-rt's section that is not zeroed at

@@ -36,7 +36,7 @@ use heapless::spsc::{Consumer, Producer};
 
 use super::memory_x;
 use super::qemu_sliders::QemuSliders;
-use crate::controller::{ResetCause, ResetInfo};
+use crate::hw::{ResetCause, ResetInfo};
 use crate::table::{BankLayout, FlashStatus};
 use crate::timing::CONTROL_RATE_HZ;
 

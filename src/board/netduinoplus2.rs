@@ -76,18 +76,18 @@ use stm32f4xx_hal::pac::{self, interrupt};
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::{Config as RccConfig, Enable, Rcc, Reset};
 
-use crate::controller::ResetCause;
+use crate::hw::ResetCause;
 use stm32f4xx_hal::serial::{self as hal_serial, Serial};
 use stm32f4xx_hal::spi::{Mode as SpiMode, Phase, Polarity, Spi};
 
 use super::memory_x;
-use crate::controller::ResetInfo;
 use crate::drivers::biss::{BissChain, BissConfig, EncoderScale, MaLine};
 use crate::drivers::stepper::{
     StepDirDrives, StepPulses, StepperConfig, StepperLeg, StepperPolarity,
 };
 use crate::drivers::switches::{LegSwitches, SwitchPolarity, TravelSwitchInputs};
 use crate::drivers::Mechanism as DriverMechanism;
+use crate::hw::ResetInfo;
 use crate::kinematics::LEGS;
 use crate::table::{BankLayout, FlashStatus};
 use crate::timing::CYCLE_US;
