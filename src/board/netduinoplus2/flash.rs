@@ -93,8 +93,8 @@ impl TableFlash {
         while self.bsy() {}
         let f = &self.0;
         if f.cr().read().lock().bit_is_set() {
-            f.keyr().write(|w| unsafe { w.key().bits(FLASH_KEY1) });
-            f.keyr().write(|w| unsafe { w.key().bits(FLASH_KEY2) });
+            f.keyr().write(|w| w.key().set(FLASH_KEY1));
+            f.keyr().write(|w| w.key().set(FLASH_KEY2));
         }
         let errors = f.sr().read().bits() & FLASH_SR_ERRORS;
         if errors != 0 {
@@ -145,10 +145,13 @@ impl NorFlash for TableFlash {
             let sector = index + SECTOR_NUMBER_OFFSET;
             self.ready()?;
             // x32 parallelism (2.7 to 3.6 V supply), sector erase, sector number, start.
-            self.0.cr().write(|w| unsafe {
-                w.psize().bits(0b10);
+            self.0.cr().write(|w| {
+                w.psize().set(0b10);
                 w.ser().set_bit();
-                w.snb().bits(sector as u8);
+                // SAFETY: SNB takes a sector number 0..=11 (RM0090 3.9.7; the PAC's
+                // writer is unchecked because the SVD gives no range): `check` above
+                // keeps [from, to) inside the TABLE region, so `sector` is 8..=11.
+                unsafe { w.snb().bits(sector as u8) };
                 w.strt().set_bit()
             });
         }
@@ -166,8 +169,8 @@ impl NorFlash for TableFlash {
             }
         }
         self.ready()?;
-        self.0.cr().write(|w| unsafe {
-            w.psize().bits(0b00);
+        self.0.cr().write(|w| {
+            w.psize().set(0b00);
             w.pg().set_bit()
         });
         let mut result = Ok(());

@@ -1,5 +1,5 @@
 //! Step pulses: one TIM2 update interrupt drives the six STEP pins.
-#![allow(unsafe_code)] // TIM2 registers, the NVIC.
+#![allow(unsafe_code)] // TIM2's status register (whole-register write), the NVIC.
 
 use core::cell::RefCell;
 use core::sync::atomic::{AtomicU32, Ordering};
@@ -113,7 +113,7 @@ impl StepEngine {
         tim.psc()
             .write(|w| w.psc().set(tick_prescaler(timer_clock_hz)));
         tim.arr()
-            .write(|w| unsafe { w.bits(TIMER_TICK_HZ / STEP_TICK_HZ - 1) });
+            .write(|w| w.arr().set(TIMER_TICK_HZ / STEP_TICK_HZ - 1));
         tim.egr().write(|w| w.ug().set_bit());
         tim.sr().write(|w| unsafe { w.bits(0) });
         tim.dier().write(|w| w.uie().set_bit());

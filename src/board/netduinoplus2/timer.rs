@@ -1,5 +1,5 @@
 //! Control timer: TIM3 update at the control rate, 1 us ticks.
-#![allow(unsafe_code)] // TIM3 registers: auto-reload, status.
+#![allow(unsafe_code)] // TIM3's status register (whole-register write).
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
@@ -24,7 +24,8 @@ pub struct ControlTimer {
 }
 
 /// Auto-reload value: one control period of 1 us ticks.
-const CONTROL_TIMER_ARR: u32 = CYCLE_US - 1;
+const CONTROL_TIMER_ARR: u16 = (CYCLE_US - 1) as u16;
+const _: () = assert!(CYCLE_US - 1 <= u16::MAX as u32);
 const _: () = assert!(US_PER_S == TIMER_TICK_HZ);
 
 impl ControlTimer {
@@ -32,7 +33,7 @@ impl ControlTimer {
     pub fn start(&mut self) {
         let t = &self.tim;
         t.psc().write(|w| w.psc().set(self.prescaler));
-        t.arr().write(|w| unsafe { w.bits(CONTROL_TIMER_ARR) });
+        t.arr().write(|w| w.arr().set(CONTROL_TIMER_ARR));
         // Load the prescaler now (update event), then clear the flag it sets.
         t.egr().write(|w| w.ug().set_bit());
         t.sr().write(|w| unsafe { w.bits(0) });

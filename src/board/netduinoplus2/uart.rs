@@ -2,7 +2,7 @@
 //! directions: the receive task owns it (highest task priority); it hands the
 //! transmitter's TXE to the lower-priority software line UART_TX, as the mps2 board's
 //! separate TX interrupt would.
-#![allow(unsafe_code)] // USART1 registers: the register block, the data register.
+#![allow(unsafe_code)] // USART1's register block, shared by the UART halves.
 
 use core::sync::atomic::{AtomicU16, Ordering};
 
@@ -95,7 +95,7 @@ impl UartTx {
             let Some(byte) = queue.dequeue() else {
                 return;
             };
-            u.dr().write(|w| unsafe { w.bits(u16::from(byte)) });
+            u.dr().write(|w| w.dr().set(u16::from(byte)));
         }
         // Budget spent with the transmitter still free (QEMU's always is): drain again
         // after the tasks above have had their turn.

@@ -1,7 +1,6 @@
 //! Watchdog: the independent watchdog (LSI, ~32 kHz), fed only by a completed control
 //! cycle. It has no early-warning interrupt: its reset is recognised at the next boot
 //! (a valid reset record without an announced cause).
-#![allow(unsafe_code)] // IWDG registers: key, prescaler, reload.
 
 use stm32f4xx_hal::pac;
 
@@ -17,10 +16,6 @@ const IWDG_DIV: u32 = 4;
 /// Reload value for [`WATCHDOG_TIMEOUT_MS`].
 const IWDG_RELOAD: u16 = (LSI_HZ / IWDG_DIV * WATCHDOG_TIMEOUT_MS / 1000) as u16;
 const _: () = assert!(IWDG_RELOAD > 0 && IWDG_RELOAD <= 0x0FFF);
-/// Key register values (RM0090 21.4.1).
-const IWDG_KEY_ACCESS: u16 = 0x5555;
-const IWDG_KEY_RELOAD: u16 = 0xAAAA;
-const IWDG_KEY_START: u16 = 0xCCCC;
 
 /// The cause of a reset software did not announce, from RCC_CSR (RM0090 7.3.21): the
 /// independent watchdog's flag, else an external reset (the NRST pin, a debugger;
@@ -43,17 +38,17 @@ impl Watchdog {
     /// Starts it (it cannot be stopped again but by a reset).
     pub fn start(&mut self) {
         let w = &self.0;
-        w.kr().write(|k| unsafe { k.key().bits(IWDG_KEY_ACCESS) });
-        w.pr().write(|p| unsafe { p.pr().bits(IWDG_PR_DIV4) });
-        w.rlr().write(|r| unsafe { r.rl().bits(IWDG_RELOAD) });
-        w.kr().write(|k| unsafe { k.key().bits(IWDG_KEY_RELOAD) });
-        w.kr().write(|k| unsafe { k.key().bits(IWDG_KEY_START) });
+        // The key register's values (RM0090 21.4.1) by the PAC's names: unlock 0x5555
+        // (access to PR and RLR), feed 0xAAAA (reload), start 0xCCCC.
+        w.kr().write(|k| k.key().unlock());
+        w.pr().write(|p| p.pr().set(IWDG_PR_DIV4));
+        w.rlr().write(|r| r.rl().set(IWDG_RELOAD));
+        w.kr().write(|k| k.key().feed());
+        w.kr().write(|k| k.key().start());
     }
 
     /// Reloads the counter.
     pub fn feed(&mut self) {
-        self.0
-            .kr()
-            .write(|k| unsafe { k.key().bits(IWDG_KEY_RELOAD) });
+        self.0.kr().write(|k| k.key().feed());
     }
 }
