@@ -52,7 +52,8 @@ pub enum Interrupt {
     IRQ31 = 31,
 }
 
-// SAFETY: every variant is a valid IRQ number of this board (0..32).
+// SAFETY: the trait asks for valid interrupt numbers: every variant is one of the 32
+// external lines of this board (0..=31, QEMU's `num-irq` 32), its discriminant the line.
 unsafe impl cortex_m::interrupt::InterruptNumber for Interrupt {
     fn number(self) -> u16 {
         self as u16
@@ -84,6 +85,10 @@ macro_rules! vectors {
         }
         /// The device part of the vector table (IRQ 0..31); `device.x` provides
         /// every handler as `DefaultHandler` unless the firmware binds it.
+        // SAFETY: entries of type `unsafe extern "C" fn()` because only the hardware
+        // calls them, as exception entries: each is a handler `device.x` or the firmware
+        // defines with that signature, in IRQ order, in the section cortex-m-rt's link.x
+        // places right after the core exceptions.
         #[link_section = ".vector_table.interrupts"]
         #[no_mangle]
         #[used]

@@ -80,13 +80,16 @@ impl TableFlash {
     pub(super) fn erase_if_never_written(&mut self) {
         let start = FLASH_BASE + TABLE_REGION_START as usize;
         let end = FLASH_BASE + FLASH_SIZE as usize;
-        // SAFETY: the TABLE region, plain (emulated) memory, word aligned.
+        // SAFETY: [start, end) is the TABLE region (word-aligned bounds), reserved in
+        // memory.x (the asserts above): nothing is linked there and no Rust object or
+        // reference covers it; on QEMU it is RAM, read as plain u32.
         let zero = (start..end)
             .step_by(4)
             .all(|a| unsafe { read_volatile(a as *const u32) } == 0);
         if zero {
             for a in (start..end).step_by(4) {
-                // SAFETY: as above.
+                // SAFETY: `a` steps through the same reserved TABLE region, aligned
+                // words no code, data or reference uses (see the read above).
                 unsafe { write_volatile(a as *mut u32, u32::from_ne_bytes([FLASH_ERASED; 4])) };
             }
         }
@@ -120,7 +123,8 @@ impl ReadNorFlash for TableFlash {
         Self::check(offset, bytes.len())?;
         let base = FLASH_BASE + offset as usize;
         for (i, b) in bytes.iter_mut().enumerate() {
-            // SAFETY: bounds checked above: inside the reserved TABLE region.
+            // SAFETY: `check` put [offset, offset + len) inside the TABLE region, reserved
+            // in memory.x and used by nothing else (no Rust object there); byte reads.
             *b = unsafe { read_volatile((base + i) as *const u8) };
         }
         Ok(())
@@ -140,7 +144,8 @@ impl NorFlash for TableFlash {
         }
         Self::check(from, (to - from) as usize)?;
         for a in from..to {
-            // SAFETY: bounds checked above.
+            // SAFETY: `check` put [from, to) inside the TABLE region, reserved in memory.x
+            // (no code, data or Rust object there); byte writes of emulated flash (RAM).
             unsafe { write_volatile((FLASH_BASE + a as usize) as *mut u8, FLASH_ERASED) };
         }
         let sectors = (to - from) / FLASH_ERASE_SIZE as u32;
@@ -152,12 +157,14 @@ impl NorFlash for TableFlash {
         let base = FLASH_BASE + offset as usize;
         for (i, b) in bytes.iter().enumerate() {
             let p = (base + i) as *mut u8;
-            // SAFETY: bounds checked above.
+            // SAFETY: `check` put [offset, offset + len) inside the TABLE region, reserved
+            // in memory.x (no code, data or Rust object there); a byte read.
             let old = unsafe { read_volatile(p) };
             if b & !old != 0 {
                 return Err(FlashError::NotErased);
             }
-            // SAFETY: as above.
+            // SAFETY: the byte just read, inside the checked TABLE region; emulated
+            // flash (RAM) that nothing else uses.
             unsafe { write_volatile(p, old & b) };
         }
         self.start_busy(FLASH_PROGRAM_TICKS);

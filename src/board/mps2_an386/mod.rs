@@ -98,13 +98,19 @@ impl Board {
     }
 }
 
+/// Reads a register of this board's peripherals (`addr`: one of the register constants
+/// of `uart.rs`, `timer.rs` and `watchdog.rs`, the only callers).
 fn reg_read(addr: usize) -> u32 {
-    // SAFETY: only called with the addresses of this board's 32-bit MMIO registers.
+    // SAFETY: every caller passes one of its `const` register addresses: 32-bit
+    // registers of the CMSDK APB UART0, TIMER0 and watchdog (word-aligned device memory
+    // at 0x4000_0000..0x4000_9000, no Rust object there); QEMU models each access.
     unsafe { read_volatile(addr as *const u32) }
 }
 
+/// Writes a register of this board's peripherals (as [`reg_read`]).
 fn reg_write(addr: usize, v: u32) {
-    // SAFETY: as in `reg_read`.
+    // SAFETY: as in `reg_read`: `addr` is one of the callers' register constants, a
+    // 32-bit device register no Rust object aliases; the value is the register's to take.
     unsafe { write_volatile(addr as *mut u32, v) }
 }
 

@@ -47,6 +47,9 @@ impl Watchdog {
 /// The watchdog's first expiry (no control cycle completed for
 /// [`WATCHDOG_TIMEOUT_CYCLES`] periods): record the cause, then wait for the
 /// watchdog's own reset one interval later.
+// SAFETY: cortex-m-rt requires `unsafe fn` for the NMI because it preempts every
+// critical section. This handler touches no data a critical section guards: it writes
+// the reset record (volatile words of its own) and spins until the watchdog resets.
 #[cortex_m_rt::exception]
 unsafe fn NonMaskableInt() {
     reset_record::announce(ResetCause::Watchdog);

@@ -98,6 +98,10 @@ impl TableFlash {
         }
         let errors = f.sr().read().bits() & FLASH_SR_ERRORS;
         if errors != 0 {
+            // SAFETY: the PAC cannot check a whole-register value. SR's error flags are
+            // write-1-to-clear (RM0090 3.9.4) and `errors` holds only those (masked with
+            // FLASH_SR_ERRORS): the write clears exactly them; EOP's 0 and the read-only
+            // and reserved bits' 0 change nothing.
             f.sr().write(|w| unsafe { w.bits(errors) });
             return Err(FlashError::Device);
         }
@@ -121,7 +125,9 @@ impl ReadNorFlash for TableFlash {
         Self::check(offset, bytes.len())?;
         let base = FLASH_BASE + offset as usize;
         for (i, b) in bytes.iter_mut().enumerate() {
-            // SAFETY: bounds checked above: inside the TABLE region, memory-mapped flash.
+            // SAFETY: `check` put [offset, offset + len) inside the TABLE region, sectors
+            // reserved in memory/netduinoplus2.x (no code, data or Rust object there);
+            // byte reads of memory-mapped flash (during an erase the bus stalls, no fault).
             *b = unsafe { read_volatile((base + i) as *const u8) };
         }
         Ok(())
@@ -162,7 +168,8 @@ impl NorFlash for TableFlash {
         Self::check(offset, bytes.len())?;
         let base = FLASH_BASE + offset as usize;
         for (i, b) in bytes.iter().enumerate() {
-            // SAFETY: bounds checked above.
+            // SAFETY: as in `read`: `check` put every byte inside the reserved TABLE
+            // region of memory-mapped flash; byte reads.
             let old = unsafe { read_volatile((base + i) as *const u8) };
             if b & !old != 0 {
                 return Err(FlashError::NotErased);
@@ -178,7 +185,9 @@ impl NorFlash for TableFlash {
             if *b == FLASH_ERASED {
                 continue;
             }
-            // SAFETY: inside the TABLE region (checked), PG set: a program operation.
+            // SAFETY: a byte inside the checked TABLE region (reserved, no Rust object
+            // there), written with PG set and PSIZE x8: the flash interface's program
+            // operation (RM0090 3.6.3), one byte, awaited below.
             unsafe { write_volatile((base + i) as *mut u8, *b) };
             while self.bsy() {}
             if self.0.sr().read().bits() & FLASH_SR_ERRORS != 0 {

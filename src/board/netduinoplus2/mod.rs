@@ -138,8 +138,9 @@ impl Board {
         if BOARD_TAKEN.swap(true, Ordering::SeqCst) {
             return None;
         }
-        // SAFETY: the first and only take (BOARD_TAKEN); RTIC is built with
-        // `peripherals = false`, so nothing else owns the device peripherals.
+        // SAFETY: `steal` must not make a second owner of the device peripherals. This is
+        // the first and only take (BOARD_TAKEN above), and RTIC is built with
+        // `peripherals = false`, so nothing else took them: `dp` is the only instance.
         let dp = unsafe { pac::Peripherals::steal() };
         let unannounced = unannounced_reset_cause(&dp.RCC);
         let clocks = configure_clocks(dp.RCC);

@@ -115,6 +115,9 @@ impl StepEngine {
         tim.arr()
             .write(|w| w.arr().set(TIMER_TICK_HZ / STEP_TICK_HZ - 1));
         tim.egr().write(|w| w.ug().set_bit());
+        // SAFETY: the PAC cannot check a whole-register value. TIM2_SR's flags are rc_w0
+        // (write 0 clears, 1 leaves them; RM0090 18.4.5) and its other bits are reserved
+        // at 0: writing 0 clears every flag and changes nothing else.
         tim.sr().write(|w| unsafe { w.bits(0) });
         tim.dier().write(|w| w.uie().set_bit());
         let run = source != ClockSource::Emulated;
@@ -134,8 +137,12 @@ impl StepEngine {
             }
         });
         if run {
-            // SAFETY: the engine is installed; its handler touches only the engine and
-            // the atomics, so unmasking it breaks no RTIC critical section.
+            // SAFETY: `steal` makes a second NVIC handle, used for TIM2's lines only: RTIC
+            // sets the priorities of its own interrupts, never TIM2's (no task binds it),
+            // and an IPR write is one byte, so the two never write the same field.
+            // Priority 0 and unmasking are sound because TIM2's handler shares no RTIC
+            // resource (BASEPRI does not mask it): it touches only the engine, installed
+            // above and behind its critical-section mutex, and the atomics.
             unsafe {
                 let mut nvic = cortex_m::Peripherals::steal().NVIC;
                 nvic.set_priority(pac::Interrupt::TIM2, STEP_TIMER_NVIC_PRIORITY);
@@ -147,6 +154,8 @@ impl StepEngine {
     /// One tick: ends pulses that are high, then starts the pulses due (each leg's train
     /// spread evenly over [`MAX_PULSES_PER_CYCLE`] opportunities).
     pub fn on_tick(&mut self) {
+        // SAFETY: as in `install`: writing 0 to TIM2_SR clears its flags (rc_w0),
+        // nothing else.
         self.tim.sr().write(|w| unsafe { w.bits(0) });
         for (i, pin) in self.step.iter_mut().enumerate() {
             let (Some(high), Some(seen), Some(acc)) = (

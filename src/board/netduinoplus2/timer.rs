@@ -36,6 +36,9 @@ impl ControlTimer {
         t.arr().write(|w| w.arr().set(CONTROL_TIMER_ARR));
         // Load the prescaler now (update event), then clear the flag it sets.
         t.egr().write(|w| w.ug().set_bit());
+        // SAFETY: the PAC cannot check a whole-register value. TIM3_SR's flags are rc_w0
+        // (write 0 clears, 1 leaves them; RM0090 18.4.5) and its other bits are reserved
+        // at 0: writing 0 clears every flag and changes nothing else.
         t.sr().write(|w| unsafe { w.bits(0) });
         t.dier().write(|w| w.uie().set_bit());
         t.cr1().write(|w| w.cen().set_bit());
@@ -43,6 +46,8 @@ impl ControlTimer {
 
     /// Acknowledges the tick (call first in the control task) and counts it.
     pub fn acknowledge(&mut self) {
+        // SAFETY: as in `start`: writing 0 to TIM3_SR clears its flags (rc_w0), nothing
+        // else.
         self.tim.sr().write(|w| unsafe { w.bits(0) });
         TICKS.fetch_add(1, Ordering::Relaxed);
     }

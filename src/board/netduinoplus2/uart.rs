@@ -19,8 +19,11 @@ pub const UART_BAUD: u32 = 115_200;
 const TX_BYTES_PER_DRAIN: usize = 64;
 
 fn usart1() -> &'static pac::usart1::RegisterBlock {
-    // SAFETY: USART1's register block, used only by the UART halves below (one owner
-    // per register: RX reads SR/DR, TX writes DR; CR1's TXEIE under a critical section).
+    // SAFETY: `ptr()` is USART1's register block, device memory valid for the whole run;
+    // its registers are cells (svd2rust), so shared references to them are sound.
+    // `Board::take` configured USART1 through the HAL and kept no handle of it, so only
+    // the UART halves below use it, one owner per register: RX reads SR and DR, TX
+    // writes DR, CR1's TXEIE is changed under a critical section (`set_txeie`).
     unsafe { &*pac::USART1::ptr() }
 }
 
