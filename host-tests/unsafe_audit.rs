@@ -7,7 +7,8 @@
 //!   `unsafe fn` may instead document its callers' contract under `# Safety` (the
 //!   convention of `clippy::missing_safety_doc`);
 //! * `unsafe` and `allow(unsafe_code)` appear only under `src/board/` and in the
-//!   [`EXCEPTIONS`], and every such allowance says why on its line;
+//!   [`EXCEPTIONS`], and every such allowance says why on its line (Cargo.toml's
+//!   `[lints.rust]` denies `unsafe_code` for the package; checked too);
 //! * the board layer depends on the hardware seam, never on the controller.
 //!
 //! Comments, string and character literals are told from code by a small lexer, so the
@@ -328,6 +329,18 @@ fn unsafe_only_in_the_board_layer_and_the_documented_exceptions() {
             "{path} is listed as an exception ({why}) but allows no unsafe_code: drop it"
         );
     }
+    let manifest = read(Path::new("Cargo.toml"));
+    let rust_lints = manifest
+        .split("[lints.rust]")
+        .nth(1)
+        .and_then(|s| s.split("\n[").next())
+        .unwrap_or("");
+    assert!(
+        rust_lints
+            .lines()
+            .any(|l| l.trim() == "unsafe_code = \"deny\""),
+        "Cargo.toml's [lints.rust] must deny unsafe_code for the package"
+    );
 }
 
 #[test]

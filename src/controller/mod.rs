@@ -56,9 +56,6 @@
 //! [`SliderDrives`]: crate::hw::SliderDrives
 //! [`SliderDrives::setpoints_mm`]: crate::hw::SliderDrives::setpoints_mm
 
-// `!(x <= t)` is deliberate: unlike `x > t` it is also true for NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 pub mod comms;
 pub mod error;
 pub mod jobs;
