@@ -3,6 +3,7 @@
 //! images) against the slice operations: every source and destination alignment 0..8,
 //! every length 0..80 and some long ones, random contents; the bytes around the
 //! destination untouched.
+#![allow(unsafe_code)] // Calls the raw-pointer routines of `m2ctl::mem` under test.
 
 mod common;
 

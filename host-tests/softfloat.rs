@@ -12,6 +12,7 @@
 //! random payloads), pairs aligned to produce rounding ties, cancellation, overflow and
 //! underflow. `cargo test --features host --test softfloat -- --ignored` also runs every
 //! `f32`, `u32` and `i32` through the conversions (4,294,967,296 each).
+#![allow(unsafe_code)] // Calls the run-time library's `extern "C"` routines to compare.
 
 mod common;
 

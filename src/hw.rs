@@ -1,5 +1,8 @@
 //! The few things the controller needs from hardware. The board glue implements them on
 //! the target, the simulated plant (`sim`, host) on x86; the controller code is the same.
+//! The board's reset record reports in [`ResetCause`] and [`ResetInfo`], defined here so
+//! that the board layer depends on this seam only, never on the controller (which
+//! re-exports them).
 
 use crate::kinematics::LEGS;
 
@@ -175,4 +178,62 @@ pub fn counts_to_mm(counts: &[i32; LEGS]) -> [f32; LEGS] {
     // f32 holds integers exactly up to 2^24 counts (1.6 m of stroke), far beyond the slider.
     let per = ENCODER_MM_PER_COUNT as f32;
     counts.map(|c| c as f32 * per)
+}
+
+/// Why the board reset the controller last (kept in no-init RAM by the board, reported
+/// by the controller in the boot event and in housekeeping; `controller::ResetCause`
+/// re-exports it).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ResetCause {
+    /// Power-on (no valid reset record found), or a host run.
+    #[default]
+    PowerOn,
+    /// The watchdog expired (a control cycle did not complete in time).
+    Watchdog,
+    /// A commanded software reset.
+    Software,
+    /// A HardFault (including a stack overflow into the guard).
+    HardFault,
+    /// A panic (a defect: the flight image proves at link time it has none).
+    Panic,
+    /// A reset from outside that software did not announce: the reset pin, a debugger,
+    /// QEMU's `system_reset` (how a board tells it from a watchdog reset: its
+    /// `reset_record::on_boot` argument).
+    External,
+}
+
+impl ResetCause {
+    /// Wire code.
+    pub const fn code(self) -> u8 {
+        match self {
+            ResetCause::PowerOn => 0,
+            ResetCause::Watchdog => 1,
+            ResetCause::Software => 2,
+            ResetCause::HardFault => 3,
+            ResetCause::Panic => 4,
+            ResetCause::External => 5,
+        }
+    }
+
+    /// From the wire code.
+    pub const fn from_code(code: u8) -> Option<ResetCause> {
+        Some(match code {
+            0 => ResetCause::PowerOn,
+            1 => ResetCause::Watchdog,
+            2 => ResetCause::Software,
+            3 => ResetCause::HardFault,
+            4 => ResetCause::Panic,
+            5 => ResetCause::External,
+            _ => return None,
+        })
+    }
+}
+
+/// The reset cause and the boot counter, from the board.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ResetInfo {
+    /// Why the last reset happened.
+    pub cause: ResetCause,
+    /// Boots since the no-init record was created (wrapping).
+    pub boot_count: u16,
 }

@@ -47,7 +47,6 @@
 //! drivers of `m2ctl::drivers`.
 #![no_std]
 #![no_main]
-#![deny(unsafe_code)]
 
 use core::mem::MaybeUninit;
 use m2ctl::board::active as board;

@@ -123,10 +123,11 @@ pub mod exports {
     /// `memcpy`.
     ///
     /// # Safety
-    /// Its C contract.
+    /// C's contract: `src` readable and `dst` writable for `n` bytes, not overlapping.
     #[no_mangle]
     pub unsafe extern "C" fn memcpy(dst: *mut u8, src: *const u8, n: usize) -> *mut u8 {
-        // SAFETY: the caller's contract.
+        // SAFETY: the caller keeps `memcpy`'s contract, which is `copy`'s: `src`
+        // readable and `dst` writable for `n` bytes, not overlapping.
         unsafe { copy(dst, src, n) };
         dst
     }
@@ -134,10 +135,11 @@ pub mod exports {
     /// `memset`.
     ///
     /// # Safety
-    /// Its C contract.
+    /// C's contract: `dst` writable for `n` bytes.
     #[no_mangle]
     pub unsafe extern "C" fn memset(dst: *mut u8, value: i32, n: usize) -> *mut u8 {
-        // SAFETY: the caller's contract.
+        // SAFETY: the caller keeps `memset`'s contract, which is `fill`'s: `dst`
+        // writable for `n` bytes.
         unsafe { fill(dst, value as u8, n) };
         dst
     }
@@ -145,10 +147,11 @@ pub mod exports {
     /// `memcmp`.
     ///
     /// # Safety
-    /// Its C contract.
+    /// C's contract: `a` and `b` readable for `n` bytes.
     #[no_mangle]
     pub unsafe extern "C" fn memcmp(a: *const u8, b: *const u8, n: usize) -> i32 {
-        // SAFETY: the caller's contract.
+        // SAFETY: the caller keeps `memcmp`'s contract, which is `compare`'s: `a` and
+        // `b` readable for `n` bytes.
         unsafe { compare(a, b, n) }
     }
 
@@ -158,7 +161,8 @@ pub mod exports {
     /// The contract of `memcpy`.
     #[no_mangle]
     pub unsafe extern "aapcs" fn __aeabi_memcpy(dst: *mut u8, src: *const u8, n: usize) {
-        // SAFETY: the caller's contract.
+        // SAFETY: the caller keeps `memcpy`'s contract, which is `copy`'s: `src`
+        // readable and `dst` writable for `n` bytes, not overlapping.
         unsafe { copy(dst, src, n) }
     }
 
@@ -168,7 +172,8 @@ pub mod exports {
     /// The contract of `memcpy`.
     #[no_mangle]
     pub unsafe extern "aapcs" fn __aeabi_memcpy4(dst: *mut u8, src: *const u8, n: usize) {
-        // SAFETY: the caller's contract.
+        // SAFETY: the caller keeps `memcpy`'s contract, which is `copy`'s: `src`
+        // readable and `dst` writable for `n` bytes, not overlapping.
         unsafe { copy(dst, src, n) }
     }
 
@@ -178,7 +183,8 @@ pub mod exports {
     /// The contract of `memcpy`.
     #[no_mangle]
     pub unsafe extern "aapcs" fn __aeabi_memcpy8(dst: *mut u8, src: *const u8, n: usize) {
-        // SAFETY: the caller's contract.
+        // SAFETY: the caller keeps `memcpy`'s contract, which is `copy`'s: `src`
+        // readable and `dst` writable for `n` bytes, not overlapping.
         unsafe { copy(dst, src, n) }
     }
 
@@ -188,7 +194,8 @@ pub mod exports {
     /// The contract of `memset`.
     #[no_mangle]
     pub unsafe extern "aapcs" fn __aeabi_memset(dst: *mut u8, n: usize, value: i32) {
-        // SAFETY: the caller's contract.
+        // SAFETY: the caller keeps `memset`'s contract, which is `fill`'s: `dst`
+        // writable for `n` bytes.
         unsafe { fill(dst, value as u8, n) }
     }
 
@@ -198,7 +205,8 @@ pub mod exports {
     /// The contract of `memset`.
     #[no_mangle]
     pub unsafe extern "aapcs" fn __aeabi_memset4(dst: *mut u8, n: usize, value: i32) {
-        // SAFETY: the caller's contract.
+        // SAFETY: the caller keeps `memset`'s contract, which is `fill`'s: `dst`
+        // writable for `n` bytes.
         unsafe { fill(dst, value as u8, n) }
     }
 
@@ -208,7 +216,8 @@ pub mod exports {
     /// The contract of `memset`.
     #[no_mangle]
     pub unsafe extern "aapcs" fn __aeabi_memset8(dst: *mut u8, n: usize, value: i32) {
-        // SAFETY: the caller's contract.
+        // SAFETY: the caller keeps `memset`'s contract, which is `fill`'s: `dst`
+        // writable for `n` bytes.
         unsafe { fill(dst, value as u8, n) }
     }
 
@@ -218,7 +227,8 @@ pub mod exports {
     /// The contract of `memset`.
     #[no_mangle]
     pub unsafe extern "aapcs" fn __aeabi_memclr(dst: *mut u8, n: usize) {
-        // SAFETY: the caller's contract.
+        // SAFETY: the caller keeps `memset`'s contract, which is `fill`'s: `dst`
+        // writable for `n` bytes.
         unsafe { fill(dst, 0, n) }
     }
 
@@ -228,7 +238,8 @@ pub mod exports {
     /// The contract of `memset`.
     #[no_mangle]
     pub unsafe extern "aapcs" fn __aeabi_memclr4(dst: *mut u8, n: usize) {
-        // SAFETY: the caller's contract.
+        // SAFETY: the caller keeps `memset`'s contract, which is `fill`'s: `dst`
+        // writable for `n` bytes.
         unsafe { fill(dst, 0, n) }
     }
 
@@ -238,7 +249,8 @@ pub mod exports {
     /// The contract of `memset`.
     #[no_mangle]
     pub unsafe extern "aapcs" fn __aeabi_memclr8(dst: *mut u8, n: usize) {
-        // SAFETY: the caller's contract.
+        // SAFETY: the caller keeps `memset`'s contract, which is `fill`'s: `dst`
+        // writable for `n` bytes.
         unsafe { fill(dst, 0, n) }
     }
 }

@@ -49,6 +49,7 @@ pub struct RowOutcome {
 }
 
 /// Runs IK and FK in `f32` on one row and checks them.
+#[allow(clippy::indexing_slicing)] // `k < 3` into six-element poses: k and k + 3 in range.
 pub fn run_row(geom: &Geometry<f32>, row: &GoldenRow) -> RowOutcome {
     let mut out = RowOutcome {
         fk_err_mm: f64::NAN,

@@ -17,7 +17,6 @@
 //! every scenario did what it should, so the figures are what they claim).
 #![no_std]
 #![no_main]
-#![deny(unsafe_code)]
 
 use core::mem::MaybeUninit;
 

@@ -11,7 +11,6 @@
 //! Usage: `m2kinbench [ik-f32|ik-f64|fk-f32|fk-f64|all]` (default `all`). It prints the
 //! number of calls and a checksum so the results are used; figures come from callgrind.
 //! Every call's result is checked (a failed IK or FK ends the run with an error).
-#![deny(unsafe_code)]
 
 use std::hint::black_box;
 use std::process::ExitCode;

@@ -8,7 +8,6 @@
 //! the host test `firmware_bits_match_host` compares with the host's.
 #![no_std]
 #![no_main]
-#![deny(unsafe_code)]
 
 use core::hint::black_box;
 

@@ -12,7 +12,7 @@ use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use super::memory_x;
-use crate::controller::{ResetCause, ResetInfo};
+use crate::hw::{ResetCause, ResetInfo};
 
 // ---------------------------------------------------------------------------------
 // Reset record: four words in `.uninit` (cortex-m-rt's section that is not zeroed at
@@ -31,7 +31,9 @@ pub(super) mod reset_record {
     static mut RECORD: MaybeUninit<[u32; 4]> = MaybeUninit::uninit();
 
     fn word(i: usize) -> *mut u32 {
-        // SAFETY: RECORD is four words; `i < 4` at every call site.
+        // SAFETY: `add(i)` stays inside RECORD (four u32 words): the only callers,
+        // `read` and `write` below, pass 0..=3. `addr_of_mut!` takes the address without
+        // making a reference to the `static mut`.
         unsafe { addr_of_mut!(RECORD).cast::<u32>().add(i) }
     }
 
@@ -40,13 +42,20 @@ pub(super) mod reset_record {
     }
 
     fn read() -> Option<(u32, u32)> {
-        // SAFETY: plain RAM words of RECORD; any bit pattern is a valid u32.
+        // SAFETY: aligned volatile reads of RECORD's four words (`word`), RAM that holds
+        // whatever bits the last run or power-on left; every bit pattern is a valid u32,
+        // and a record not written whole fails its check word below. Only this module
+        // touches RECORD, never through a reference; single core: `on_boot` (init) and
+        // `announce` (a fault or NMI handler, just before the reset) can preempt each
+        // other but never run at once.
         let w = unsafe { [0, 1, 2, 3].map(|i| read_volatile(word(i))) };
         (w[0] == MAGIC && w[3] == check(w[1], w[2])).then_some((w[1], w[2]))
     }
 
     fn write(cause: u32, count: u32) {
-        // SAFETY: as in `read`.
+        // SAFETY: aligned volatile writes of RECORD's four words (`word`), plain RAM
+        // that no other code uses (`.uninit`, no reference to it exists); a write cut
+        // short by a fault leaves a record whose check word fails (see `read`).
         unsafe {
             write_volatile(word(0), MAGIC);
             write_volatile(word(1), cause);
@@ -118,6 +127,10 @@ core::arch::global_asm!(
 );
 
 /// An interrupt or exception without a handler: a defect; record and reset.
+// SAFETY: cortex-m-rt requires `unsafe fn` here because this handler also serves the NMI
+// (on a board that binds none) and can preempt any critical section. It touches no data
+// a critical section guards: only the reset record (volatile words of its own) and the
+// SCB's reset request. Only the hardware calls it, through the vector table.
 #[cortex_m_rt::exception]
 unsafe fn DefaultHandler(_irqn: i16) {
     record_and_reset(ResetCause::HardFault)
@@ -160,8 +173,12 @@ pub fn enable_stack_guard(
 ) {
     let base = memory_x::STACK_ORIGIN - STACK_GUARD_BYTES;
     let size_field = STACK_GUARD_BYTES.trailing_zeros() - 1;
-    // SAFETY: region 0 covers only the unused space below RAM; the default map stays
-    // in force everywhere else (PRIVDEFENA), so no code or data becomes inaccessible.
+    // SAFETY: region 0 covers only the unused space below the stack (nothing is linked
+    // or mapped there on either board: the asserts above tie it to memory.x); the
+    // default map stays in force everywhere else (PRIVDEFENA), so no code or data
+    // becomes inaccessible. MemManage at priority 0 preempts every task, which is sound
+    // because its handler (the fault entry above) shares no data with them: it records
+    // the cause and resets.
     unsafe {
         mpu.rnr.write(0);
         mpu.rbar.write(base);
@@ -202,7 +219,10 @@ fn scan_from() -> usize {
         u32::MAX => lo,
         d => {
             let start = (d as usize).saturating_sub(STACK_SCAN_WINDOW_BYTES).max(lo);
-            // SAFETY: inside the stack region (RAM), word aligned.
+            // SAFETY: `start` is in [lo, d]: `d` is an address a scan of the stack region
+            // found (lo <= d <= hi, a multiple of 4 as lo is) and `start` is no lower than
+            // lo, so an aligned word of the stack region's RAM; read as a plain u32 (any
+            // value is valid), never through a reference.
             if unsafe { read_volatile(start as *const u32) } == STACK_PAINT {
                 start
             } else {
@@ -217,8 +237,9 @@ fn scan_from() -> usize {
 pub fn stack_peak_bytes() -> u32 {
     let (_, hi) = stack_bounds();
     let mut p = scan_from();
-    // SAFETY: [lo, hi) is the stack region of the linker script, plain RAM; aligned
-    // volatile word reads inside it are sound.
+    // SAFETY: `p` starts in [lo, hi) word-aligned (`scan_from`) and is read only while
+    // `p < hi`: words of the linker script's stack region, plain RAM, read volatile as
+    // u32 (any value is valid; words that live frames use are read, never referenced).
     while p < hi && unsafe { read_volatile(p as *const u32) } == STACK_PAINT {
         p += 4;
     }
@@ -250,8 +271,10 @@ pub fn repaint_stack() {
     let sp = cortex_m::register::msp::read() as usize;
     let mut p = scan_from();
     while p + REPAINT_MARGIN_BYTES < sp {
-        // SAFETY: below the stack pointer (minus this frame's margin) the stack region
-        // is unused; interrupts that use it overwrite paint, never live data.
+        // SAFETY: `p` is word-aligned, at least `lo` (`scan_from`) and below this
+        // frame's stack pointer by more than the margin: stack region no live frame
+        // uses. An interrupt that preempts uses it only while it runs, when this loop
+        // does not, so the paint overwrites no live data.
         unsafe { write_volatile(p as *mut u32, STACK_PAINT) };
         p += 4;
     }

@@ -1,6 +1,7 @@
 //! Board glue (feature `firmware`, target only): the only code that touches hardware
-//! registers. One file per board; [`active`] names the one this image is built for,
-//! chosen by cargo feature:
+//! registers. One folder per board, its `mod.rs` the `Board` and its take-once `take()`,
+//! one file per peripheral beside it; [`active`] names the board this image is built
+//! for, chosen by cargo feature:
 //!
 //! * default: QEMU's mps2-an386 (Cortex-M4F), [`mps2_an386`];
 //! * `board-netduinoplus2`: the STM32F405 Netduino Plus 2 (also QEMU `netduinoplus2`),
@@ -19,6 +20,11 @@
 //!
 //! `qemu_sliders` is a board part, not a board: the slider/encoder model that the
 //! emulated mps2-an386 board has instead of slider drivers (compiled with it only).
+//!
+//! The board layer depends on the hardware seam (`crate::hw`: the traits it implements,
+//! the reset cause it reports) and on the drivers, never on the controller. It is where
+//! `unsafe` lives: each file that needs it allows it with its reason, and every
+//! `unsafe` carries a `// SAFETY:` note (host test `unsafe_audit`).
 
 pub mod cortex_m;
 #[cfg(not(feature = "board-netduinoplus2"))]

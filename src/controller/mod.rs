@@ -56,9 +56,6 @@
 //! [`SliderDrives`]: crate::hw::SliderDrives
 //! [`SliderDrives::setpoints_mm`]: crate::hw::SliderDrives::setpoints_mm
 
-// `!(x <= t)` is deliberate: unlike `x > t` it is also true for NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 pub mod comms;
 pub mod error;
 pub mod jobs;
@@ -85,6 +82,8 @@ use crate::timing::{cycle_to_us, SCRUB_PERIOD_CYCLES};
 
 pub use crate::worker::Worker;
 pub use error::CommandError;
+// The reset cause and boot count are the board's (the hardware seam, `hw`), reported here.
+pub use crate::hw::{ResetCause, ResetInfo};
 pub use jobs::{JobRequest, JobResult};
 pub use params::Parameters;
 pub use telemetry::{HkSample, Stamped, TmConsumer, TmProducer, TmQueue, TmRecord};
@@ -131,63 +130,6 @@ impl State {
             State::Faulted => 4,
         }
     }
-}
-
-/// Why the board reset the controller last (kept in no-init RAM by the board, reported
-/// in the boot event and in housekeeping).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum ResetCause {
-    /// Power-on (no valid reset record found), or a host run.
-    #[default]
-    PowerOn,
-    /// The watchdog expired (a control cycle did not complete in time).
-    Watchdog,
-    /// A commanded software reset.
-    Software,
-    /// A HardFault (including a stack overflow into the guard).
-    HardFault,
-    /// A panic (a defect: the flight image proves at link time it has none).
-    Panic,
-    /// A reset from outside that software did not announce: the reset pin, a debugger,
-    /// QEMU's `system_reset` (how a board tells it from a watchdog reset: its
-    /// `reset_record::on_boot` argument).
-    External,
-}
-
-impl ResetCause {
-    /// Wire code.
-    pub const fn code(self) -> u8 {
-        match self {
-            ResetCause::PowerOn => 0,
-            ResetCause::Watchdog => 1,
-            ResetCause::Software => 2,
-            ResetCause::HardFault => 3,
-            ResetCause::Panic => 4,
-            ResetCause::External => 5,
-        }
-    }
-
-    /// From the wire code.
-    pub const fn from_code(code: u8) -> Option<ResetCause> {
-        Some(match code {
-            0 => ResetCause::PowerOn,
-            1 => ResetCause::Watchdog,
-            2 => ResetCause::Software,
-            3 => ResetCause::HardFault,
-            4 => ResetCause::Panic,
-            5 => ResetCause::External,
-            _ => return None,
-        })
-    }
-}
-
-/// The reset cause and the boot counter, from the board.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct ResetInfo {
-    /// Why the last reset happened.
-    pub cause: ResetCause,
-    /// Boots since the no-init record was created (wrapping).
-    pub boot_count: u16,
 }
 
 /// What the on-board parameters and the running table make of the controller's

@@ -23,14 +23,6 @@
 //! [`hw::IssuedStrokes`]: crate::hw::IssuedStrokes
 //! [`hw::EndOfTravel`]: crate::hw::EndOfTravel
 
-#![deny(
-    clippy::unwrap_used,
-    clippy::expect_used,
-    clippy::panic,
-    clippy::unreachable,
-    clippy::indexing_slicing
-)]
-
 pub mod biss;
 pub mod stepper;
 pub mod switches;

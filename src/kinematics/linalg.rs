@@ -11,8 +11,9 @@
 
 // Index loops with constant bounds are deliberate here: with the elimination step a
 // constant they unroll into straight-line code (the iterator forms with `skip` did not,
-// and cost twice the instructions on the target).
-#![allow(clippy::needless_range_loop)]
+// and cost twice the instructions on the target). Every index is such a loop counter,
+// below the constant dimension of the fixed-size array it indexes.
+#![allow(clippy::needless_range_loop, clippy::indexing_slicing)]
 
 use super::real::Real;
 

@@ -15,10 +15,6 @@
 //! 6x6 solve is our own: it uses the Jacobian's structure, and nalgebra's LU measured
 //! 1.6 times the FK's instructions on the target.
 
-// Negated comparisons such as `!(x > 0.0)` are deliberate throughout: unlike `x <= 0.0`
-// they are also true for NaN, so a NaN is refused instead of passing a check.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 pub mod fk;
 pub mod frames;
 pub mod geometry;

@@ -175,6 +175,7 @@ pub struct NibbleCrc16 {
     xorout: u16,
 }
 
+#[allow(clippy::indexing_slicing)] // Table indices are nibbles: below 16, the table's size.
 impl NibbleCrc16 {
     /// The CRC of `alg`, which must be a non-reflected 16-bit algorithm (checked when
     /// the constant is evaluated: compilation fails otherwise).

@@ -17,16 +17,6 @@
 //!
 //! Error codes (family 0x06xx): [`MotionError`] 0x0601.., [`StrokeMoveError`] 0x0611...
 
-#![deny(
-    clippy::unwrap_used,
-    clippy::expect_used,
-    clippy::panic,
-    clippy::unreachable,
-    clippy::indexing_slicing
-)]
-// `!(x > 0.0)` also refuses NaN, deliberately.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 pub mod limiter;
 pub mod ramp;
 pub mod stroke;

@@ -1055,8 +1055,14 @@ impl<C: Choices> Soak<C> {
                 _ => coordinated.max(direct),
             } + f64::from(crate::motion::limiter::STEP_TOLERANCE_MM);
             for i in 0..LEGS {
-                let d = (f64::from(c[i]) - f64::from(self.prev_cmd[i])).abs();
-                if d > limit {
+                // As in 2: from the last command, or from what the drive held (a motion
+                // that ended in a hold and the next that began there in one cycle); a
+                // hold itself is no step.
+                let d = (f64::from(c[i]) - f64::from(self.prev_cmd[i]))
+                    .abs()
+                    .min((f64::from(c[i]) - self.prev_drives[i]).abs());
+                let hold = (drives[i] - self.prev_positions[i]).abs() <= STILL_MM;
+                if d > limit && !hold {
                     self.violation(format!(
                         "leg {} commanded step {:.4} um over the {:.4} um limit in force ({:?} -> {state:?})",
                         i + 1,

@@ -87,6 +87,7 @@ pub struct NibbleCrc32 {
     xorout: u32,
 }
 
+#[allow(clippy::indexing_slicing)] // Table indices are nibbles: below 16, the table's size.
 impl NibbleCrc32 {
     /// The CRC of `alg`, which must be a reflected 32-bit algorithm (checked when the
     /// constant is evaluated: compilation fails otherwise).
