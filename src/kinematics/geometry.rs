@@ -167,7 +167,12 @@ impl Geometry<f32> {
                 v.iter().for_each(|x| fold(*x));
             }
             l.two_d0_xy_mm.iter().for_each(|x| fold(*x));
-            for x in [l.rod_mm, l.d0z_sq_mm2, l.inv_two_d0z_per_mm, l.fast_sqrt_delta_mm2] {
+            for x in [
+                l.rod_mm,
+                l.d0z_sq_mm2,
+                l.inv_two_d0z_per_mm,
+                l.fast_sqrt_delta_mm2,
+            ] {
                 fold(x);
             }
         }
