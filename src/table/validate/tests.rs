@@ -451,6 +451,36 @@ enum Fault {
     Thresholds(f32, f32),
 }
 
+/// A state past the geometry step without the geometry (cannot happen: a defect or a
+/// RAM upset) starts over at the checks, and still gives the reference's result.
+#[test]
+fn a_stage_without_its_geometry_starts_over() {
+    for (t, cfg) in [(calibrated(0.2), flight()), twin_legs(0.1)] {
+        let want = reference::validate(&t, &cfg);
+        for stage in [Stage::Grid, Stage::Corners] {
+            let mut v = ValidationState::new();
+            v.stage = stage;
+            v.next = 5;
+            v.unreachable = 1;
+            v.beyond = 2;
+            assert_eq!(v.step(&t, &cfg), None);
+            assert_eq!(
+                (v.stage, v.next, v.unreachable, v.beyond),
+                (Stage::Checks, 0, 0, 0)
+            );
+            let mut steps = 1;
+            let r = loop {
+                steps += 1;
+                if let Some(r) = v.step(&t, &cfg) {
+                    break r;
+                }
+            };
+            assert_eq!(r, want);
+            assert_eq!(steps, 1 + stepped(&t, &cfg).1);
+        }
+    }
+}
+
 /// Strategy: a table near the flight one (every coordinate moved within the tolerance,
 /// limits and workspace that may or may not leave room) with at most one [`Fault`],
 /// and a grid density, mostly in range.
