@@ -9,8 +9,9 @@ cd "$(dirname "$0")/.."
 D=target/thumbv7em-none-eabihf/release
 export DEFMT_LOG=${DEFMT_LOG:-info}
 cargo build --release --target thumbv7em-none-eabihf --features firmware --bin m2selftest
-# The flight image and the cycle benchmark of its code: the size-optimised flight profile.
-cargo build --profile flight --target thumbv7em-none-eabihf --features firmware --bin m2fw --bin m2cyclebench
+# The flight image and the cycle and validation benchmarks of its code: the
+# size-optimised flight profile.
+cargo build --profile flight --target thumbv7em-none-eabihf --features firmware --bin m2fw --bin m2cyclebench --bin m2validbench
 F=target/thumbv7em-none-eabihf/flight
 plugin=$(tools/qemu-insncount/build.sh)
 work=$(mktemp -d)
@@ -52,6 +53,26 @@ read -r text data bss _ < <(sizes "$D/m2selftest")
 stack=$(run_log "$D/m2selftest" | sed -n 's/.*STACK peak_bytes=\([0-9]*\).*/\1/p')
 echo "self-test image flash (text + data):             $((text + data)) bytes (goal <= 65536)"
 echo "self-test image RAM (data + bss + stack peak):   $((data + bss + stack)) bytes = $data + $bss + $stack (goal <= 16384)"
+
+# Table validation in bounded steps (m2validbench, flight profile): one section per
+# `ValidationState::step`; its `VALIDATION table=.. points=.. first=<n> steps=<k>
+# code=.. detail=..` lines name each validation's (the nominal table on every grid
+# density, the flight configuration's first; then a table refused by an FK at its
+# iteration limit, the longest corner step: its last). Per validation: steps, result,
+# largest step, last step, all steps; then the largest step of all, the goal's figure.
+v=$(count "$F/m2validbench")
+e=$(pick "$v" 1)
+vlog=$(run_log "$F/m2validbench")
+echo "$vlog" | grep -q "VALIDBENCH PASS" || { echo "bench: m2validbench failed:" >&2; echo "$vlog" >&2; exit 1; }
+echo "table validation in steps (ValidationState: $(echo "$vlog" | sed -n 's/.*VALIDATION_STATE bytes=\([0-9]*\).*/\1/p') bytes):"
+echo "$vlog" | sed -n 's/.*VALIDATION table=\([a-z_]*\) points=\([0-9]*\) first=\([0-9]*\) steps=\([0-9]*\) code=\(0x[0-9a-f]*\) detail=\(0x[0-9a-f]*\).*/\1 \2 \3 \4 \5 \6/p' |
+while read -r name points first steps code detail; do
+  echo "$v" | awk -F'[ =]' -v f="$first" -v p="$steps" -v e="$e" -v name="$name" -v n="$points" -v c="$code" -v d="$detail" '
+    $1 == "BENCH" && $3 >= f && $3 < f + p { x = $5 - e; t += x; if (x > m) { m = x; at = $3 - f + 1 }; last = x }
+    END { printf "  %-9s %d grid points: %3d steps, result %s/%s, largest step %6d (step %3d), last %6d, all steps %9d instructions\n", name, n, p, c, d, m, at, last, t }'
+done
+echo "$v" | awk -F'[ =]' -v e="$e" '$1 == "BENCH" && $3 > 1 { x = $5 - e; if (x > m) m = x }
+  END { printf "largest validation step (flight profile):        %d instructions (goal <= 100000)\n", m }'
 
 # Whole control periods of the flight code (m2cyclebench): per scenario the largest
 # control cycle, link-service pass and worker step (sections n, n+1, n+2 per period).

@@ -36,4 +36,4 @@ pub use store::{
     Bank, BankLayout, BankStatus, BootReport, BootSource, CommitReport, FlashStatus, Selection,
     StoreError, TableStore, WriteDone, WritePoll,
 };
-pub use validate::{validate, ValidationConfig, ValidationError};
+pub use validate::{validate, Validation, ValidationConfig, ValidationError, ValidationState};

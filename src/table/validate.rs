@@ -19,6 +19,21 @@
 //! 9. **FK**: `f32` forward kinematics started at home converges at each of the 64
 //!    workspace corners and returns the corner.
 //!
+//! # In bounded steps
+//!
+//! The background worker must not run the whole validation at once (millions of
+//! instructions: its `f64` arithmetic is software on the Cortex-M4F). A
+//! [`ValidationState`] holds a validation between steps, each bounded: checks 1 to 4;
+//! checks 5 to 7 and the configuration; the grid margins of [`MARGIN_LEGS_PER_STEP`]
+//! legs; [`GRID_POSES_PER_STEP`] grid poses; the FK of one corner. It holds no
+//! reference (the caller keeps the table and the configuration, and passes the same at
+//! every step); [`Validation`] borrows them for a caller that can. [`validate`] is the
+//! same steps in a loop (boot, ground tools), so the two cannot disagree; the host tests
+//! also compare both with the implementation in one call they replaced. The grid's
+//! poses are updated axis by axis (only the axes whose grid point changes: the same
+//! `f32` values as computing each pose whole) and each step forms the stroke windows
+//! `limit -+ margin` once, so the whole validation also takes less than half the instructions it did.
+//!
 //! # Why a grid suffices: the interpolation margin
 //!
 //! Over the workspace box each stroke `s_i(P)` is a smooth function of the six pose
@@ -411,53 +426,50 @@ fn check_supervision(s: &SupervisionThresholds) -> Result<(), ValidationError> {
     Ok(())
 }
 
-/// Analytic part of the reachability check: per leg, the interpolation margin (mm) of
-/// the grid (module docs), or the legs whose rod might turn horizontal in the box.
-fn grid_margins_mm(t: &Table, points_per_axis: u8) -> Result<[f64; LEGS], ValidationError> {
-    let w = &t.workspace;
-    let intervals = f64::from(points_per_axis.saturating_sub(1).max(1));
-    let rot_sum: f64 = w.rotation_rad.iter().sum();
-    let t_max = norm3(w.translation_mm);
-    let mut margins = [0.0; LEGS];
-    let mut bad = 0u8;
-    for (i, (m, leg)) in margins.iter_mut().zip(t.legs.iter()).enumerate() {
-        let d0 = home_rod_mm(leg, &t.p0_mm);
-        let l = norm3(d0);
-        let h0 = crate::kinematics::real::sqrt_f64(d0[0] * d0[0] + d0[1] * d0[1]);
-        let b = norm3(leg.b_mm);
-        let h_max = h0 + b * rot_sum + t_max;
-        let q2 = l * l - h_max * h_max;
-        if !lt(0.0, q2) {
-            bad |= 1 << i;
-            continue;
-        }
-        let q_min = crate::kinematics::real::sqrt_f64(q2);
-        let hess = l * l / (q_min * q_min * q_min);
-        let m_trans = hess;
-        let m_rot = b * (1.0 + h_max / q_min) + b * b * hess;
-        let mut sum = 0.0;
-        for (half, curv) in w
-            .translation_mm
-            .iter()
-            .map(|h| (h, m_trans))
-            .chain(w.rotation_rad.iter().map(|h| (h, m_rot)))
-        {
-            let spacing = 2.0 * half / intervals;
-            sum += spacing * spacing * curv;
-        }
-        *m = sum / 8.0 + F32_STROKE_ROUNDING_MM;
+/// Analytic part of the reachability check for one leg: the interpolation margin (mm)
+/// of the grid (module docs), or `None` if its rod might turn horizontal in the box.
+/// `intervals` is the grid's intervals per axis, `rot_sum` the sum of the rotation
+/// half-ranges, `t_max` the norm of the translation half-ranges.
+fn grid_margin_mm(
+    w: &WorkspaceLimits,
+    leg: &LegParams,
+    p0: &[f64; 3],
+    intervals: f64,
+    rot_sum: f64,
+    t_max: f64,
+) -> Option<f64> {
+    let d0 = home_rod_mm(leg, p0);
+    let l = norm3(d0);
+    let h0 = crate::kinematics::real::sqrt_f64(d0[0] * d0[0] + d0[1] * d0[1]);
+    let b = norm3(leg.b_mm);
+    let h_max = h0 + b * rot_sum + t_max;
+    let q2 = l * l - h_max * h_max;
+    if !lt(0.0, q2) {
+        return None;
     }
-    if bad != 0 {
-        return Err(ValidationError::Unreachable { legs: bad });
+    let q_min = crate::kinematics::real::sqrt_f64(q2);
+    let hess = l * l / (q_min * q_min * q_min);
+    let m_trans = hess;
+    let m_rot = b * (1.0 + h_max / q_min) + b * b * hess;
+    let mut sum = 0.0;
+    for (half, curv) in w
+        .translation_mm
+        .iter()
+        .map(|h| (h, m_trans))
+        .chain(w.rotation_rad.iter().map(|h| (h, m_rot)))
+    {
+        let spacing = 2.0 * half / intervals;
+        sum += spacing * spacing * curv;
     }
-    Ok(margins)
+    Some(sum / 8.0 + F32_STROKE_ROUNDING_MM)
 }
 
-/// Grid pose number `index` (mixed radix, axis 0 fastest) on `n` points per axis.
-fn grid_pose(w: &WorkspaceLimits, n: u8, mut index: u32) -> Pose<f32> {
+/// Grid pose number `index` (mixed radix, axis 0 fastest) on `n` points per axis, into
+/// `v`. With `changed_only`, only the axes whose grid point differs from that of pose
+/// `index - 1` are written (all of them for pose 0), so `v` must hold pose `index - 1`.
+fn set_grid_pose(v: &mut [f32; 6], w: &WorkspaceLimits, n: u8, mut index: u32, changed_only: bool) {
     let n32 = u32::from(n.max(MIN_GRID_POINTS_PER_AXIS));
     let intervals = f64::from(n32 - 1);
-    let mut v = [0.0f32; 6];
     let halves = [
         w.translation_mm[0],
         w.translation_mm[1],
@@ -470,66 +482,272 @@ fn grid_pose(w: &WorkspaceLimits, n: u8, mut index: u32) -> Pose<f32> {
         let j = index % n32;
         index /= n32;
         *o = (-half + 2.0 * half * f64::from(j) / intervals) as f32;
+        // Axis k+1 differs from pose `index - 1` only if axis k wrapped round to 0.
+        if changed_only && j != 0 {
+            break;
+        }
     }
-    Pose::from_array(v)
 }
 
-fn check_grid(
-    t: &Table,
-    geom: &Geometry<f32>,
-    cfg: &ValidationConfig,
-) -> Result<(), ValidationError> {
-    let n = cfg.grid_points_per_axis;
-    if !(MIN_GRID_POINTS_PER_AXIS..=MAX_GRID_POINTS_PER_AXIS).contains(&n) {
-        return Err(ValidationError::BadConfig);
+/// Legs whose grid margins are derived per [`ValidationState::step`].
+pub const MARGIN_LEGS_PER_STEP: u32 = 3;
+/// Grid poses of the reachability check evaluated per [`ValidationState::step`].
+pub const GRID_POSES_PER_STEP: u32 = 24;
+
+/// Steps of the checks before the margins (1 to 4 of the module docs; 5 to 7 and the
+/// configuration).
+const CHECK_STEPS: u32 = 2;
+/// Steps of the grid margins.
+const MARGIN_STEPS: u32 = (LEGS as u32).div_ceil(MARGIN_LEGS_PER_STEP);
+
+/// Steps a validation takes when every check passes, with `grid_points_per_axis`
+/// points per axis (in range): the checks before the grid, its margins, the grid in
+/// slices of [`GRID_POSES_PER_STEP`], one per workspace corner. A refused table takes
+/// fewer: the step that finds the first failure returns it.
+pub const fn validation_steps(grid_points_per_axis: u8) -> u32 {
+    CHECK_STEPS
+        + MARGIN_STEPS
+        + (grid_points_per_axis as u32)
+            .pow(6)
+            .div_ceil(GRID_POSES_PER_STEP)
+        + WORKSPACE_CORNERS as u32
+}
+
+/// Most steps any validation takes (the largest grid; a configuration out of range is
+/// refused before the grid).
+pub const MAX_VALIDATION_STEPS: u32 = validation_steps(MAX_GRID_POINTS_PER_AXIS);
+
+/// Where a validation stands: the work of its next step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Stage {
+    /// Checks 1 to 4 of the module docs (provenance to rod lengths).
+    Checks,
+    /// Checks 5 to 7 (the working geometry, caps, supervision) and the configuration.
+    Geometry,
+    /// The grid margins from leg `next`, [`MARGIN_LEGS_PER_STEP`] legs per step.
+    Margins,
+    /// The reachability grid from pose `next`, [`GRID_POSES_PER_STEP`] poses per step.
+    Grid,
+    /// FK at workspace corner `next`, one per step.
+    Corners,
+    /// Finished; every further step returns the result again.
+    Done(Result<(), ValidationError>),
+}
+
+/// A validation that runs in bounded steps: [`validate`]'s state between them.
+///
+/// Holds no reference, so a caller can keep it next to the table it validates (the
+/// background worker: one [`step`](Self::step) per worker step); every step must be
+/// given the same table and configuration ([`Validation`] borrows them for a caller
+/// that can). Stepped to completion the result is [`validate`]'s, which is this in a
+/// loop. A step does one of: checks 1 to 4 of the module docs; checks 5 to 7 and the
+/// configuration; [`MARGIN_LEGS_PER_STEP`] legs' grid margins; [`GRID_POSES_PER_STEP`]
+/// grid poses; the FK of one workspace corner. [`validation_steps`] gives their number.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ValidationState {
+    stage: Stage,
+    /// Grid points per axis (from the configuration, checked in range).
+    points: u8,
+    /// Legs refused so far as unreachable: rod possibly horizontal in the box
+    /// (margins), radicand not positive at some grid pose (grid).
+    unreachable: u8,
+    /// Legs beyond (or within the margin of) a stroke limit at some grid pose so far.
+    beyond: u8,
+    /// The next leg (margins), grid pose (grid) or corner (corners).
+    next: u32,
+    /// Grid pose `next` (grid).
+    pose: [f32; 6],
+    /// Per leg, the interpolation margin (mm) of [`grid_margin_mm`] (grid).
+    margins: [f64; LEGS],
+    /// The table's working geometry, from the geometry step on (an error before).
+    geom: Result<Geometry<f32>, GeometryError>,
+}
+
+impl Default for ValidationState {
+    fn default() -> Self {
+        Self::new()
     }
-    let margins = grid_margins_mm(t, n)?;
-    let total = u32::from(n).pow(6);
-    let mut unreachable = 0u8;
-    let mut beyond = 0u8;
-    for index in 0..total {
-        let pose = grid_pose(&t.workspace, n, index);
-        let (strokes, bad) = strokes_unchecked(geom, &pose);
-        unreachable |= bad;
+}
+
+impl ValidationState {
+    /// A validation not started.
+    pub const fn new() -> Self {
+        Self {
+            stage: Stage::Checks,
+            points: 0,
+            unreachable: 0,
+            beyond: 0,
+            next: 0,
+            pose: [0.0; 6],
+            margins: [0.0; LEGS],
+            geom: Err(GeometryError::NonFinite),
+        }
+    }
+
+    /// The result once finished, `None` before.
+    pub const fn result(&self) -> Option<Result<(), ValidationError>> {
+        match self.stage {
+            Stage::Done(r) => Some(r),
+            _ => None,
+        }
+    }
+
+    /// One bounded step of validating `t` against `cfg` (the same at every step):
+    /// `None` while work remains, then the result (again at every later step). Never
+    /// panics, whatever the table holds. (Out of line, as is each stage's work: one
+    /// copy for every caller, and only one stage's frame on the stack.)
+    #[inline(never)]
+    pub fn step(
+        &mut self,
+        t: &Table,
+        cfg: &ValidationConfig,
+    ) -> Option<Result<(), ValidationError>> {
+        let next = match self.stage {
+            Stage::Checks => checks(t, cfg),
+            Stage::Geometry => self.geometry(t, cfg),
+            Stage::Margins => self.margins(t),
+            Stage::Grid => self.grid(t),
+            Stage::Corners => self.corner(t),
+            Stage::Done(r) => return Some(r),
+        };
+        self.stage = next.unwrap_or_else(|e| Stage::Done(Err(e)));
+        self.result()
+    }
+
+    /// A stage past the geometry step without the geometry (cannot happen): start over,
+    /// at the checks (every later stage starts from its first leg, pose or corner).
+    fn restart(&mut self) -> Stage {
+        self.next = 0;
+        self.unreachable = 0;
+        self.beyond = 0;
+        Stage::Checks
+    }
+
+    /// Checks 5 to 7 and the configuration; the working geometry kept.
+    fn geometry(&mut self, t: &Table, cfg: &ValidationConfig) -> Result<Stage, ValidationError> {
+        self.geom = working_geometry(t);
+        if let Err(e) = self.geom {
+            return Err(ValidationError::Geometry(e));
+        }
+        check_caps(t, cfg)?;
+        check_supervision(&t.supervision)?;
+        let points = cfg.grid_points_per_axis;
+        if !(MIN_GRID_POINTS_PER_AXIS..=MAX_GRID_POINTS_PER_AXIS).contains(&points) {
+            return Err(ValidationError::BadConfig);
+        }
+        self.points = points;
+        Ok(Stage::Margins)
+    }
+
+    /// The next [`MARGIN_LEGS_PER_STEP`] legs' grid margins.
+    fn margins(&mut self, t: &Table) -> Result<Stage, ValidationError> {
+        let w = &t.workspace;
+        let intervals = f64::from(self.points.saturating_sub(1).max(1));
+        let rot_sum: f64 = w.rotation_rad.iter().sum();
+        let t_max = norm3(w.translation_mm);
+        let end = self.next.saturating_add(MARGIN_LEGS_PER_STEP);
+        while self.next < end {
+            let i = self.next as usize;
+            let (Some(leg), Some(m)) = (t.legs.get(i), self.margins.get_mut(i)) else {
+                break;
+            };
+            match grid_margin_mm(w, leg, &t.p0_mm, intervals, rot_sum, t_max) {
+                Some(v) => *m = v,
+                None => self.unreachable |= 1 << i,
+            }
+            self.next += 1;
+        }
+        if (self.next as usize) < LEGS {
+            return Ok(Stage::Margins);
+        }
+        if self.unreachable != 0 {
+            return Err(ValidationError::Unreachable {
+                legs: self.unreachable,
+            });
+        }
+        self.next = 0;
+        set_grid_pose(&mut self.pose, w, self.points, 0, false);
+        Ok(Stage::Grid)
+    }
+
+    /// The next [`GRID_POSES_PER_STEP`] grid poses.
+    fn grid(&mut self, t: &Table) -> Result<Stage, ValidationError> {
+        let Ok(geom) = &self.geom else {
+            return Ok(self.restart());
+        };
+        // The window a grid stroke must lie in, per leg (the same sums at every step).
+        let mut lo = [0.0; LEGS];
+        let mut hi = [0.0; LEGS];
         let lims = t
             .stroke_limits
             .min_mm
             .iter()
             .zip(t.stroke_limits.max_mm.iter());
-        for (i, ((s, (lo, hi)), m)) in strokes.iter().zip(lims).zip(margins.iter()).enumerate() {
-            let s = f64::from(*s);
-            if !(le(lo + m, s) && le(s, hi - m)) {
-                beyond |= 1 << i;
-            }
+        for ((l, h), ((min, max), m)) in lo
+            .iter_mut()
+            .zip(hi.iter_mut())
+            .zip(lims.zip(self.margins.iter()))
+        {
+            *l = min + m;
+            *h = max - m;
         }
+        let total = u32::from(self.points).pow(6);
+        let end = total.min(self.next.saturating_add(GRID_POSES_PER_STEP));
+        while self.next < end {
+            let (strokes, bad) = strokes_unchecked(geom, &Pose::from_array(self.pose));
+            self.unreachable |= bad;
+            for (i, (s, (l, h))) in strokes.iter().zip(lo.iter().zip(hi.iter())).enumerate() {
+                let s = f64::from(*s);
+                if !(le(*l, s) && le(s, *h)) {
+                    self.beyond |= 1 << i;
+                }
+            }
+            self.next += 1;
+            set_grid_pose(&mut self.pose, &t.workspace, self.points, self.next, true);
+        }
+        if self.next < total {
+            return Ok(Stage::Grid);
+        }
+        if self.unreachable != 0 {
+            return Err(ValidationError::Unreachable {
+                legs: self.unreachable,
+            });
+        }
+        // Unreachable legs keep stroke 0 and are reported above, so `beyond` is
+        // meaningful.
+        if self.beyond != 0 {
+            return Err(ValidationError::StrokeLimitExceeded { legs: self.beyond });
+        }
+        self.next = 0;
+        Ok(Stage::Corners)
     }
-    if unreachable != 0 {
-        return Err(ValidationError::Unreachable { legs: unreachable });
-    }
-    // Unreachable legs keep stroke 0 and are reported above, so `beyond` is meaningful.
-    if beyond != 0 {
-        return Err(ValidationError::StrokeLimitExceeded { legs: beyond });
-    }
-    Ok(())
-}
 
-fn check_fk_corners(t: &Table, geom: &Geometry<f32>) -> Result<(), ValidationError> {
-    let cfg = FkConfig::<f32>::default();
-    let home = Pose::<f32>::home();
-    for corner in 0..WORKSPACE_CORNERS {
+    /// Check 9 at workspace corner `next`.
+    fn corner(&mut self, t: &Table) -> Result<Stage, ValidationError> {
+        let Ok(geom) = &self.geom else {
+            return Ok(self.restart());
+        };
+        let corner = self.next as u8;
+        let cfg = FkConfig::<f32>::default();
+        let home = Pose::<f32>::home();
         // On a 2-point grid the pose index bits are exactly the corner signs.
-        let pose = grid_pose(&t.workspace, MIN_GRID_POINTS_PER_AXIS, corner as u32);
-        let c = corner as u8;
-        let (strokes, bad) = strokes_unchecked(geom, &pose);
+        let mut want = [0.0f32; 6];
+        set_grid_pose(
+            &mut want,
+            &t.workspace,
+            MIN_GRID_POINTS_PER_AXIS,
+            self.next,
+            false,
+        );
+        let (strokes, bad) = strokes_unchecked(geom, &Pose::from_array(want));
         if bad != 0 {
             return Err(ValidationError::Unreachable { legs: bad });
         }
         let sol = fk(geom, &strokes, &home, &cfg).map_err(|e| ValidationError::FkFailed {
-            corner: c,
+            corner,
             fk_code: e.code(),
         })?;
         let got = sol.pose.to_array();
-        let want = pose.to_array();
         for (k, (g, w)) in got.iter().zip(want.iter()).enumerate() {
             let tol = if k < 3 {
                 FK_CORNER_TOL_MM
@@ -537,23 +755,20 @@ fn check_fk_corners(t: &Table, geom: &Geometry<f32>) -> Result<(), ValidationErr
                 FK_CORNER_TOL_RAD
             };
             if !close(f64::from(*g), f64::from(*w), tol) {
-                return Err(ValidationError::FkInaccurate { corner: c });
+                return Err(ValidationError::FkInaccurate { corner });
             }
         }
+        self.next += 1;
+        if (self.next as usize) < WORKSPACE_CORNERS {
+            Ok(Stage::Corners)
+        } else {
+            Ok(Stage::Done(Ok(())))
+        }
     }
-    Ok(())
 }
 
-/// The working geometry of `t` (not inlined: its f64 parameters are not on the stack
-/// during the grid and corner checks).
-#[inline(never)]
-fn working_geometry(t: &Table) -> Result<Geometry<f32>, ValidationError> {
-    Geometry::<f32>::new(&t.geometry_params()).map_err(ValidationError::Geometry)
-}
-
-/// Validates a candidate table (see the module docs for the checks and their order).
-/// Never panics, whatever the table holds.
-pub fn validate(t: &Table, cfg: &ValidationConfig) -> Result<(), ValidationError> {
+/// Checks 1 to 4 of the module docs.
+fn checks(t: &Table, cfg: &ValidationConfig) -> Result<Stage, ValidationError> {
     if let Some(i) = t
         .provenance
         .tag
@@ -564,10 +779,53 @@ pub fn validate(t: &Table, cfg: &ValidationConfig) -> Result<(), ValidationError
     }
     check_finite(t)?;
     check_near_reference(t, cfg)?;
-    let geom = working_geometry(t)?;
-    check_caps(t, cfg)?;
-    check_supervision(&t.supervision)?;
-    check_grid(t, &geom, cfg)?;
-    check_fk_corners(t, &geom)?;
-    Ok(())
+    Ok(Stage::Geometry)
 }
+
+/// A [`ValidationState`] with the table and configuration it validates.
+#[derive(Clone, Copy, Debug)]
+pub struct Validation<'a> {
+    table: &'a Table,
+    cfg: &'a ValidationConfig,
+    state: ValidationState,
+}
+
+impl<'a> Validation<'a> {
+    /// A validation of `table` against `cfg`, not started.
+    pub const fn new(table: &'a Table, cfg: &'a ValidationConfig) -> Self {
+        Self {
+            table,
+            cfg,
+            state: ValidationState::new(),
+        }
+    }
+
+    /// One bounded step ([`ValidationState::step`]): `None` while work remains, then
+    /// the result.
+    pub fn step(&mut self) -> Option<Result<(), ValidationError>> {
+        self.state.step(self.table, self.cfg)
+    }
+}
+
+/// The working geometry of `t` (not inlined: its f64 parameters are not on the stack
+/// during the other checks).
+#[inline(never)]
+fn working_geometry(t: &Table) -> Result<Geometry<f32>, GeometryError> {
+    Geometry::<f32>::new(&t.geometry_params())
+}
+
+/// Validates a candidate table (see the module docs for the checks and their order):
+/// a [`ValidationState`] stepped to completion. Never panics, whatever the table holds.
+pub fn validate(t: &Table, cfg: &ValidationConfig) -> Result<(), ValidationError> {
+    let mut v = ValidationState::new();
+    loop {
+        if let Some(r) = v.step(t, cfg) {
+            return r;
+        }
+    }
+}
+
+#[cfg(all(test, feature = "host"))]
+mod reference;
+#[cfg(all(test, feature = "host"))]
+mod tests;
