@@ -27,6 +27,11 @@ count() {
   s=$(arm-none-eabi-nm "$1" | awk '$3=="bench_start"{print "0x"$1}')
   e=$(arm-none-eabi-nm "$1" | awk '$3=="bench_end"{print "0x"$1}')
   [ -n "$s" ] && [ -n "$e" ] || { echo "bench: bench_start/bench_end not found in $1" >&2; exit 2; }
+  # The markers must be functions of their own: folded with another (--icf=all), every
+  # call of that one would restart or end a measured section.
+  local shared
+  shared=$(arm-none-eabi-nm "$1" | awk -v s="${s#0x}" -v e="${e#0x}" '($1 == s && $3 != "bench_start") || ($1 == e && $3 != "bench_end") {print $3}')
+  [ -z "$shared" ] || { echo "bench: a marker shares its address with: $shared ($1)" >&2; exit 2; }
   rm -f "$work/insns.log"
   qemu "$1" -plugin "$plugin,start=$s,end=$e" -d plugin -D "$work/insns.log" > /dev/null 2> "$work/qemu.err" || true
   grep -qE "^TOTAL" "$work/insns.log" 2>/dev/null || { echo "bench: no count from $1:" >&2; cat "$work/qemu.err" >&2; exit 1; }

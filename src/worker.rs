@@ -13,8 +13,8 @@ use crate::controller::jobs::{
 };
 use crate::controller::Parameters;
 use crate::table::{
-    validate, Bank, BootSource, CommitReport, FlashStatus, Selection, StoreError, Table,
-    TableStore, ValidationConfig, WriteDone, WritePoll,
+    Bank, BootSource, CommitReport, FlashStatus, Selection, StoreError, Table, TableStore,
+    ValidationConfig, ValidationState, WriteDone, WritePoll,
 };
 use crate::timing::SCRUB_PERIOD_CYCLES;
 use embedded_storage::nor_flash::NorFlash;
@@ -23,7 +23,19 @@ use embedded_storage::nor_flash::NorFlash;
 #[derive(Clone, Copy, Debug)]
 enum Op {
     /// Commit: first make sure a selection record exists, then validate, then write.
-    Commit { table: Table, phase: CommitPhase },
+    /// `crc32`: the table's CRC when it was handed over (checked again before the
+    /// write: validation takes many steps, and RAM can be upset between them).
+    Commit {
+        table: Table,
+        crc32: u32,
+        phase: CommitPhase,
+    },
+    /// Switch bank: the other bank's table read, being validated; then its selection.
+    Switch {
+        table: Table,
+        selection: Selection,
+        params: Parameters,
+    },
     /// A selection being written; `table` runs when it is done.
     Select { table: Table },
     /// On-board parameters being written.
@@ -34,7 +46,8 @@ enum Op {
 enum CommitPhase {
     /// Writing the running table's selection (no selection record existed).
     Anchor,
-    /// Validate (one step), then start the write.
+    /// Validate (one bounded step per worker step: `validation`), then start the
+    /// write.
     Validate,
     /// The record is being written.
     Write,
@@ -45,6 +58,8 @@ enum CommitPhase {
 pub struct Worker<F> {
     store: TableStore<F>,
     validation: ValidationConfig,
+    /// The validation in progress (commit, switch bank), a bounded step at a time.
+    checking: ValidationState,
     op: Option<Op>,
     scrub: Option<ScrubImage>,
     /// The table of the pending record (what an activation will run).
@@ -63,6 +78,7 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
         Self {
             store,
             validation,
+            checking: ValidationState::new(),
             op: None,
             scrub: None,
             pending_table: None,
@@ -134,8 +150,10 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
         } else {
             CommitPhase::Validate
         };
+        self.checking = ValidationState::new();
         self.op = Some(Op::Commit {
             table: *table,
+            crc32: table.crc32(),
             phase,
         });
     }
@@ -195,15 +213,38 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
         };
         match self.store.read_bank(bank) {
             Err(s) => self.fail_later(kind, StoreError::NoRecord(s)),
-            Ok((h, t)) => match validate(&t, &self.validation) {
-                Err(v) => self.fail_later(kind, StoreError::Invalid(v)),
-                Ok(()) => self.begin_select(
-                    kind,
-                    Selection::bank(bank, h.sequence, h.table_crc),
-                    &t,
+            // Validated over the next steps (`switch_validate`), then selected.
+            Ok((h, t)) => {
+                self.checking = ValidationState::new();
+                self.op = Some(Op::Switch {
+                    table: t,
+                    selection: Selection::bank(bank, h.sequence, h.table_crc),
+                    params: *params,
+                });
+            }
+        }
+    }
+
+    /// One validation step of the table switch bank read; its selection once valid.
+    #[inline(never)]
+    fn switch_validate(&mut self) -> Option<JobResult> {
+        let Some(Op::Switch { table, .. }) = &self.op else {
+            return None;
+        };
+        match self.checking.step(table, &self.validation)? {
+            Err(v) => self.op_failed(JobKind::Select, StoreError::Invalid(v)),
+            Ok(()) => {
+                let Some(Op::Switch {
+                    table,
+                    selection,
                     params,
-                ),
-            },
+                }) = self.op.take()
+                else {
+                    return None;
+                };
+                self.begin_select(JobKind::Select, selection, &table, &params);
+                None
+            }
         }
     }
 
@@ -333,6 +374,7 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
                 ..
             }) => self.commit_write(),
             Some(Op::Parameters(_)) => self.parameters_poll(),
+            Some(Op::Switch { .. }) => self.switch_validate(),
             Some(Op::Select { .. }) => self.select_poll(),
             None => None,
         }
@@ -364,11 +406,16 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
 
     #[inline(never)]
     fn commit_validate(&mut self) -> Option<JobResult> {
-        let Some(Op::Commit { table, .. }) = &self.op else {
+        let Some(Op::Commit { table, crc32, .. }) = &self.op else {
             return None;
         };
-        if let Err(v) = validate(table, &self.validation) {
+        if let Err(v) = self.checking.step(table, &self.validation)? {
             return self.op_failed(JobKind::Commit, StoreError::Invalid(v));
+        }
+        // What was validated over many steps is what was handed over: an upset of the
+        // copy here meanwhile is refused, never written.
+        if table.crc32() != *crc32 {
+            return self.op_failed(JobKind::Commit, StoreError::NotExpected);
         }
         self.pending_table = None;
         let Some(Op::Commit { table, .. }) = &self.op else {

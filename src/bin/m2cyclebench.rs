@@ -300,13 +300,16 @@ impl Rig {
 
 #[entry]
 fn main() -> ! {
+    // In static storage from the start (cortex-m-rt turns an entry's `static mut` into
+    // a `&'static mut`): built on the stack, its 22 KB would overflow it.
+    static mut TM_QUEUE: m2ctl::controller::TmQueue = m2ctl::controller::TmQueue::new();
     hw::bench_start();
     hw::bench_end();
-    let ok = run();
+    let ok = run(TM_QUEUE);
     hw::exit(if ok { EXIT_PASS } else { EXIT_FAIL })
 }
 
-fn run() -> bool {
+fn run(tm_queue: &'static mut m2ctl::controller::TmQueue) -> bool {
     let Some(b) = Board::take() else {
         return false;
     };
@@ -319,11 +322,6 @@ fn run() -> bool {
         );
         return false;
     }
-    let tm_queue =
-        cortex_m::singleton!(: m2ctl::controller::TmQueue = m2ctl::controller::TmQueue::new());
-    let Some(tm_queue) = tm_queue else {
-        return false;
-    };
     let (tm_in, tm_out) = tm_queue.split();
     let tm_out = m2ctl::controller::TmConsumer::new(tm_out);
     let Some((ctl, worker)) = boot(
@@ -392,20 +390,47 @@ fn boot(
         cortex_m::singleton!(: MaybeUninit<Worker<TableFlash>> = MaybeUninit::uninit())?;
     let base = hw::stack_depth_bytes();
     hw::repaint_stack();
-    let validation = ValidationConfig::flight();
-    let store = TableStore::new(flash, hw::TABLE_LAYOUT).ok()?;
-    let worker = worker_slot.write(Worker::new(store, validation));
-    let (table, boot) = worker.store_mut().boot(&validation);
-    let mut sliders = sliders;
-    sliders.hold();
-    let ctl = ctl_slot.write(Controller::unstarted(sliders, table, boot, tm));
-    ctl.start();
+    let worker = build_worker(worker_slot, flash)?;
+    let (table, boot) = boot_selection(worker);
+    let ctl = build_controller(ctl_slot, sliders, table, boot, tm);
     ctl.restore_parameters(&worker.store_mut().parameters());
     defmt::info!(
         "BOOT stack_peak_bytes={=u32}",
         hw::stack_peak_bytes().saturating_sub(base)
     );
     Some((ctl, worker))
+}
+
+// Each part of the boot path out of line, as m2fw's init builds them: the worker, the
+// selection and the controller are then never on the stack together (one function
+// holding all three overflowed the 12 KiB stack once the worker grew).
+#[inline(never)]
+fn build_worker(
+    slot: &'static mut MaybeUninit<Worker<TableFlash>>,
+    flash: TableFlash,
+) -> Option<&'static mut Worker<TableFlash>> {
+    let store = TableStore::new(flash, hw::TABLE_LAYOUT).ok()?;
+    Some(slot.write(Worker::new(store, ValidationConfig::flight())))
+}
+
+#[inline(never)]
+fn boot_selection(worker: &mut Worker<TableFlash>) -> (Table, m2ctl::table::BootReport) {
+    worker.boot()
+}
+
+#[inline(never)]
+fn build_controller(
+    slot: &'static mut MaybeUninit<Controller<Sliders>>,
+    mut sliders: Sliders,
+    table: Table,
+    boot: m2ctl::table::BootReport,
+    tm: m2ctl::controller::TmProducer,
+) -> &'static mut Controller<Sliders> {
+    sliders.hold();
+    let ctl = Controller::unstarted_in(slot, sliders, table, boot, tm);
+    let start: fn(&mut Controller<Sliders>) = Controller::start;
+    core::hint::black_box(start)(ctl);
+    ctl
 }
 
 #[inline(never)]
