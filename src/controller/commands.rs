@@ -19,10 +19,10 @@ impl<M: MechanismIo> Controller<M> {
     /// (TM[1,2] if the packet named a request); nothing else changes.
     pub fn refuse_telecommand(&mut self, rej: &Rejection) {
         self.settle_move_check();
-        self.tc_rejected = self.tc_rejected.wrapping_add(1);
+        self.ledger.rejected = self.ledger.rejected.wrapping_add(1);
         match rej.request_id {
             Some(rid) => self.verify(rid, Verification::acceptance_failure(&rej.error)),
-            None => self.last_failure_code = rej.error.code(),
+            None => self.ledger.last_failure_code = rej.error.code(),
         }
     }
 
@@ -31,7 +31,7 @@ impl<M: MechanismIo> Controller<M> {
     /// changes nothing but the counters and the reports.
     pub fn execute_telecommand(&mut self, tc: &Telecommand) {
         self.settle_move_check();
-        self.tc_accepted = self.tc_accepted.wrapping_add(1);
+        self.ledger.accepted = self.ledger.accepted.wrapping_add(1);
         if tc.ack.acceptance() {
             self.verify(tc.request_id, Verification::AcceptanceSuccess);
         }
@@ -43,7 +43,7 @@ impl<M: MechanismIo> Controller<M> {
     /// A move check a caller without a link service left uncollected: evaluated and
     /// reported now, before the next telecommand (none is lost, the order is kept).
     fn settle_move_check(&mut self) {
-        if self.move_check.is_some() {
+        if self.motion.check.is_some() {
             self.run_move_check();
         }
     }
@@ -63,7 +63,7 @@ impl<M: MechanismIo> Controller<M> {
             Ok(Outcome::CheckQueued) => {}
             Ok(Outcome::Planning) => {
                 // Start success or failure is reported when the plan is done.
-                self.tc_pending = Some(PendingTc {
+                self.ledger.pending = Some(PendingTc {
                     request_id: rid,
                     ack: tc.ack,
                     kind: PendingKind::Motion,
@@ -81,7 +81,7 @@ impl<M: MechanismIo> Controller<M> {
                 };
                 // A newer long-running TC cannot start while one is pending (busy), so
                 // no report is lost here.
-                self.tc_pending = Some(PendingTc {
+                self.ledger.pending = Some(PendingTc {
                     request_id: rid,
                     ack: tc.ack,
                     kind,
@@ -116,7 +116,7 @@ impl<M: MechanismIo> Controller<M> {
                 );
             }
             Command::CommitTable { .. } => {
-                let id = self.upload.table_id().unwrap_or(0);
+                let id = self.tables.upload.table_id().unwrap_or(0);
                 self.table_rejected(e, id);
             }
             Command::ActivateTable { .. } | Command::SwitchBank | Command::RevertToNominal => {
@@ -193,13 +193,13 @@ impl<M: MechanismIo> Controller<M> {
                 self.start_direct_stroke(leg, delta_nm as f32 / NM_PER_MM_F32)
             }
             Command::LoadTableChunk(chunk) => {
-                self.upload.load(chunk.offset_bytes(), chunk.bytes());
+                self.tables.upload.load(chunk.offset_bytes(), chunk.bytes());
                 Ok(Outcome::Done)
             }
             Command::CommitTable { crc32 } => self.commit_uploaded(crc32),
             Command::ActivateTable { table_id, crc32 } => {
                 self.require_idle()?;
-                let p = self.pending_table.ok_or(CommandError::NoPending)?;
+                let p = self.tables.pending.ok_or(CommandError::NoPending)?;
                 if p.table_id != table_id || p.report.table_crc != crc32 {
                     return Err(CommandError::PendingMismatch {
                         pending_id: p.table_id,
@@ -234,7 +234,7 @@ impl<M: MechanismIo> Controller<M> {
         self.require_idle()?;
         let new = self
             .intact_parameters()?
-            .with(entries, &self.active.table)
+            .with(entries, &self.tables.active.table)
             .map_err(CommandError::Parameter)?;
         let named = super::params::named_mask(entries.iter().map(|(id, _)| *id))
             .map_err(CommandError::Parameter)?;
@@ -248,12 +248,12 @@ impl<M: MechanismIo> Controller<M> {
     #[inline(never)]
     fn commit_uploaded(&mut self, crc32: u32) -> Result<Outcome, CommandError> {
         self.require_idle()?;
-        let table = self.upload.check(crc32)?;
+        let table = self.tables.upload.check(crc32)?;
         self.jobs
             .submit_commit(&table)
             .map_err(|kind: JobKind| CommandError::JobBusy(kind.code()))?;
-        self.upload.clear_received();
-        self.pending_table = None;
+        self.tables.upload.clear_received();
+        self.tables.pending = None;
         Ok(Outcome::JobStarted)
     }
 
@@ -261,7 +261,7 @@ impl<M: MechanismIo> Controller<M> {
     /// RAM upset (fault 0x100 latched, the repair queued) and the telecommand is refused
     /// with 0x0701, so an upset value is never built on, reported or persisted.
     fn intact_parameters(&mut self) -> Result<super::Parameters, CommandError> {
-        match self.params.checked() {
+        match self.settings.params.checked() {
             Some(p) => Ok(*p),
             None => {
                 self.ram_upset();
@@ -283,7 +283,13 @@ impl<M: MechanismIo> Controller<M> {
         let mut out = heapless::Vec::new();
         for (k, def) in super::params::PARAMETERS.iter().enumerate() {
             if mask & (1 << k) != 0 {
-                let _ = out.push((def.id, self.params.params().value(k, &self.active.table)));
+                let _ = out.push((
+                    def.id,
+                    self.settings
+                        .params
+                        .params()
+                        .value(k, &self.tables.active.table),
+                ));
             }
         }
         out
@@ -295,8 +301,8 @@ impl<M: MechanismIo> Controller<M> {
     #[inline(never)]
     fn queue_dump(&mut self, memory: MemoryId) {
         let image = match memory {
-            MemoryId::ActiveTable => self.active.table.to_bytes(),
-            MemoryId::UploadBuffer => *self.upload.bytes(),
+            MemoryId::ActiveTable => self.tables.active.table.to_bytes(),
+            MemoryId::UploadBuffer => *self.tables.upload.bytes(),
         };
         for offset in (0..TABLE_LEN).step_by(TABLE_CHUNK_MAX_LEN) {
             let chunk = u16::try_from(offset)

@@ -326,7 +326,7 @@ impl<M: MechanismIo> Controller<M> {
         match *result {
             JobResult::Committed { report, table_id } => {
                 self.jobs.running = None;
-                self.pending_table = Some(super::PendingTable { report, table_id });
+                self.tables.pending = Some(super::PendingTable { report, table_id });
                 self.event(
                     EventSeverity::Info,
                     super::event::TABLE_COMMITTED,
@@ -342,13 +342,14 @@ impl<M: MechanismIo> Controller<M> {
                 self.jobs.running = None;
                 match self.run_table(table, geom, selection.source) {
                     Ok(()) => {
-                        if let (Some(p), Some(bank)) = (self.pending_table, selection.source.bank())
+                        if let (Some(p), Some(bank)) =
+                            (self.tables.pending, selection.source.bank())
                         {
                             if p.report.bank == bank {
-                                self.pending_table = None;
+                                self.tables.pending = None;
                             }
                         }
-                        self.selection_source = Some(selection.source);
+                        self.tables.selection_source = Some(selection.source);
                         self.complete_pending(Ok(()));
                     }
                     Err(e) => {
@@ -389,7 +390,7 @@ impl<M: MechanismIo> Controller<M> {
                 self.jobs.running = None;
                 let e = super::CommandError::Store(error);
                 if kind == JobKind::Commit {
-                    let id = self.upload.table_id().unwrap_or(0);
+                    let id = self.tables.upload.table_id().unwrap_or(0);
                     self.table_rejected(&e, id);
                 } else {
                     self.table_rejected(&e, 0);
@@ -398,12 +399,12 @@ impl<M: MechanismIo> Controller<M> {
             }
             JobResult::Scrubbed { generation, ok } => {
                 self.jobs.scrub_outstanding = false;
-                if generation == self.generation && !ok {
+                if generation == self.tables.generation && !ok {
                     self.ram_upset();
                 }
             }
             JobResult::Banks { corrupt } => {
-                self.bank_health = corrupt;
+                self.tables.bank_health = corrupt;
                 self.event(
                     if corrupt == 0 {
                         EventSeverity::Info
@@ -465,29 +466,29 @@ impl<M: MechanismIo> Controller<M> {
             .geom
             .as_ref()
             .map_err(|_| super::CommandError::Store(StoreError::NotExpected))?;
-        self.active.table = *table;
-        self.active.crc32 = geom.crc32;
-        self.active.geom = *g;
-        self.active.source = source;
-        self.geometry_ok = true;
-        self.generation = self.generation.wrapping_add(1);
+        self.tables.active.table = *table;
+        self.tables.active.crc32 = geom.crc32;
+        self.tables.active.geom = *g;
+        self.tables.active.source = source;
+        self.tables.geometry_ok = true;
+        self.tables.generation = self.tables.generation.wrapping_add(1);
         self.jobs.scrub_outstanding = false;
         // Derived from the parameters only if they are intact; else the repair
         // re-derives everything from flash (the drives hold meanwhile).
-        let params = *self.params.params();
-        if self.params.checked().is_none() {
+        let params = *self.settings.params.params();
+        if self.settings.params.checked().is_none() {
             self.ram_upset();
         }
-        self.ops = super::Ops::derive(&params, &self.active.table);
+        self.settings.ops = super::Ops::derive(&params, &self.tables.active.table);
         self.supervisor
-            .set_config(params.supervision(&self.active.table));
+            .set_config(params.supervision(&self.tables.active.table));
         // The same strokes are a (slightly) different pose under the new geometry:
         // hold and re-derive the commanded pose.
         self.hold_here();
         self.event(
             EventSeverity::Info,
             super::event::TABLE_ACTIVATED,
-            [self.active.table.table_id, self.active.crc32],
+            [self.tables.active.table.table_id, self.tables.active.crc32],
         );
         Ok(())
     }

@@ -66,12 +66,11 @@ pub mod time;
 
 mod commands;
 pub mod motion;
+mod parts;
 mod verification;
 
-use crate::hw::{counts_to_mm, DriveError, MechanismIo, TravelSwitches};
-use crate::kinematics::{
-    fk, FkConfig, FkError, FkSolution, Frames, Geometry, GeometryError, Pose, LEGS,
-};
+use crate::hw::{counts_to_mm, MechanismIo, TravelSwitches};
+use crate::kinematics::{fk, FkError, FkSolution, Frames, Geometry, GeometryError, Pose, LEGS};
 use crate::link::tm::EventSeverity;
 use crate::link::{Housekeeping, WirePose};
 use crate::motion::MotionLimits;
@@ -92,7 +91,6 @@ pub use telemetry::{HkSample, Stamped, TmConsumer, TmProducer, TmQueue, TmRecord
 pub use crate::link::tm::event_id as event;
 
 use motion::Motion;
-use verification::PendingTc;
 
 /// Path samples (IK evaluations) a move's planning may use per control cycle: the
 /// ~17 samples of a plan are spread over a few cycles (9 at most) so that no cycle
@@ -193,86 +191,38 @@ pub struct PendingTable {
     pub table_id: u32,
 }
 
-/// The M2 mechanism controller.
+/// The M2 mechanism controller: the mechanism it owns and the parts of its state
+/// ([`parts`]), each plain data with the operations that concern it alone.
 pub struct Controller<M> {
     /// The six slider drives and encoders (drivers on the target, the simulated plant
     /// on the host); owned: nothing else commands them.
     mech: M,
-    active: ActiveTable,
-    /// The on-board parameters (ST[20]) with their check word, and what they make of
-    /// the settings.
-    params: params::InForce,
-    ops: Ops,
-    /// The running geometry is usable; `false` only after a defect (the compiled-in
-    /// nominal table failed to derive): every motion is refused.
-    geometry_ok: bool,
-    /// Counts activations and reloads; scrub results name the generation they checked.
-    generation: u32,
-    boot: BootReport,
-    reset: ResetInfo,
-    pending_table: Option<PendingTable>,
-    /// What the operator's last completed selection chose (`None`: none made since
-    /// boot and no selection record found at boot).
-    selection_source: Option<BootSource>,
-    upload: UploadBuffer,
+    /// What runs, what is pending, what the operator selected.
+    tables: parts::Tables,
+    /// The on-board parameters (ST[20]) and what they make of the settings.
+    settings: parts::Settings,
+    /// The fault supervision (latched faults, warnings, thresholds).
     supervisor: Supervisor,
-    motion: Motion,
-    /// The state last reported by event (the derived state is [`Controller::state`]).
-    reported_state: State,
-    /// The telecommand whose start or completion report is still to come.
-    tc_pending: Option<PendingTc>,
-    /// A move check executed but not yet evaluated (the link service evaluates it
-    /// outside the controller's lock: [`motion::MoveCheckJob`]).
-    move_check: Option<motion::MoveCheckJob>,
+    /// Encoders and forward kinematics.
+    estimate: parts::FkEstimate,
+    /// End-of-travel switches as the motion must respect them.
+    travel: parts::EndOfTravel,
+    /// The motion and what was last commanded.
+    motion: parts::MotionPart,
+    /// Control-cycle overruns.
+    deadline: parts::DeadlineMonitor,
+    /// Telecommand counters and the telecommand still owed a report.
+    ledger: parts::TcLedger,
+    /// What was last reported by event.
+    reporting: parts::Reporting,
+    /// The background jobs' lane (requests, results, the scrub's due flag).
     jobs: jobs::JobLane,
-    fk_cfg: FkConfig<f32>,
-    /// Last good FK pose (warm start and telemetry).
-    pose_fk: Pose<f32>,
-    fk_valid: bool,
-    fk_iterations: u8,
-    /// The pose of the commanded/held strokes: the last path setpoint, or FK of the
-    /// strokes the drives hold.
-    pose_commanded: Pose<f32>,
-    /// The strokes commanded to the drives in the last cycle, or (at rest) the strokes
-    /// they hold.
-    strokes_commanded_mm: [f32; LEGS],
-    /// The output stage every command passes (`motion::limiter`).
-    limiter: crate::motion::OutputLimiter,
-    /// Last encoder reading and whether it is this cycle's.
-    encoders_mm: [f32; LEGS],
-    encoders_valid: bool,
-    last_drive: Result<(), DriveError>,
-    moving_prev: bool,
-    warnings: FaultFlags,
-    /// The end-of-travel switches and reference sensors as read in the last cycle.
-    switches: TravelSwitches,
-    /// Every switch seen active or unreadable while [`FaultFlags::LIMIT_SWITCH`] has
-    /// been latched: the directions a direct stroke may not take until the clear.
-    switches_since_latch: TravelSwitches,
-    /// Legs the current motion may not move toward smaller / larger strokes: every
-    /// switch seen since the motion began (a switch that releases mid-motion keeps its
-    /// leg held, so the command never jumps back to the path).
-    clamp_negative: u8,
-    clamp_positive: u8,
-    /// The set of active switches last reported by [`event::END_OF_TRAVEL`] (its aux0).
-    end_of_travel_reported: u32,
+    /// The board's reset cause and boot counter.
+    reset: ResetInfo,
     /// Control cycles run since boot: the motion time base and the telemetry clock.
     cycle: u32,
     /// Its end of the telemetry queue (the link service holds the other).
     tm: TmProducer,
-    tc_accepted: u16,
-    tc_rejected: u16,
-    last_failure_code: u16,
-    refusal_bits: u32,
-    overruns: u16,
-    consecutive_overruns: u16,
-    /// Flash-bank health from the background scrub: bit 0 bank A, bit 1 bank B corrupt.
-    bank_health: u8,
-    boot_event_sent: bool,
-    /// Persisted parameters not applied at boot (event 0x0041 after the boot events).
-    params_ignored_at_boot: u32,
-    /// A stop or a fault ended a move while it was being planned.
-    plan_aborted: bool,
     // Time-based schedule (ST[11]) and time reports (ST[9]): not persisted, empty and
     // off at boot.
     schedule: schedule::Schedule,
@@ -309,54 +259,46 @@ impl<M: MechanismIo> Controller<M> {
         let ops = Ops::derive(params.params(), &active.table);
         Self {
             mech,
-            active,
-            params,
-            ops,
-            geometry_ok,
-            generation: 0,
-            boot,
-            reset: ResetInfo::default(),
-            pending_table: None,
-            selection_source: boot.selection.map(|s| s.source),
-            upload: UploadBuffer::new(),
+            tables: parts::Tables {
+                active,
+                geometry_ok,
+                generation: 0,
+                boot,
+                pending: None,
+                selection_source: boot.selection.map(|s| s.source),
+                upload: UploadBuffer::new(),
+                bank_health: 0,
+            },
+            settings: parts::Settings { params, ops },
             supervisor,
-            motion: Motion::Hold,
-            reported_state: State::Idle,
-            tc_pending: None,
-            move_check: None,
+            estimate: parts::FkEstimate::new(),
+            travel: parts::EndOfTravel::default(),
+            motion: parts::MotionPart {
+                now: Motion::Hold,
+                pose: Pose::home(),
+                strokes_mm: [0.0; LEGS],
+                limiter: crate::motion::OutputLimiter::new(
+                    &params.params().step_limits(&active.table),
+                    [0.0; LEGS],
+                ),
+                last_drive: Ok(()),
+                moving_prev: false,
+                plan_aborted: false,
+                refusal_bits: 0,
+                check: None,
+            },
+            deadline: parts::DeadlineMonitor::default(),
+            ledger: parts::TcLedger::default(),
+            reporting: parts::Reporting {
+                state: State::Idle,
+                warnings: FaultFlags::empty(),
+                boot_event_sent: false,
+                params_ignored_at_boot: 0,
+            },
             jobs: jobs::JobLane::new(),
-            fk_cfg: FkConfig::default(),
-            pose_fk: Pose::home(),
-            fk_valid: false,
-            fk_iterations: 0,
-            pose_commanded: Pose::home(),
-            strokes_commanded_mm: [0.0; LEGS],
-            limiter: crate::motion::OutputLimiter::new(
-                &params.params().step_limits(&active.table),
-                [0.0; LEGS],
-            ),
-            encoders_mm: [0.0; LEGS],
-            encoders_valid: false,
-            last_drive: Ok(()),
-            moving_prev: false,
-            warnings: FaultFlags::empty(),
-            switches: TravelSwitches::default(),
-            switches_since_latch: TravelSwitches::default(),
-            clamp_negative: 0,
-            clamp_positive: 0,
-            end_of_travel_reported: 0,
+            reset: ResetInfo::default(),
             cycle: 0,
             tm,
-            tc_accepted: 0,
-            tc_rejected: 0,
-            last_failure_code: 0,
-            refusal_bits: 0,
-            overruns: 0,
-            consecutive_overruns: 0,
-            bank_health: 0,
-            boot_event_sent: false,
-            params_ignored_at_boot: 0,
-            plan_aborted: false,
             schedule: schedule::Schedule::new(),
             time_reports: time::TimeReports::new(),
         }
@@ -382,18 +324,18 @@ impl<M: MechanismIo> Controller<M> {
     pub fn start(&mut self) {
         self.hold_here();
         let first = self.mech.read_counts();
-        self.switches = self.mech.read_switches();
+        self.travel.switches = self.mech.read_switches();
         if let Ok(counts) = first {
-            self.encoders_mm = counts_to_mm(&counts);
-            self.encoders_valid = true;
+            self.estimate.encoders_mm = counts_to_mm(&counts);
+            self.estimate.encoders_valid = true;
             if let Ok(sol) = fk(
-                &self.active.geom,
-                &self.encoders_mm,
-                &self.pose_fk,
-                &self.fk_cfg,
+                &self.tables.active.geom,
+                &self.estimate.encoders_mm,
+                &self.estimate.pose,
+                &self.estimate.cfg,
             ) {
-                self.pose_fk = sol.pose;
-                self.fk_valid = true;
+                self.estimate.pose = sol.pose;
+                self.estimate.valid = true;
             }
         }
     }
@@ -404,7 +346,7 @@ impl<M: MechanismIo> Controller<M> {
     /// conflict with the booted table: [`Parameters::from_persisted`]) is reported by
     /// event 0x0041 after the boot events.
     pub fn restore_parameters(&mut self, persisted: &[u8; crate::table::store::PARAMETERS_LEN]) {
-        let table = self.active.table;
+        let table = self.tables.active.table;
         self.restore_parameters_for(persisted, &table);
     }
 
@@ -417,10 +359,10 @@ impl<M: MechanismIo> Controller<M> {
         let (params, ignored) = Parameters::from_persisted(persisted, table);
         self.apply_parameters(params);
         if ignored != 0 {
-            if self.boot_event_sent {
+            if self.reporting.boot_event_sent {
                 self.report_parameters_ignored(ignored);
             } else {
-                self.params_ignored_at_boot = ignored;
+                self.reporting.params_ignored_at_boot = ignored;
             }
         }
     }
@@ -432,19 +374,20 @@ impl<M: MechanismIo> Controller<M> {
 
     /// Runs with `params`: derived settings and the supervision thresholds follow.
     fn apply_parameters(&mut self, params: Parameters) {
-        self.params = params::InForce::new(params);
-        self.ops = Ops::derive(&params, &self.active.table);
-        self.limiter
-            .set_limits(&params.step_limits(&self.active.table));
+        self.settings.params = params::InForce::new(params);
+        self.settings.ops = Ops::derive(&params, &self.tables.active.table);
+        self.motion
+            .limiter
+            .set_limits(&params.step_limits(&self.tables.active.table));
         self.supervisor
-            .set_config(params.supervision(&self.active.table));
-        self.generation = self.generation.wrapping_add(1);
+            .set_config(params.supervision(&self.tables.active.table));
+        self.tables.generation = self.tables.generation.wrapping_add(1);
         self.jobs.scrub_done();
     }
 
     /// The on-board parameters (as they are in RAM).
     pub fn parameters(&self) -> &Parameters {
-        self.params.params()
+        self.settings.params.params()
     }
 
     /// Records the board's reset cause and boot counter (call once, before the first
@@ -465,71 +408,86 @@ impl<M: MechanismIo> Controller<M> {
     /// (FK, warm-started from the last commanded pose). The pose is kept if FK fails.
     fn sync_to_drives(&mut self) {
         let held = self.mech.setpoints_mm();
-        self.strokes_commanded_mm = held;
-        if let Ok(sol) = fk(&self.active.geom, &held, &self.pose_commanded, &self.fk_cfg) {
-            self.pose_commanded = sol.pose;
+        self.motion.strokes_mm = held;
+        if let Ok(sol) = fk(
+            &self.tables.active.geom,
+            &held,
+            &self.motion.pose,
+            &self.estimate.cfg,
+        ) {
+            self.motion.pose = sol.pose;
         }
     }
 
     /// One control cycle (the module documentation lists its steps). Bounded: no I/O
     /// wait, no packet work, no flash.
     pub fn control_cycle(&mut self) {
-        if !self.boot_event_sent {
-            self.boot_event_sent = true;
+        if !self.reporting.boot_event_sent {
+            self.reporting.boot_event_sent = true;
             self.emit_boot_events();
         }
         // 1. Encoders, their warnings, the end-of-travel switches.
         let readings = self.mech.read_counts().map(|c| counts_to_mm(&c));
         let encoder_warning_legs = self.mech.warning_legs();
-        self.switches = self.mech.read_switches();
+        self.travel.switches = self.mech.read_switches();
         self.report_end_of_travel();
         // 2. Forward kinematics, warm-started.
         let fk_result: Option<Result<FkSolution<f32>, FkError>> = match &readings {
             Ok(s) => {
-                self.encoders_mm = *s;
-                self.encoders_valid = true;
-                Some(fk(&self.active.geom, s, &self.pose_fk, &self.fk_cfg))
+                self.estimate.encoders_mm = *s;
+                self.estimate.encoders_valid = true;
+                Some(fk(
+                    &self.tables.active.geom,
+                    s,
+                    &self.estimate.pose,
+                    &self.estimate.cfg,
+                ))
             }
             Err(_) => {
-                self.encoders_valid = false;
+                self.estimate.encoders_valid = false;
                 None
             }
         };
         match &fk_result {
             Some(Ok(sol)) => {
-                self.pose_fk = sol.pose;
-                self.fk_valid = true;
-                self.fk_iterations = sol.iterations;
+                self.estimate.pose = sol.pose;
+                self.estimate.valid = true;
+                self.estimate.iterations = sol.iterations;
             }
-            _ => self.fk_valid = false,
+            _ => self.estimate.valid = false,
         }
         // 3. Supervision. At rest the reference is what the drives hold now (a drive
         //    re-referenced after missed steps holds a corrected setpoint).
-        if matches!(self.motion, Motion::Hold) {
+        if matches!(self.motion.now, Motion::Hold) {
             let held = self.mech.setpoints_mm();
-            if held != self.strokes_commanded_mm {
-                self.strokes_commanded_mm = held;
-                if let Ok(sol) = fk(&self.active.geom, &held, &self.pose_commanded, &self.fk_cfg) {
-                    self.pose_commanded = sol.pose;
+            if held != self.motion.strokes_mm {
+                self.motion.strokes_mm = held;
+                if let Ok(sol) = fk(
+                    &self.tables.active.geom,
+                    &held,
+                    &self.motion.pose,
+                    &self.estimate.cfg,
+                ) {
+                    self.motion.pose = sol.pose;
                 }
             }
         }
         let verdict = self.supervisor.check(&CycleInputs {
             encoders: readings,
-            commanded_prev_mm: self.strokes_commanded_mm,
-            motion_commanded: self.moving_prev,
+            commanded_prev_mm: self.motion.strokes_mm,
+            motion_commanded: self.motion.moving_prev,
             fk: fk_result,
-            drive: self.last_drive,
-            switches: self.switches,
+            drive: self.motion.last_drive,
+            switches: self.travel.switches,
             encoder_warning_legs,
         });
-        self.switches_since_latch = if verdict.latched.contains(FaultFlags::LIMIT_SWITCH) {
-            or_switches(&self.switches_since_latch, &self.switches)
+        self.travel.since_latch = if verdict.latched.contains(FaultFlags::LIMIT_SWITCH) {
+            parts::or_switches(&self.travel.since_latch, &self.travel.switches)
         } else {
             TravelSwitches::default()
         };
-        if verdict.warnings != self.warnings {
-            self.warnings = verdict.warnings;
+        if verdict.warnings != self.reporting.warnings {
+            self.reporting.warnings = verdict.warnings;
             self.event(
                 EventSeverity::Low,
                 event::WARNING_CHANGED,
@@ -550,7 +508,7 @@ impl<M: MechanismIo> Controller<M> {
         // 4. Motion.
         self.step_motion();
         // 5. Periodic work.
-        if self.cycle % self.ops.hk_period_cycles.max(1) == 0 {
+        if self.cycle % self.settings.ops.hk_period_cycles.max(1) == 0 {
             self.queue_housekeeping();
         }
         if self.cycle % SCRUB_PERIOD_CYCLES == 0 && self.jobs.scrub_wanted() {
@@ -566,11 +524,11 @@ impl<M: MechanismIo> Controller<M> {
     #[inline(never)]
     fn queue_scrub(&mut self) {
         self.jobs.request_scrub(&jobs::ScrubImage {
-            generation: self.generation,
-            active: self.active,
+            generation: self.tables.generation,
+            active: self.tables.active,
             supervision: *self.supervisor.config(),
-            params: self.params,
-            ops: self.ops,
+            params: self.settings.params,
+            ops: self.settings.ops,
         });
     }
 
@@ -579,17 +537,15 @@ impl<M: MechanismIo> Controller<M> {
     /// motion and raise [`event::DEADLINE_MISSED`]. A cycle that met its deadline is
     /// reported with [`Controller::note_deadline_met`].
     pub fn note_overrun(&mut self) {
-        self.overruns = self.overruns.wrapping_add(1);
-        self.consecutive_overruns = self.consecutive_overruns.saturating_add(1);
-        if self.consecutive_overruns == OVERRUN_HOLD_LIMIT {
+        if self.deadline.overrun(OVERRUN_HOLD_LIMIT) {
             self.supervisor
                 .raise_external(FaultFlags::DEADLINE_MISSED, true);
             self.event(
                 EventSeverity::High,
                 event::DEADLINE_MISSED,
                 [
-                    u32::from(self.consecutive_overruns),
-                    u32::from(self.overruns),
+                    u32::from(self.deadline.consecutive),
+                    u32::from(self.deadline.overruns),
                 ],
             );
             self.begin_stop();
@@ -599,8 +555,7 @@ impl<M: MechanismIo> Controller<M> {
     /// The last control cycle finished within its period (a latched deadline fault
     /// becomes clearable).
     pub fn note_deadline_met(&mut self) {
-        if self.consecutive_overruns > 0 {
-            self.consecutive_overruns = 0;
+        if self.deadline.met() {
             self.supervisor
                 .set_external_condition(FaultFlags::DEADLINE_MISSED, false);
         }
@@ -609,16 +564,12 @@ impl<M: MechanismIo> Controller<M> {
     /// Event [`event::END_OF_TRAVEL`] when the set of active end-of-travel switches (or
     /// unreadable inputs) changes to a non-empty one.
     fn report_end_of_travel(&mut self) {
-        let word = end_of_travel_word(&self.switches);
-        if word != self.end_of_travel_reported {
-            self.end_of_travel_reported = word;
-            if word != 0 {
-                self.event(
-                    EventSeverity::High,
-                    event::END_OF_TRAVEL,
-                    [word, self.cycle],
-                );
-            }
+        if let Some(word) = self.travel.changed_report() {
+            self.event(
+                EventSeverity::High,
+                event::END_OF_TRAVEL,
+                [word, self.cycle],
+            );
         }
     }
 
@@ -626,15 +577,15 @@ impl<M: MechanismIo> Controller<M> {
     /// the switches of the last read, and while [`FaultFlags::LIMIT_SWITCH`] is latched
     /// every switch seen since it latched.
     pub(super) fn end_of_travel_blocked(&self) -> (u8, u8) {
-        let mut s = self.switches;
+        let mut s = self.travel.switches;
         if self.supervisor.latched().contains(FaultFlags::LIMIT_SWITCH) {
-            s = or_switches(&s, &self.switches_since_latch);
+            s = parts::or_switches(&s, &self.travel.since_latch);
         }
         (s.blocked_negative(), s.blocked_positive())
     }
 
     fn emit_boot_events(&mut self) {
-        let sev = if self.boot.fell_back || !self.geometry_ok {
+        let sev = if self.tables.boot.fell_back || !self.tables.geometry_ok {
             EventSeverity::Low
         } else {
             EventSeverity::Info
@@ -643,26 +594,26 @@ impl<M: MechanismIo> Controller<M> {
             sev,
             event::BOOT,
             [
-                u32::from(self.boot.source.code()),
-                self.active.table.table_id,
+                u32::from(self.tables.boot.source.code()),
+                self.tables.active.table.table_id,
             ],
         );
         self.event(
             EventSeverity::Info,
             event::BOOT_DETAIL,
             [
-                self.boot.flags_word(),
+                self.tables.boot.flags_word(),
                 u32::from(self.reset.cause.code()) | (u32::from(self.reset.boot_count) << 16),
             ],
         );
-        if self.params_ignored_at_boot != 0 {
-            self.report_parameters_ignored(self.params_ignored_at_boot);
+        if self.reporting.params_ignored_at_boot != 0 {
+            self.report_parameters_ignored(self.reporting.params_ignored_at_boot);
         }
     }
 
     /// The state as derived from the motion and the latched faults.
     pub fn state(&self) -> State {
-        match &self.motion {
+        match &self.motion.now {
             Motion::Hold => {
                 if self.supervisor.latched().is_empty() {
                     State::Idle
@@ -683,9 +634,9 @@ impl<M: MechanismIo> Controller<M> {
     /// last reported.
     fn publish_state(&mut self) {
         let now = self.state();
-        if now != self.reported_state {
-            let old = self.reported_state;
-            self.reported_state = now;
+        if now != self.reporting.state {
+            let old = self.reporting.state;
+            self.reporting.state = now;
             self.event(
                 EventSeverity::Info,
                 event::STATE_CHANGED,
@@ -714,7 +665,7 @@ impl<M: MechanismIo> Controller<M> {
     /// The housekeeping sample of now, its poses and strokes in working units (the link
     /// service converts them, [`HkSample::to_report`], and adds its own counters).
     pub fn hk_sample(&self) -> HkSample {
-        let moving_legs = match &self.motion {
+        let moving_legs = match &self.motion.now {
             Motion::Hold | Motion::Planning(_) => 0,
             Motion::Path { .. } => crate::supervision::ALL_LEGS,
             Motion::Stroke { mv, .. } => 1u8.checked_shl(u32::from(mv.leg())).unwrap_or(0),
@@ -722,71 +673,78 @@ impl<M: MechanismIo> Controller<M> {
         let latched = self.supervisor.latched();
         let report = Housekeeping {
             state: self.state().code(),
-            boot_source: self.boot.source.code(),
-            active_bank: self.active.source.code(),
-            fk_iterations: self.fk_iterations,
-            fk_valid: self.fk_valid,
+            boot_source: self.tables.boot.source.code(),
+            active_bank: self.tables.active.source.code(),
+            fk_iterations: self.estimate.iterations,
+            fk_valid: self.estimate.valid,
             cycle_counter: self.cycle,
             fault_flags: latched.bits(),
-            warning_flags: self.warnings.bits(),
-            refusal_bits: self.refusal_bits,
-            active_table_id: self.active.table.table_id,
-            active_table_crc32: self.active.crc32,
+            warning_flags: self.reporting.warnings.bits(),
+            refusal_bits: self.motion.refusal_bits,
+            active_table_id: self.tables.active.table.table_id,
+            active_table_crc32: self.tables.active.crc32,
             pose_fk: WirePose::default(),
             pose_commanded: WirePose::default(),
             strokes_commanded_nm: [0; LEGS],
             encoders_nm: [0; LEGS],
-            tc_accepted: self.tc_accepted,
-            tc_rejected: self.tc_rejected,
-            last_failure_code: self.last_failure_code,
+            tc_accepted: self.ledger.accepted,
+            tc_rejected: self.ledger.rejected,
+            last_failure_code: self.ledger.last_failure_code,
             moving_legs,
             fault_legs: self.supervisor.latched_legs(latched),
             pending_bank: self
-                .pending_table
+                .tables
+                .pending
                 .map_or(0, |p| BootSource::from(p.report.bank).code()),
-            pending_table_id: self.pending_table.map_or(0, |p| p.table_id),
+            pending_table_id: self.tables.pending.map_or(0, |p| p.table_id),
             job: self.jobs.running_code(),
             selected_source: self
+                .tables
                 .selection_source
                 .map_or(crate::link::hk::NO_SELECTION, |s| s.code()),
             tm_dropped: self.tm.dropped(),
             tc_frames_dropped: 0,
             uart_overruns: 0,
-            cycle_overruns: self.overruns,
+            cycle_overruns: self.deadline.overruns,
             reset_cause: self.reset.cause.code(),
             boot_count: self.reset.boot_count,
-            bank_health: self.bank_health,
+            bank_health: self.tables.bank_health,
             pivot_nm: self.pivot_nm(),
             pose_fk_operator: WirePose::default(),
             pose_commanded_operator: WirePose::default(),
-            parameters_set: self.params.params().set_mask(),
+            parameters_set: self.settings.params.params().set_mask(),
             schedule: self.schedule_hk(),
-            limit_lower_legs: self.switches.lower,
-            limit_upper_legs: self.switches.upper,
-            reference_legs: self.switches.reference,
-            switch_unreadable_legs: self.switches.unreadable,
+            limit_lower_legs: self.travel.switches.lower,
+            limit_upper_legs: self.travel.switches.upper,
+            reference_legs: self.travel.switches.reference,
+            switch_unreadable_legs: self.travel.switches.unreadable,
         };
         HkSample {
             report,
-            pose_fk: self.pose_fk,
-            pose_commanded: self.pose_commanded,
-            strokes_commanded_mm: self.strokes_commanded_mm,
-            encoders_mm: self.encoders_mm,
-            pose_fk_operator: self.ops.frames.to_operator(&self.pose_fk),
-            pose_commanded_operator: self.ops.frames.to_operator(&self.pose_commanded),
+            pose_fk: self.estimate.pose,
+            pose_commanded: self.motion.pose,
+            strokes_commanded_mm: self.motion.strokes_mm,
+            encoders_mm: self.estimate.encoders_mm,
+            pose_fk_operator: self.settings.ops.frames.to_operator(&self.estimate.pose),
+            pose_commanded_operator: self.settings.ops.frames.to_operator(&self.motion.pose),
         }
     }
 
     /// The pivot (M's coordinates, nm), as set.
     fn pivot_nm(&self) -> [i32; 3] {
         let k = params::index::PIVOT;
-        [0, 1, 2].map(|i| self.params.params().value(k + i, &self.active.table))
+        [0, 1, 2].map(|i| {
+            self.settings
+                .params
+                .params()
+                .value(k + i, &self.tables.active.table)
+        })
     }
 
     /// The running geometry's check word ([`Geometry::check_word`]; the cycle
     /// benchmark measures it).
     pub fn geometry_check_word(&self) -> u32 {
-        self.active.geom.check_word()
+        self.tables.active.geom.check_word()
     }
 
     /// Control cycles since boot.
@@ -801,17 +759,17 @@ impl<M: MechanismIo> Controller<M> {
 
     /// The boot report (table source, bank status, selection).
     pub fn boot_report(&self) -> &BootReport {
-        &self.boot
+        &self.tables.boot
     }
 
     /// The running table.
     pub fn active_table(&self) -> &Table {
-        &self.active.table
+        &self.tables.active.table
     }
 
     /// The committed table waiting for activation.
     pub fn pending_table(&self) -> Option<PendingTable> {
-        self.pending_table
+        self.tables.pending
     }
 
     /// Latched faults.
@@ -821,12 +779,12 @@ impl<M: MechanismIo> Controller<M> {
 
     /// The strokes commanded to (or held by) the drives (mm).
     pub fn strokes_commanded_mm(&self) -> [f32; LEGS] {
-        self.strokes_commanded_mm
+        self.motion.strokes_mm
     }
 
     /// The end-of-travel switches and reference sensors as read in the last cycle.
     pub fn switches(&self) -> TravelSwitches {
-        self.switches
+        self.travel.switches
     }
 
     /// The mechanism (drives, encoders, switches) the controller owns.
@@ -844,21 +802,21 @@ impl<M: MechanismIo> Controller<M> {
     /// ([`params::InForce::upset`]), as a radiation upset would.
     #[cfg(feature = "host")]
     pub fn upset_parameters(&mut self, word: usize, bit: u32) {
-        self.params.upset(word, bit);
+        self.settings.params.upset(word, bit);
     }
 
     /// Test hook (host): flips bit `bit` of word `word` of the output stage's limits
     /// ([`crate::motion::OutputLimiter::upset`]).
     #[cfg(feature = "host")]
     pub fn upset_output_limits(&mut self, word: usize, bit: u32) {
-        self.limiter.upset(word, bit);
+        self.motion.limiter.upset(word, bit);
     }
 
     /// Test hook (host): flips bits of the derived settings (frames, limits), as a
     /// radiation upset would.
     #[cfg(feature = "host")]
     pub fn upset_ops(&mut self, f: impl FnOnce(&mut Ops)) {
-        f(&mut self.ops);
+        f(&mut self.settings.ops);
     }
 
     /// Test hook (host): flips RAM bits of the running table, its derived geometry or
@@ -869,34 +827,8 @@ impl<M: MechanismIo> Controller<M> {
         f: impl FnOnce(&mut ActiveTable, &mut crate::supervision::SupervisionConfig),
     ) {
         let mut cfg = *self.supervisor.config();
-        f(&mut self.active, &mut cfg);
+        f(&mut self.tables.active, &mut cfg);
         self.supervisor.set_config(cfg);
-    }
-}
-
-/// Bit of the lowest leg in the lower-switch byte of [`event::END_OF_TRAVEL`]'s aux0.
-const EOT_LOWER_SHIFT: u32 = 0;
-/// Bit of the lowest leg in the upper-switch byte.
-const EOT_UPPER_SHIFT: u32 = 8;
-/// Bit of the lowest leg in the unreadable-input byte.
-const EOT_UNREADABLE_SHIFT: u32 = 16;
-
-/// aux0 of [`event::END_OF_TRAVEL`]: legs at the lower switch (bits 0..5), at the upper
-/// switch (bits 8..13), with an unreadable input (bits 16..21); 0: none.
-fn end_of_travel_word(s: &TravelSwitches) -> u32 {
-    let legs = crate::supervision::ALL_LEGS;
-    (u32::from(s.lower & legs) << EOT_LOWER_SHIFT)
-        | (u32::from(s.upper & legs) << EOT_UPPER_SHIFT)
-        | (u32::from(s.unreadable & legs) << EOT_UNREADABLE_SHIFT)
-}
-
-/// Every input active (or unreadable) in either reading.
-fn or_switches(a: &TravelSwitches, b: &TravelSwitches) -> TravelSwitches {
-    TravelSwitches {
-        lower: a.lower | b.lower,
-        upper: a.upper | b.upper,
-        reference: a.reference | b.reference,
-        unreadable: a.unreadable | b.unreadable,
     }
 }
 

@@ -144,13 +144,13 @@ impl<M: MechanismIo> Controller<M> {
     /// Turns the current motion into a stop ramp; at rest, holds every drive where it is.
     pub(super) fn begin_stop(&mut self) {
         let now = self.cycle;
-        match &mut self.motion {
+        match &mut self.motion.now {
             // A fault latched at rest: the drives hold where their sliders are, as when
             // a stop comes to rest with a fault latched (a slider jammed short of its
             // setpoint must not complete its move when the jam frees). The next cycle's
             // supervision takes the held strokes as the reference.
             Motion::Hold => self.mech.hold(),
-            Motion::Planning(_) => self.plan_aborted = true,
+            Motion::Planning(_) => self.motion.plan_aborted = true,
             Motion::Path {
                 traj,
                 start_cycle,
@@ -178,14 +178,14 @@ impl<M: MechanismIo> Controller<M> {
     /// cannot be trusted to compute one). The move in progress, if any, ends with a
     /// completion failure.
     pub(super) fn hold_now(&mut self) {
-        let was_moving = !matches!(self.motion, Motion::Hold);
-        if let Motion::Planning(_) = self.motion {
-            self.plan_aborted = true;
+        let was_moving = !matches!(self.motion.now, Motion::Hold);
+        if let Motion::Planning(_) = self.motion.now {
+            self.motion.plan_aborted = true;
             self.step_planning();
         }
-        self.motion = Motion::Hold;
+        self.motion.now = Motion::Hold;
         self.hold_here();
-        self.moving_prev = false;
+        self.motion.moving_prev = false;
         if was_moving {
             self.end_pending_move(true);
         }
@@ -194,7 +194,7 @@ impl<M: MechanismIo> Controller<M> {
     /// Reports the end of the pending move: completion success, or failure with the
     /// stop or the fault that ended it.
     fn end_pending_move(&mut self, stopped: bool) {
-        if !matches!(self.tc_pending, Some(p) if p.is_motion()) {
+        if !matches!(self.ledger.pending, Some(p) if p.is_motion()) {
             return;
         }
         if stopped {
@@ -213,31 +213,31 @@ impl<M: MechanismIo> Controller<M> {
     /// Advances a move being planned: on completion it becomes the path (start success
     /// reported), on refusal or abort the sliders keep holding (start failure reported).
     fn step_planning(&mut self) {
-        if !matches!(self.motion, Motion::Planning(_)) {
+        if !matches!(self.motion.now, Motion::Planning(_)) {
             return;
         }
-        let result = if self.plan_aborted {
+        let result = if self.motion.plan_aborted {
             let latched = self.supervisor.latched();
             Some(Err(if latched.is_empty() {
                 CommandError::Stopped
             } else {
                 CommandError::AbortedByFault(latched)
             }))
-        } else if let Motion::Planning(planner) = &mut self.motion {
+        } else if let Motion::Planning(planner) = &mut self.motion.now {
             // Advanced where it is (not copied out and back: the control task's stack).
             planner
-                .advance(&self.active.geom, super::PLAN_SAMPLES_PER_CYCLE)
+                .advance(&self.tables.active.geom, super::PLAN_SAMPLES_PER_CYCLE)
                 .map(|r| r.map_err(CommandError::Motion))
         } else {
             None
         };
-        self.plan_aborted = false;
+        self.motion.plan_aborted = false;
         match result {
             None => {}
             Some(Ok(traj)) => {
-                self.refusal_bits = 0;
+                self.motion.refusal_bits = 0;
                 // The path starts in this very cycle (the motion step follows).
-                self.motion = Motion::Path {
+                self.motion.now = Motion::Path {
                     traj,
                     start_cycle: self.cycle,
                     stopping: false,
@@ -245,13 +245,13 @@ impl<M: MechanismIo> Controller<M> {
                 self.start_pending(Ok(()));
             }
             Some(Err(e)) => {
-                self.motion = Motion::Hold;
+                self.motion.now = Motion::Hold;
                 if let CommandError::Motion(_) = e {
-                    self.refusal_bits = e.data();
+                    self.motion.refusal_bits = e.data();
                     self.event(
                         EventSeverity::Low,
                         event::MOVE_REFUSED,
-                        [self.refusal_bits, u32::from(e.code())],
+                        [self.motion.refusal_bits, u32::from(e.code())],
                     );
                 }
                 self.start_pending(Err(e));
@@ -263,29 +263,29 @@ impl<M: MechanismIo> Controller<M> {
     pub(super) fn step_motion(&mut self) {
         self.step_planning();
         let now = self.cycle;
-        let (strokes, moving, done, stopping) = match self.motion {
-            Motion::Hold | Motion::Planning(_) => (self.strokes_commanded_mm, false, false, false),
+        let (strokes, moving, done, stopping) = match self.motion.now {
+            Motion::Hold | Motion::Planning(_) => (self.motion.strokes_mm, false, false, false),
             Motion::Path {
                 traj,
                 start_cycle,
                 stopping,
             } => {
                 let sp = traj.setpoint(now.wrapping_sub(start_cycle));
-                match ik(&self.active.geom, &sp.pose) {
+                match ik(&self.tables.active.geom, &sp.pose) {
                     Ok(s) => {
-                        self.pose_commanded = sp.pose;
+                        self.motion.pose = sp.pose;
                         (s, sp.moving, sp.done, stopping)
                     }
                     Err(_) => {
                         // Planned paths are checked along their length; should a
                         // setpoint still be refused, hold here and say so.
-                        let refusals = crate::kinematics::check(&self.active.geom, &sp.pose);
+                        let refusals = crate::kinematics::check(&self.tables.active.geom, &sp.pose);
                         self.event(
                             EventSeverity::High,
                             event::SETPOINT_REFUSED,
                             [refusals.to_bits(), now],
                         );
-                        (self.strokes_commanded_mm, false, true, true)
+                        (self.motion.strokes_mm, false, true, true)
                     }
                 }
             }
@@ -298,24 +298,26 @@ impl<M: MechanismIo> Controller<M> {
                 (sp.strokes_mm, sp.moving, sp.done, stopping)
             }
         };
-        if matches!(self.motion, Motion::Hold | Motion::Planning(_)) {
+        if matches!(self.motion.now, Motion::Hold | Motion::Planning(_)) {
             // Nothing is commanded at rest: poll the drives' health instead. The next
             // motion's end-of-travel clamp starts from its own first cycle's switches,
             // its output stage from where the drives hold, at rest.
-            self.last_drive = self.mech.status();
-            self.clamp_negative = 0;
-            self.clamp_positive = 0;
-            self.limiter.rest(self.strokes_commanded_mm);
+            self.motion.last_drive = self.mech.status();
+            self.travel.rest();
+            self.motion.limiter.rest(self.motion.strokes_mm);
         } else {
-            let kind = if matches!(self.motion, Motion::Stroke { .. }) {
+            let kind = if matches!(self.motion.now, Motion::Stroke { .. }) {
                 LimitKind::Direct
             } else {
                 LimitKind::Coordinated
             };
-            let limited = self.limiter.limit(kind, strokes);
-            let strokes = self.clamp_to_switches(limited.strokes_mm);
-            self.strokes_commanded_mm = strokes;
-            self.last_drive = self.mech.command_strokes_mm(&strokes);
+            let limited = self.motion.limiter.limit(kind, strokes);
+            // The end-of-travel clamp, on every command just before the drives.
+            let strokes = self
+                .travel
+                .clamp(limited.strokes_mm, &self.motion.strokes_mm);
+            self.motion.strokes_mm = strokes;
+            self.motion.last_drive = self.mech.command_strokes_mm(&strokes);
             if !limited.limits_ok {
                 // The output stage's own limits are upset: no command is trusted; the
                 // repair re-derives them.
@@ -327,10 +329,10 @@ impl<M: MechanismIo> Controller<M> {
                 return;
             }
         }
-        self.moving_prev = moving;
+        self.motion.moving_prev = moving;
         if done {
-            let was_stroke = matches!(self.motion, Motion::Stroke { .. });
-            self.motion = Motion::Hold;
+            let was_stroke = matches!(self.motion.now, Motion::Stroke { .. });
+            self.motion.now = Motion::Hold;
             if !self.supervisor.latched().is_empty() {
                 // Came to rest with a fault latched: the drives hold where their sliders
                 // are, so a jammed slider that frees later does not lurch to the stop
@@ -363,34 +365,8 @@ impl<M: MechanismIo> Controller<M> {
         self.hold_now();
     }
 
-    /// The end-of-travel clamp, applied to every stroke command just before it goes to
-    /// the drives: a leg whose switch blocks larger strokes (upper switch active, or an
-    /// input unreadable) is commanded no further up than its previous command, one
-    /// blocked toward smaller strokes no further down; blocked both ways, it keeps its
-    /// previous command. A block lasts from the cycle the switch is seen to the end of
-    /// the motion, so the command never jumps back to the path when a switch releases.
-    fn clamp_to_switches(&mut self, mut strokes: [f32; LEGS]) -> [f32; LEGS] {
-        self.clamp_negative |= self.switches.blocked_negative();
-        self.clamp_positive |= self.switches.blocked_positive();
-        for (i, (s, prev)) in strokes
-            .iter_mut()
-            .zip(self.strokes_commanded_mm.iter())
-            .enumerate()
-        {
-            let bit = 1u8 << i;
-            // `!(a <= b)` also catches NaN: the leg keeps its previous command.
-            if self.clamp_positive & bit != 0 && !(*s <= *prev) {
-                *s = *prev;
-            }
-            if self.clamp_negative & bit != 0 && !(*s >= *prev) {
-                *s = *prev;
-            }
-        }
-        strokes
-    }
-
     fn require_geometry(&self) -> Result<(), CommandError> {
-        if self.geometry_ok {
+        if self.tables.geometry_ok {
             Ok(())
         } else {
             Err(CommandError::NoGeometry)
@@ -422,11 +398,16 @@ impl<M: MechanismIo> Controller<M> {
     /// (FK of the held strokes, warm-started from the commanded pose).
     fn held_pose(&mut self) -> Result<Pose<f32>, CommandError> {
         let held = self.mech.setpoints_mm();
-        self.strokes_commanded_mm = held;
-        let sol = fk(&self.active.geom, &held, &self.pose_commanded, &self.fk_cfg)
-            .map_err(|_| CommandError::NoPose)?;
-        self.pose_commanded = sol.pose;
-        Ok(self.ops.frames.to_operator(&sol.pose))
+        self.motion.strokes_mm = held;
+        let sol = fk(
+            &self.tables.active.geom,
+            &held,
+            &self.motion.pose,
+            &self.estimate.cfg,
+        )
+        .map_err(|_| CommandError::NoPose)?;
+        self.motion.pose = sol.pose;
+        Ok(self.settings.ops.frames.to_operator(&sol.pose))
     }
 
     /// Starts a coordinated move to `target` (absolute pose in the operator's frames:
@@ -438,23 +419,23 @@ impl<M: MechanismIo> Controller<M> {
         // once with every reason); the path samples are evaluated over the next cycles.
         let start = self.held_pose()?;
         let begun = TrajectoryPlanner::begin_in(
-            &self.active.geom,
-            &self.ops.frames,
+            &self.tables.active.geom,
+            &self.settings.ops.frames,
             &start,
             &target,
-            &self.ops.motion,
+            &self.settings.ops.motion,
         )
         .map_err(|e| {
-            self.refusal_bits = CommandError::Motion(e).data();
+            self.motion.refusal_bits = CommandError::Motion(e).data();
             CommandError::Motion(e)
         })?;
-        self.refusal_bits = 0;
-        self.plan_aborted = false;
+        self.motion.refusal_bits = 0;
+        self.motion.plan_aborted = false;
         match begun {
             PlanStart::Ready(traj) => {
                 // Telecommands are handled between control cycles: `self.cycle` is
                 // already the index of the next one, where the path begins.
-                self.motion = Motion::Path {
+                self.motion.now = Motion::Path {
                     traj,
                     start_cycle: self.cycle,
                     stopping: false,
@@ -462,7 +443,7 @@ impl<M: MechanismIo> Controller<M> {
                 Ok(Outcome::Started)
             }
             PlanStart::Sampling(planner) => {
-                self.motion = Motion::Planning(planner);
+                self.motion.now = Motion::Planning(planner);
                 Ok(Outcome::Planning)
             }
         }
@@ -480,27 +461,27 @@ impl<M: MechanismIo> Controller<M> {
         ack: AckFlags,
         target: Pose<f32>,
     ) {
-        self.move_check = Some(MoveCheckJob {
+        self.motion.check = Some(MoveCheckJob {
             request_id,
             ack,
             target,
             state_code: self.require_can_move().err().map_or(0, |e| e.code()),
-            geom: self.active.geom,
-            frames: self.ops.frames,
-            motion: self.ops.motion,
-            fk_cfg: self.fk_cfg,
+            geom: self.tables.active.geom,
+            frames: self.settings.ops.frames,
+            motion: self.settings.ops.motion,
+            fk_cfg: self.estimate.cfg,
             held_mm: self.mech.setpoints_mm(),
-            pose_commanded: self.pose_commanded,
+            pose_commanded: self.motion.pose,
         });
     }
 
     /// Moves the move check waiting for evaluation (if any) into `slot` (the link
     /// service's; copied once, not via the stack). Returns whether there was one.
     pub fn take_move_check(&mut self, slot: &mut Option<MoveCheckJob>) -> bool {
-        match &self.move_check {
+        match &self.motion.check {
             Some(job) => {
                 *slot = Some(*job);
-                self.move_check = None;
+                self.motion.check = None;
                 true
             }
             None => false,
@@ -558,9 +539,9 @@ impl<M: MechanismIo> Controller<M> {
                 why |= bit;
             }
         }
-        if !self.encoders_valid {
+        if !self.estimate.encoders_valid {
             why |= suspect::NO_READING;
-        } else if let Some(m) = self.encoders_mm.get(idx) {
+        } else if let Some(m) = self.estimate.encoders_mm.get(idx) {
             let threshold = self.supervisor.config().following_fault_mm;
             if !((m - held_mm).abs() <= threshold) {
                 why |= suspect::DISAGREES;
@@ -580,7 +561,7 @@ impl<M: MechanismIo> Controller<M> {
         // Recovery works while faulted (that is what it is for), not while moving.
         self.require_geometry()?;
         self.require_idle()?;
-        let Some(stroke) = self.active.geom.stroke else {
+        let Some(stroke) = self.tables.active.geom.stroke else {
             return Err(CommandError::NoGeometry);
         };
         let idx = leg.wrapping_sub(1);
@@ -606,7 +587,7 @@ impl<M: MechanismIo> Controller<M> {
         if toward & leg_bit != 0 {
             return Err(CommandError::TowardEndOfTravel(toward));
         }
-        let (speed, accel, delta) = self.ops.direct;
+        let (speed, accel, delta) = self.settings.ops.direct;
         let limits = DirectStrokeLimits {
             max_speed_mm_per_s: speed,
             max_accel_mm_per_s2: accel,
@@ -615,9 +596,9 @@ impl<M: MechanismIo> Controller<M> {
             stroke_max_mm: stroke.max_mm,
         };
         let mv = StrokeMove::plan(&held, idx, delta_mm, &limits).map_err(CommandError::Stroke)?;
-        self.strokes_commanded_mm = held;
+        self.motion.strokes_mm = held;
         // The move begins in the next control cycle, whose index `self.cycle` already is.
-        self.motion = Motion::Stroke {
+        self.motion.now = Motion::Stroke {
             mv,
             start_cycle: self.cycle,
             stopping: false,

@@ -65,7 +65,7 @@ impl<M: MechanismIo> Controller<M> {
     /// Queues a verification report; a failure is also remembered for housekeeping.
     pub(super) fn verify(&mut self, request_id: RequestId, report: Verification) {
         if let Some((code, _)) = report.failure() {
-            self.last_failure_code = code;
+            self.ledger.last_failure_code = code;
         }
         self.tm
             .push(self.cycle, TmRecord::Verification { request_id, report });
@@ -76,7 +76,7 @@ impl<M: MechanismIo> Controller<M> {
     /// The start report of the pending telecommand: success (if asked for) or failure
     /// (which ends it).
     pub(super) fn start_pending(&mut self, result: Result<(), CommandError>) {
-        let Some(mut p) = self.tc_pending else {
+        let Some(mut p) = self.ledger.pending else {
             return;
         };
         match result {
@@ -85,10 +85,10 @@ impl<M: MechanismIo> Controller<M> {
                     self.verify(p.request_id, Verification::StartSuccess);
                 }
                 p.started = true;
-                self.tc_pending = Some(p);
+                self.ledger.pending = Some(p);
             }
             Err(e) => {
-                self.tc_pending = None;
+                self.ledger.pending = None;
                 self.verify(
                     p.request_id,
                     Verification::StartFailure {
@@ -102,7 +102,7 @@ impl<M: MechanismIo> Controller<M> {
 
     /// The completion report of the pending telecommand (which ends it).
     pub(super) fn complete_pending(&mut self, result: Result<(), CommandError>) {
-        let Some(p) = self.tc_pending.take() else {
+        let Some(p) = self.ledger.pending.take() else {
             return;
         };
         match result {
