@@ -6,6 +6,11 @@
 //! * Cursors: [`Reader`] and [`Writer`] over byte slices, big-endian (the PUS fields)
 //!   or little-endian (the parameter table), checked: a read past the end is `None`, a
 //!   write past the end is `None`, nothing panics.
+//! * Layouts: a [`Field`] is a named byte range (smoltcp's `mod field`); every fixed
+//!   layout (housekeeping, flash records, the table image) declares its fields once as
+//!   `const`s built with [`field`] and [`after`], and reads and writes them through
+//!   [`Fields`] and [`FieldsMut`] (checked: a field past the end or of the wrong width
+//!   is `None`). The mission database and the ICD read the same constants.
 
 use super::command::WirePose;
 use crate::kinematics::{Pose, LEGS};
@@ -294,6 +299,148 @@ impl<'a> Writer<'a> {
     }
 }
 
+/// A field of a layout: its byte range.
+pub type Field = core::ops::Range<usize>;
+
+/// The field of `len` bytes at `start`.
+pub const fn field(start: usize, len: usize) -> Field {
+    start..start + len
+}
+
+/// The field of `len` bytes just after `prev` (layouts declared end to end).
+pub const fn after(prev: &Field, len: usize) -> Field {
+    prev.end..prev.end + len
+}
+
+/// Checked reads of named fields over bytes.
+#[derive(Clone, Copy, Debug)]
+pub struct Fields<'a> {
+    buf: &'a [u8],
+    order: Order,
+}
+
+/// The bytes of `f` in `buf` if they are exactly `N`.
+fn exact<const N: usize>(buf: &[u8], f: Field) -> Option<&[u8]> {
+    buf.get(f).filter(|b| b.len() == N)
+}
+
+impl<'a> Fields<'a> {
+    /// Over `buf`, multi-byte fields in `order`.
+    pub const fn new(buf: &'a [u8], order: Order) -> Self {
+        Self { buf, order }
+    }
+
+    /// The bytes of `f`.
+    pub fn bytes(&self, f: Field) -> Option<&'a [u8]> {
+        self.buf.get(f)
+    }
+
+    /// A reader over `f` (a field holding an array or a nested layout).
+    pub fn reader(&self, f: Field) -> Option<Reader<'a>> {
+        Some(Reader::new(self.bytes(f)?, self.order))
+    }
+
+    /// A one-byte field.
+    pub fn u8(&self, f: Field) -> Option<u8> {
+        Reader::new(exact::<1>(self.buf, f)?, self.order).u8()
+    }
+
+    /// A two-byte field.
+    pub fn u16(&self, f: Field) -> Option<u16> {
+        Reader::new(exact::<2>(self.buf, f)?, self.order).u16()
+    }
+
+    /// A four-byte unsigned field.
+    pub fn u32(&self, f: Field) -> Option<u32> {
+        Reader::new(exact::<4>(self.buf, f)?, self.order).u32()
+    }
+
+    /// A four-byte signed field.
+    pub fn i32(&self, f: Field) -> Option<i32> {
+        Reader::new(exact::<4>(self.buf, f)?, self.order).i32()
+    }
+
+    /// A four-byte IEEE-754 field.
+    pub fn f32(&self, f: Field) -> Option<f32> {
+        Reader::new(exact::<4>(self.buf, f)?, self.order).f32()
+    }
+
+    /// An eight-byte IEEE-754 field.
+    pub fn f64(&self, f: Field) -> Option<f64> {
+        Reader::new(exact::<8>(self.buf, f)?, self.order).f64()
+    }
+}
+
+/// Checked writes of named fields over bytes.
+#[derive(Debug)]
+pub struct FieldsMut<'a> {
+    buf: &'a mut [u8],
+    order: Order,
+}
+
+impl<'a> FieldsMut<'a> {
+    /// Over `buf`, multi-byte fields in `order`.
+    pub fn new(buf: &'a mut [u8], order: Order) -> Self {
+        Self { buf, order }
+    }
+
+    /// A writer over `f` (a field holding an array or a nested layout).
+    pub fn writer(&mut self, f: Field) -> Option<Writer<'_>> {
+        Some(Writer::new(self.buf.get_mut(f)?, self.order))
+    }
+
+    /// Writes `bytes` into `f` (exactly its width).
+    pub fn set_bytes(&mut self, f: Field, bytes: &[u8]) -> Option<()> {
+        let dst = self.buf.get_mut(f)?;
+        if dst.len() != bytes.len() {
+            return None;
+        }
+        copy_prefix(dst, bytes)
+    }
+
+    /// A one-byte field.
+    pub fn set_u8(&mut self, f: Field, v: u8) -> Option<()> {
+        self.set_bytes(f, &[v])
+    }
+
+    /// A two-byte field.
+    pub fn set_u16(&mut self, f: Field, v: u16) -> Option<()> {
+        let b = match self.order {
+            Order::Big => v.to_be_bytes(),
+            Order::Little => v.to_le_bytes(),
+        };
+        self.set_bytes(f, &b)
+    }
+
+    /// A four-byte unsigned field.
+    pub fn set_u32(&mut self, f: Field, v: u32) -> Option<()> {
+        let b = match self.order {
+            Order::Big => v.to_be_bytes(),
+            Order::Little => v.to_le_bytes(),
+        };
+        self.set_bytes(f, &b)
+    }
+
+    /// A four-byte signed field.
+    pub fn set_i32(&mut self, f: Field, v: i32) -> Option<()> {
+        self.set_u32(f, v as u32)
+    }
+
+    /// A four-byte IEEE-754 field.
+    pub fn set_f32(&mut self, f: Field, v: f32) -> Option<()> {
+        self.set_u32(f, v.to_bits())
+    }
+
+    /// An eight-byte IEEE-754 field.
+    pub fn set_f64(&mut self, f: Field, v: f64) -> Option<()> {
+        let b = match self.order {
+            Order::Big => v.to_bits().to_be_bytes(),
+            Order::Little => v.to_bits().to_le_bytes(),
+        };
+        self.set_bytes(f, &b)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -323,5 +470,28 @@ mod tests {
         assert_eq!(mm_to_nm_f32(0.0015), 1500);
         assert_eq!(mm_to_nm_f32(-0.0015), -1500);
         assert_eq!(mm_to_nm_f32(f32::NAN), 0);
+    }
+
+    #[test]
+    fn named_fields_are_checked_for_bounds_and_width() {
+        const A: Field = field(0, 2);
+        const B: Field = after(&A, 4);
+        const C: Field = after(&B, 8);
+        assert_eq!((B.clone(), C.clone()), (2..6, 6..14));
+        let mut buf = [0u8; 14];
+        let mut w = FieldsMut::new(&mut buf, Order::Big);
+        assert_eq!(w.set_u16(A, 0x0102), Some(()));
+        assert_eq!(w.set_i32(B, -2), Some(()));
+        assert_eq!(w.set_f64(C, 1.5), Some(()));
+        assert_eq!(w.set_u32(A, 7), None, "wrong width: nothing written");
+        assert_eq!(w.set_u16(13..15, 7), None, "past the end");
+        let r = Fields::new(&buf, Order::Big);
+        assert_eq!(r.u16(A), Some(0x0102));
+        assert_eq!(r.i32(B), Some(-2));
+        assert_eq!(r.f64(C), Some(1.5));
+        assert_eq!(r.u32(A), None);
+        assert_eq!(&buf[..6], &[1, 2, 0xff, 0xff, 0xff, 0xfe]);
+        let r = Fields::new(&buf, Order::Little);
+        assert_eq!(r.u16(A), Some(0x0201));
     }
 }
