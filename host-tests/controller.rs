@@ -596,7 +596,7 @@ fn a_move_check_is_evaluated_outside_the_telecommands_lock_body() {
     let mut slot = None;
     r.ctl.take_move_check(&mut slot);
     let job = slot.expect("the check waits for its evaluation");
-    assert_eq!(job.request_id(), rid);
+    assert_eq!(job.token().request_id(), rid);
     let outside = job.evaluate();
     // The same check through the link service (received, evaluated, reported).
     let rid2 = r.send(&Command::CheckMove(target));

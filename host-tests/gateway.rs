@@ -369,6 +369,17 @@ fn the_gateway_on_sockets_forwards_both_ways_and_sets_the_time_correlation() {
     let j: serde_json::Value = serde_json::from_str(body).unwrap();
     assert_eq!(j["obt"], "0");
 
+    // The TC thread counts a packet after its write returns, and the correlation after
+    // Yamcs' answer is read, which on a busy machine can be after the other side has
+    // seen them: wait for the counts, do not assume them.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while (stats.tc_packets.load(Ordering::Relaxed) < tcs.len() as u64
+        || stats.tco_updates.load(Ordering::Relaxed) < 1)
+        && Instant::now() < deadline
+    {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+
     // The controller's stream ends: the gateway stops.
     drop(qemu);
     let r = gw.join().unwrap();

@@ -604,8 +604,8 @@ fn lock_bodies(r: &mut Rig, target: &WirePose) -> bool {
     ok &= slot.is_some();
     if let Some(job) = &slot {
         let check = job.evaluate();
-        let (rid, ack) = (job.request_id(), job.ack());
-        r.lock_section("check_report", |c| c.finish_move_check(rid, ack, check));
+        let token = job.token();
+        r.lock_section("check_report", |c| c.finish_move_check(token, check));
     }
     // What a per-cycle check of the running geometry would cost (issue 19: the
     // flight image re-derives it in the 1 s scrub instead).

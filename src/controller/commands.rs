@@ -4,7 +4,7 @@
 use super::error::CommandError;
 use super::jobs::{JobKind, JobRequest};
 use super::telemetry::DumpChunk;
-use super::verification::{Outcome, PendingKind, PendingTc};
+use super::verification::{Accepted, Outcome, PendingKind, PendingTc, Token};
 use super::{event, Controller, TmRecord};
 use crate::hw::MechanismIo;
 use crate::link::command::TABLE_CHUNK_MAX_LEN;
@@ -32,11 +32,9 @@ impl<M: MechanismIo> Controller<M> {
     pub fn execute_telecommand(&mut self, tc: &Telecommand) {
         self.settle_move_check();
         self.ledger.accepted = self.ledger.accepted.wrapping_add(1);
-        if tc.ack.acceptance() {
-            self.verify(tc.request_id, Verification::AcceptanceSuccess);
-        }
-        let result = self.execute(tc);
-        self.report_outcome(tc, result);
+        let token = self.accept(tc.request_id, tc.ack);
+        let result = self.execute(tc, token);
+        self.report_outcome(tc, token, result);
         self.publish_state();
     }
 
@@ -48,55 +46,35 @@ impl<M: MechanismIo> Controller<M> {
         }
     }
 
-    fn report_outcome(&mut self, tc: &Telecommand, result: Result<Outcome, CommandError>) {
-        let rid = tc.request_id;
+    /// The reports an execution's outcome calls for now; a long-running telecommand
+    /// becomes the pending one ([`PendingTc`]), reported as it goes on.
+    fn report_outcome(
+        &mut self,
+        tc: &Telecommand,
+        token: Token<Accepted>,
+        result: Result<Outcome, CommandError>,
+    ) {
         match result {
-            Ok(Outcome::Done) => {
-                if tc.ack.start() {
-                    self.verify(rid, Verification::StartSuccess);
-                }
-                if tc.ack.completion() {
-                    self.verify(rid, Verification::CompletionSuccess);
-                }
-            }
+            Ok(Outcome::Done) => self.done(token),
             // Start and completion follow the check's report (`finish_move_check`).
             Ok(Outcome::CheckQueued) => {}
+            // Start success or failure is reported when the plan is done. A newer
+            // long-running TC cannot start while one is pending (busy), so no report is
+            // lost here or below.
             Ok(Outcome::Planning) => {
-                // Start success or failure is reported when the plan is done.
-                self.ledger.pending = Some(PendingTc {
-                    request_id: rid,
-                    ack: tc.ack,
-                    kind: PendingKind::Motion,
-                    started: false,
-                });
+                self.ledger.pending = Some(PendingTc::Accepted(token, PendingKind::Motion))
             }
-            Ok(Outcome::Started) | Ok(Outcome::JobStarted) => {
-                if tc.ack.start() {
-                    self.verify(rid, Verification::StartSuccess);
-                }
-                let kind = if matches!(result, Ok(Outcome::Started)) {
-                    PendingKind::Motion
-                } else {
-                    PendingKind::Job
-                };
-                // A newer long-running TC cannot start while one is pending (busy), so
-                // no report is lost here.
-                self.ledger.pending = Some(PendingTc {
-                    request_id: rid,
-                    ack: tc.ack,
-                    kind,
-                    started: true,
-                });
+            Ok(Outcome::Started) => {
+                let started = self.start_success(token);
+                self.ledger.pending = Some(PendingTc::Started(started, PendingKind::Motion));
+            }
+            Ok(Outcome::JobStarted) => {
+                let started = self.start_success(token);
+                self.ledger.pending = Some(PendingTc::Started(started, PendingKind::Job));
             }
             Err(e) => {
                 self.refusal_event(&tc.command, &e);
-                self.verify(
-                    rid,
-                    Verification::StartFailure {
-                        code: e.code(),
-                        data: e.data(),
-                    },
-                );
+                self.start_failure(token, &e);
             }
         }
     }
@@ -139,7 +117,11 @@ impl<M: MechanismIo> Controller<M> {
     /// the caller's frame and an arm's locals (a table, a job request) are each on the
     /// stack once, never merged with the move planner's frame.
     #[inline(never)]
-    fn execute(&mut self, tc: &Telecommand) -> Result<Outcome, CommandError> {
+    fn execute(
+        &mut self,
+        tc: &Telecommand,
+        token: Token<Accepted>,
+    ) -> Result<Outcome, CommandError> {
         match tc.command {
             Command::Ping => {
                 self.tm.push(self.cycle, TmRecord::PingReply);
@@ -151,7 +133,7 @@ impl<M: MechanismIo> Controller<M> {
             }
             Command::MoveAbsolute(target) => self.start_move(target.to_pose()),
             Command::CheckMove(target) => {
-                self.queue_move_check(tc.request_id, tc.ack, target.to_pose());
+                self.queue_move_check(token, target.to_pose());
                 Ok(Outcome::CheckQueued)
             }
             Command::ReportParameters(ids) => {

@@ -227,8 +227,8 @@ impl LinkService {
         }
         if let Some(job) = &self.move_check {
             let check = job.evaluate();
-            let (request_id, ack) = (job.request_id(), job.ack());
-            ctl.lock(|c| c.finish_move_check(request_id, ack, check));
+            let token = job.token();
+            ctl.lock(|c| c.finish_move_check(token, check));
         }
         self.move_check = None;
     }

@@ -86,6 +86,7 @@ pub use crate::hw::{ResetCause, ResetInfo};
 pub use jobs::{JobRequest, JobResult};
 pub use params::Parameters;
 pub use telemetry::{HkSample, Stamped, TmConsumer, TmProducer, TmQueue, TmRecord};
+pub use verification::{Accepted, Started, Token};
 
 /// Event IDs of service 5 (the ICD's table; aux words in the link's `event_id` docs).
 pub use crate::link::tm::event_id as event;

@@ -2,14 +2,13 @@
 //! stops, and the start/completion reports of the move telecommand.
 
 use super::error::{suspect, CommandError};
-use super::verification::Outcome;
+use super::verification::{Accepted, Outcome, Token};
 use super::TmRecord;
 use super::{event, Controller, State};
 use crate::hw::MechanismIo;
 use crate::kinematics::{fk, ik, FkConfig, Frames, Geometry, Pose, LEGS};
-use crate::link::tc::{AckFlags, RequestId};
+
 use crate::link::tm::EventSeverity;
-use crate::link::tm::Verification;
 use crate::motion::{
     DirectStrokeLimits, PlanStart, StrokeMove, Trajectory, TrajectoryPlanner, PATH_SAMPLE_INTERVALS,
 };
@@ -49,8 +48,8 @@ pub use crate::link::tm::MoveCheckReport as MoveCheck;
 /// control task, by more than a control cycle's budget.
 #[derive(Clone, Copy, Debug)]
 pub struct MoveCheckJob {
-    request_id: RequestId,
-    ack: AckFlags,
+    /// The check's telecommand, accepted.
+    token: Token<Accepted>,
     /// Target pose (operator frames: mm, rad).
     target: Pose<f32>,
     /// Why a move could not start now (0: it could).
@@ -66,14 +65,9 @@ pub struct MoveCheckJob {
 }
 
 impl MoveCheckJob {
-    /// The request the check answers.
-    pub fn request_id(&self) -> RequestId {
-        self.request_id
-    }
-
-    /// The telecommand's acknowledgement flags.
-    pub fn ack(&self) -> AckFlags {
-        self.ack
+    /// The check's telecommand (its start and completion follow the check's report).
+    pub fn token(&self) -> Token<Accepted> {
+        self.token
     }
 
     /// Every reason a move to the target would be refused: the state (fault, motion,
@@ -455,15 +449,9 @@ impl<M: MechanismIo> Controller<M> {
     /// direct caller left uncollected was evaluated when this telecommand arrived:
     /// [`Controller::handle_telecommand`].)
     #[inline(never)]
-    pub(super) fn queue_move_check(
-        &mut self,
-        request_id: RequestId,
-        ack: AckFlags,
-        target: Pose<f32>,
-    ) {
+    pub(super) fn queue_move_check(&mut self, token: Token<Accepted>, target: Pose<f32>) {
         self.motion.check = Some(MoveCheckJob {
-            request_id,
-            ack,
+            token,
             target,
             state_code: self.require_can_move().err().map_or(0, |e| e.code()),
             geom: self.tables.active.geom,
@@ -490,15 +478,11 @@ impl<M: MechanismIo> Controller<M> {
 
     /// Reports an evaluated move check: TM[8,130], then start and completion success as
     /// its telecommand asked.
-    pub fn finish_move_check(&mut self, request_id: RequestId, ack: AckFlags, check: MoveCheck) {
+    pub fn finish_move_check(&mut self, token: Token<Accepted>, check: MoveCheck) {
+        let request_id = token.request_id();
         self.tm
             .push(self.cycle, TmRecord::MoveCheck { request_id, check });
-        if ack.start() {
-            self.verify(request_id, Verification::StartSuccess);
-        }
-        if ack.completion() {
-            self.verify(request_id, Verification::CompletionSuccess);
-        }
+        self.done(token);
     }
 
     /// Evaluates and reports the waiting move check here (a caller without a link
@@ -509,7 +493,7 @@ impl<M: MechanismIo> Controller<M> {
         self.take_move_check(&mut slot);
         if let Some(job) = &slot {
             let check = job.evaluate();
-            self.finish_move_check(job.request_id, job.ack, check);
+            self.finish_move_check(job.token, check);
         }
     }
 

@@ -421,7 +421,7 @@ impl<M: MechanismIo> Controller<M> {
     /// on a released long-running telecommand that completed without a report.
     pub fn link_pass_start(&mut self) {
         self.time_report_due();
-        let pending = self.ledger.pending.map(|p| p.request_id);
+        let pending = self.ledger.pending.map(|p| p.request_id());
         if self.schedule.watched.is_some() && self.schedule.watched != pending {
             self.schedule.watched = None;
         }
@@ -456,7 +456,7 @@ impl<M: MechanismIo> Controller<M> {
             Err(rejection) => self.refuse_telecommand(rejection),
         }
         self.schedule.executing = None;
-        if self.ledger.pending.map(|p| p.request_id) == Some(a.request_id) {
+        if self.ledger.pending.map(|p| p.request_id()) == Some(a.request_id) {
             self.schedule.watched = Some(a.request_id);
         }
     }

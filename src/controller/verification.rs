@@ -14,6 +14,8 @@
 //! when the background worker has finished. At most one such telecommand is pending at a
 //! time: another one is refused while it runs (busy, 0x0702, or job busy, 0x070D).
 
+use core::marker::PhantomData;
+
 use super::error::CommandError;
 use super::{Controller, TmRecord};
 use crate::hw::MechanismIo;
@@ -36,6 +38,44 @@ pub(super) enum Outcome {
     CheckQueued,
 }
 
+/// Typestate of a [`Token`]: the telecommand was accepted (its acceptance reported if
+/// asked); its start is still to be reported.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Accepted;
+
+/// Typestate of a [`Token`]: the telecommand started (its start reported if asked); its
+/// completion is still to be reported.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Started;
+
+/// A telecommand's verification token (sat-rs' model): the request and what its
+/// acknowledgement flags ask, in the stage `S` its reports have reached. Made only by
+/// [`Controller::accept`]; a start report needs a `Token<Accepted>` and gives a
+/// `Token<Started>`, a completion report needs a `Token<Started>`, so no report can be
+/// sent out of order, and the rule "success only if the flags ask for it, failure
+/// always" is written once, here.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Token<S> {
+    request_id: RequestId,
+    ack: AckFlags,
+    _stage: PhantomData<S>,
+}
+
+impl<S> Token<S> {
+    /// The request the token verifies.
+    pub fn request_id(&self) -> RequestId {
+        self.request_id
+    }
+
+    fn into_stage<T>(self) -> Token<T> {
+        Token {
+            request_id: self.request_id,
+            ack: self.ack,
+            _stage: PhantomData,
+        }
+    }
+}
+
 /// What kind of long-running telecommand is pending.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum PendingKind {
@@ -47,17 +87,26 @@ pub(super) enum PendingKind {
 
 /// A telecommand whose start or completion report is still to come.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct PendingTc {
-    pub request_id: RequestId,
-    pub ack: AckFlags,
-    pub kind: PendingKind,
-    /// Its start has been reported.
-    pub started: bool,
+pub(super) enum PendingTc {
+    /// Accepted, not started (a move being planned).
+    Accepted(Token<Accepted>, PendingKind),
+    /// Started, not complete.
+    Started(Token<Started>, PendingKind),
 }
 
 impl PendingTc {
+    /// The pending telecommand is a motion.
     pub fn is_motion(&self) -> bool {
-        self.kind == PendingKind::Motion
+        let (Self::Accepted(_, kind) | Self::Started(_, kind)) = self;
+        *kind == PendingKind::Motion
+    }
+
+    /// Its request.
+    pub fn request_id(&self) -> RequestId {
+        match self {
+            Self::Accepted(t, _) => t.request_id(),
+            Self::Started(t, _) => t.request_id(),
+        }
     }
 }
 
@@ -73,51 +122,96 @@ impl<M: MechanismIo> Controller<M> {
         self.note_scheduled_report(request_id, &report);
     }
 
-    /// The start report of the pending telecommand: success (if asked for) or failure
-    /// (which ends it).
+    /// Acceptance of a decoded telecommand: TM[1,1] if its flags ask.
+    pub(super) fn accept(&mut self, request_id: RequestId, ack: AckFlags) -> Token<Accepted> {
+        if ack.acceptance() {
+            self.verify(request_id, Verification::AcceptanceSuccess);
+        }
+        Token {
+            request_id,
+            ack,
+            _stage: PhantomData,
+        }
+    }
+
+    /// Start success: TM[1,3] if the flags ask.
+    pub(super) fn start_success(&mut self, t: Token<Accepted>) -> Token<Started> {
+        if t.ack.start() {
+            self.verify(t.request_id, Verification::StartSuccess);
+        }
+        t.into_stage()
+    }
+
+    /// Start failure: TM[1,4], always.
+    pub(super) fn start_failure(&mut self, t: Token<Accepted>, e: &CommandError) {
+        self.verify(
+            t.request_id,
+            Verification::StartFailure {
+                code: e.code(),
+                data: e.data(),
+            },
+        );
+    }
+
+    /// Completion success: TM[1,7] if the flags ask.
+    pub(super) fn completion_success(&mut self, t: Token<Started>) {
+        if t.ack.completion() {
+            self.verify(t.request_id, Verification::CompletionSuccess);
+        }
+    }
+
+    /// Completion failure: TM[1,8], always.
+    pub(super) fn completion_failure(&mut self, t: Token<Started>, e: &CommandError) {
+        self.verify(
+            t.request_id,
+            Verification::CompletionFailure {
+                code: e.code(),
+                data: e.data(),
+            },
+        );
+    }
+
+    /// Start and completion of a telecommand executed at once.
+    pub(super) fn done(&mut self, t: Token<Accepted>) {
+        let started = self.start_success(t);
+        self.completion_success(started);
+    }
+
+    /// The start report of the pending telecommand, if it has not started: success
+    /// (it stays pending, started) or failure (which ends it).
     pub(super) fn start_pending(&mut self, result: Result<(), CommandError>) {
-        let Some(mut p) = self.ledger.pending else {
+        let Some(PendingTc::Accepted(t, kind)) = self.ledger.pending else {
             return;
         };
         match result {
             Ok(()) => {
-                if p.ack.start() {
-                    self.verify(p.request_id, Verification::StartSuccess);
-                }
-                p.started = true;
-                self.ledger.pending = Some(p);
+                let started = self.start_success(t);
+                self.ledger.pending = Some(PendingTc::Started(started, kind));
             }
             Err(e) => {
                 self.ledger.pending = None;
-                self.verify(
-                    p.request_id,
-                    Verification::StartFailure {
-                        code: e.code(),
-                        data: e.data(),
-                    },
-                );
+                self.start_failure(t, &e);
             }
         }
     }
 
-    /// The completion report of the pending telecommand (which ends it).
+    /// The last report of the pending telecommand (which ends it): its completion, or,
+    /// if it had not started, its start failure (a success ends it as started and
+    /// complete).
     pub(super) fn complete_pending(&mut self, result: Result<(), CommandError>) {
         let Some(p) = self.ledger.pending.take() else {
             return;
         };
+        let t = match p {
+            PendingTc::Started(t, _) => t,
+            PendingTc::Accepted(t, _) => match &result {
+                Ok(()) => self.start_success(t),
+                Err(e) => return self.start_failure(t, e),
+            },
+        };
         match result {
-            Ok(()) => {
-                if p.ack.completion() {
-                    self.verify(p.request_id, Verification::CompletionSuccess);
-                }
-            }
-            Err(e) => self.verify(
-                p.request_id,
-                Verification::CompletionFailure {
-                    code: e.code(),
-                    data: e.data(),
-                },
-            ),
+            Ok(()) => self.completion_success(t),
+            Err(e) => self.completion_failure(t, &e),
         }
     }
 }
