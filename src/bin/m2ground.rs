@@ -62,6 +62,9 @@ enum Cmd {
     TrackerPlan(TrackerPlanCli),
     /// Tracker path: the paper's prototype experiment reproduced and explained.
     PaperExperiment(PaperExperimentCli),
+    /// Tracker path: calibrate's defaults on unknown spreads and noise, planted gross
+    /// errors, clean draws never refused.
+    TrackerDefaults(TrackerDefaultsCli),
     /// Encode telecommands (framed PUS-C packets, docs/icd.md) as hex lines or binary.
     Tc(TcCli),
     /// The whole mission story on the simulated plant: move, calibrate, upload, move again.
@@ -563,6 +566,27 @@ struct TrackerPlanCli {
 }
 
 #[derive(clap::Args)]
+struct TrackerDefaultsCli {
+    #[command(flatten)]
+    tracker: TrackerCli,
+    /// True joint spreads (mm, Gaussian, truncated at 3 sigma).
+    #[arg(long, value_delimiter = ',', default_values_t = m2ctl::ground::tracker::robust::DEFAULT_SPREADS)]
+    spreads: Vec<f64>,
+    /// Tracker noise scales (the --tracker preset times each).
+    #[arg(long, value_delimiter = ',', default_values_t = m2ctl::ground::tracker::robust::DEFAULT_SCALES)]
+    scales: Vec<f64>,
+    /// Campaigns per (spread, scale) cell.
+    #[arg(long, default_value_t = m2ctl::ground::tracker::robust::DEFAULT_CELL_CAMPAIGNS)]
+    campaigns: usize,
+    /// Campaigns per planted gross error (0: none).
+    #[arg(long, default_value_t = m2ctl::ground::tracker::robust::DEFAULT_GROSS_CAMPAIGNS)]
+    gross_campaigns: usize,
+    /// Clean campaigns that must not be refused (0: none).
+    #[arg(long, default_value_t = m2ctl::ground::tracker::robust::DEFAULT_CLEAN_DRAWS)]
+    clean_draws: usize,
+}
+
+#[derive(clap::Args)]
 struct PaperExperimentCli {
     #[command(flatten)]
     study: StudyCli,
@@ -758,6 +782,28 @@ fn calibrate_cmd(a: &CalibrateCli) -> Result<(), String> {
     std::fs::write(&a.out, text).map_err(|e| format!("{}: {e}", a.out.display()))?;
     print!("{summary}");
     println!("wrote {}", a.out.display());
+    Ok(())
+}
+
+fn tracker_defaults_cmd(a: &TrackerDefaultsCli) -> Result<(), String> {
+    use m2ctl::ground::tracker::robust::{robust_study, RobustConfig};
+    if a.spreads.iter().chain(a.scales.iter()).any(|v| !(v.is_finite() && *v > 0.0)) {
+        return Err("--spreads and --scales must be positive numbers".into());
+    }
+    let base = m2ctl::ground::tracker::study::StudyConfig {
+        setup: a.tracker.setup()?,
+        ..Default::default()
+    };
+    let cfg = RobustConfig {
+        spreads: a.spreads.clone(),
+        scales: a.scales.clone(),
+        campaigns: a.campaigns,
+        gross_campaigns: a.gross_campaigns,
+        clean_draws: a.clean_draws,
+        ..RobustConfig::new(base)
+    };
+    let text = robust_study(&cfg, &mut |row| eprintln!("{row}"))?;
+    print!("{text}");
     Ok(())
 }
 
@@ -1020,6 +1066,7 @@ fn main() -> ExitCode {
             Cmd::TrackerStats(a) => tracker_stats_cmd(a),
             Cmd::TrackerPlan(a) => tracker_plan_cmd(a),
             Cmd::PaperExperiment(a) => paper_experiment_cmd(a),
+            Cmd::TrackerDefaults(a) => tracker_defaults_cmd(a),
             Cmd::Tc(a) => tc_cmd(a),
             Cmd::Mission(a) => mission_cmd(a),
             Cmd::Gateway(a) => gateway_cmd(a),
