@@ -80,6 +80,13 @@ pub const MIN_REMOVED_LIMIT: usize = 3;
 /// A point whose smallest redundancy is below this is not testable (its own
 /// measurement alone determines what it measures).
 pub const MIN_TESTABLE_REDUNDANCY: f64 = 1e-3;
+/// Range of the joints' spread over which the hyperprior is spread (log-uniform, mm):
+/// from a hundredth of a mm, finer than any machining of such a mechanism, to 1 mm, the
+/// flight validation's limit on a joint's distance from nominal.
+pub const SPREAD_RANGE_MM: (f64, f64) = (0.01, 1.0);
+/// Points of the log grid over [`SPREAD_RANGE_MM`] on which the marginal likelihood is
+/// evaluated and the fits averaged.
+pub const SPREAD_GRID: usize = 17;
 /// Fewest fiducials a removal may leave.
 pub const MIN_FIDUCIALS_LEFT: usize = 3;
 
@@ -132,6 +139,10 @@ pub struct AdjustConfig {
     pub alpha: f64,
     /// Outlier rule.
     pub rule: OutlierRule,
+    /// With an estimated joint prior: average the fits over the joints' spread, weighted
+    /// by its posterior (marginal likelihood times a log-uniform hyperprior over
+    /// [`SPREAD_RANGE_MM`]), instead of fitting with the single most likely spread.
+    pub marginalise_spread: bool,
     /// LM budget and tolerances (its priors are not used).
     pub solver: BundleConfig,
 }
@@ -151,6 +162,7 @@ impl AdjustConfig {
             estimate_noise: true,
             alpha: DEFAULT_ALPHA,
             rule: OutlierRule::Remove,
+            marginalise_spread: true,
             solver: BundleConfig::unbounded(),
         }
     }
@@ -222,6 +234,44 @@ impl GlobalTest {
     }
 }
 
+/// The posterior of the joints' spread on the grid.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpreadPosterior {
+    /// Grid (mm).
+    pub grid_mm: Vec<f64>,
+    /// Log marginal likelihood (Laplace) at each grid point.
+    pub log_evidence: Vec<f64>,
+    /// Posterior weights (sum 1).
+    pub weights: Vec<f64>,
+    /// Posterior median (mm).
+    pub median_mm: f64,
+    /// 68 % interval (16 %, 84 % quantiles, mm).
+    pub interval_mm: (f64, f64),
+}
+
+impl SpreadPosterior {
+    fn quantile(&self, q: f64) -> f64 {
+        // Piecewise-linear CDF in log s between grid points.
+        let mut cum = 0.0;
+        for (i, w) in self.weights.iter().enumerate() {
+            if cum + w >= q {
+                let f = if *w > 0.0 { (q - cum) / w } else { 0.0 };
+                let (a, b) = (
+                    if i == 0 { self.grid_mm[0] } else { (self.grid_mm[i - 1] * self.grid_mm[i]).sqrt() },
+                    if i + 1 == self.grid_mm.len() {
+                        self.grid_mm[i]
+                    } else {
+                        (self.grid_mm[i] * self.grid_mm[i + 1]).sqrt()
+                    },
+                );
+                return (a.ln() + f * (b.ln() - a.ln())).exp();
+            }
+            cum += w;
+        }
+        *self.grid_mm.last().unwrap_or(&f64::NAN)
+    }
+}
+
 /// Where a point is in the data.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PointId {
@@ -279,8 +329,11 @@ pub struct Adjustment {
     /// Tracker components (range, transverse, export sigmas), then the joint and the
     /// ball prior.
     pub components: Vec<ComponentEstimate>,
-    /// The joints' prior spread used (mm; None: free).
+    /// The joints' prior spread used (mm; None: free): the variance-component (type-II
+    /// maximum-likelihood) estimate if estimated.
     pub joint_prior_mm: Option<f64>,
+    /// The posterior of the joints' spread, if marginalised.
+    pub spread_posterior: Option<SpreadPosterior>,
     /// The balls' prior spread used (mm).
     pub ball_prior_mm: Option<f64>,
     /// The a-priori noise model's global test on all the data (before any removal,
@@ -670,6 +723,110 @@ fn global_test(bundle: &mut Bundle, x: &[f64], st: &State) -> Result<GlobalTest,
     Ok(GlobalTest::new(omega, red))
 }
 
+/// Log marginal likelihood (Laplace) of the data and priors in force at the MAP `x`,
+/// up to a constant: `-(chi2 + ln det N + 36 ln s_j^2) / 2` (the ball prior and the
+/// noise factors held fixed).
+fn log_evidence(lin: &Linear, joint_mm: f64) -> Option<f64> {
+    let chi2: f64 = lin.res.iter().map(|v| v * v).sum();
+    let n = lin.j.transpose() * &lin.j;
+    let ld: f64 = n
+        .cholesky()?
+        .l()
+        .diagonal()
+        .iter()
+        .map(|v| 2.0 * v.ln())
+        .sum();
+    Some(-0.5 * (chi2 + ld + N_PARAMS as f64 * (joint_mm * joint_mm).ln()))
+}
+
+/// Bayesian model averaging over the joints' spread: the MAP fit at every point of a log
+/// grid over [`SPREAD_RANGE_MM`], weighted by its marginal likelihood (the hyperprior
+/// log-uniform: equal weight per grid point). Returns the averaged unknowns, the
+/// mixture covariance `sum w (C_s + (x_s - x)(x_s - x)^T)` with the estimated noise
+/// factors and with the a-priori ones, and the posterior.
+#[allow(clippy::type_complexity)]
+fn average_over_spread(
+    b: &mut Bundle,
+    x_vce: &[f64],
+    st: &State,
+    cfg: &AdjustConfig,
+) -> Result<(Vec<f64>, DMatrix<f64>, DMatrix<f64>, SpreadPosterior), BundleError> {
+    let (lo, hi) = SPREAD_RANGE_MM;
+    let grid: Vec<f64> = (0..SPREAD_GRID)
+        .map(|i| lo * (hi / lo).powf(i as f64 / (SPREAD_GRID - 1) as f64))
+        .collect();
+    let mut xs = Vec::with_capacity(grid.len());
+    let mut qs = Vec::with_capacity(grid.len());
+    let mut q1s = Vec::with_capacity(grid.len());
+    let mut ev = Vec::with_capacity(grid.len());
+    // Warm starts: up the grid from the VCE solution's spread, then down.
+    let start = grid
+        .iter()
+        .position(|s| *s >= st.joint.unwrap_or(lo))
+        .unwrap_or(grid.len() - 1);
+    let mut order: Vec<usize> = (start..grid.len()).collect();
+    order.extend((0..start).rev());
+    let mut results: Vec<Option<(Vec<f64>, DMatrix<f64>, DMatrix<f64>, f64)>> = vec![None; grid.len()];
+    let mut warm = x_vce.to_vec();
+    for &i in &order {
+        if i + 1 == start {
+            warm = x_vce.to_vec();
+        }
+        let mut si = *st;
+        si.joint = Some(grid[i]);
+        si.apply(b);
+        let (x, _, _) = bundle::solve(b, warm.clone(), &cfg.solver)?;
+        let lin = linearise(b, &x)?;
+        let e = log_evidence(&lin, grid[i]).ok_or_else(|| {
+            BundleError::Solver("marginal likelihood: singular normal matrix".into())
+        })?;
+        let mut s1 = si;
+        s1.k = [1.0; N_COMPONENTS];
+        s1.apply(b);
+        let q1 = linearise(b, &x)?.q;
+        warm = x.clone();
+        results[i] = Some((x, lin.q, q1, e));
+    }
+    st.apply(b);
+    for r in results.into_iter() {
+        let (x, q, q1, e) = r.ok_or_else(|| BundleError::Solver("spread grid incomplete".into()))?;
+        xs.push(x);
+        qs.push(q);
+        q1s.push(q1);
+        ev.push(e);
+    }
+    let m = ev.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let w: Vec<f64> = ev.iter().map(|e| (e - m).exp()).collect();
+    let sum: f64 = w.iter().sum();
+    let w: Vec<f64> = w.iter().map(|v| v / sum).collect();
+    let n = xs[0].len();
+    let mut x = vec![0.0; n];
+    for (wi, xi) in w.iter().zip(&xs) {
+        for (a, v) in x.iter_mut().zip(xi) {
+            *a += wi * v;
+        }
+    }
+    let xv = DVector::from_column_slice(&x);
+    let mut c = DMatrix::zeros(n, n);
+    let mut c1 = DMatrix::zeros(n, n);
+    for ((wi, xi), (q, q1)) in w.iter().zip(&xs).zip(qs.iter().zip(&q1s)) {
+        let d = DVector::from_column_slice(xi) - &xv;
+        let dd = &d * d.transpose();
+        c += (q + &dd) * *wi;
+        c1 += (q1 + &dd) * *wi;
+    }
+    let mut post = SpreadPosterior {
+        grid_mm: grid,
+        log_evidence: ev,
+        weights: w,
+        median_mm: 0.0,
+        interval_mm: (0.0, 0.0),
+    };
+    post.median_mm = post.quantile(0.5);
+    post.interval_mm = (post.quantile(0.16), post.quantile(0.84));
+    Ok((x, c, c1, post))
+}
+
 /// The adjustment: variance components, tests, outliers removed one at a time.
 pub fn adjust(data: &BundleData, cfg: &AdjustConfig) -> Result<Adjustment, BundleError> {
     let started = Instant::now();
@@ -761,27 +918,51 @@ pub fn adjust(data: &BundleData, cfg: &AdjustConfig) -> Result<Adjustment, Bundl
         }
         let global_after = global_test(&mut b, &xs, &st)?;
         let comps = components(&b, &lin, &st, cfg, &start);
-        // Unscaled covariance: the a-priori noise model at the same solution and priors.
-        let mut s1 = st;
-        s1.k = [1.0; N_COMPONENTS];
-        s1.apply(&mut b);
-        let covariance_unscaled = linearise(&b, &xs)?.q;
-        st.apply(&mut b);
         let start_rms = bundle::data_rms(&b, &b.start());
-        let fit = bundle::finish(
-            &b,
-            xs,
-            start_rms,
-            iterations,
-            format!("{iterations} variance-component iterations"),
-            started,
-        )?;
+        let marginalise = cfg.marginalise_spread && cfg.joint_prior.estimated();
+        let (fit, covariance_unscaled, spread_posterior) = if marginalise {
+            let (x_avg, c_scaled, c_unscaled, post) = average_over_spread(&mut b, &xs, &st, cfg)?;
+            // The fit's figures at the averaged unknowns with the median spread.
+            let mut sm = st;
+            sm.joint = Some(post.median_mm);
+            sm.apply(&mut b);
+            let mut fit = bundle::finish(
+                &b,
+                x_avg,
+                start_rms,
+                iterations,
+                format!(
+                    "{iterations} variance-component iterations, {SPREAD_GRID} fits averaged over the joints' spread"
+                ),
+                started,
+            )?;
+            fit.covariance = c_scaled;
+            fit.covariance_pseudo_inverse = false;
+            (fit, c_unscaled, Some(post))
+        } else {
+            // Unscaled covariance: the a-priori noise model at the same solution and priors.
+            let mut s1 = st;
+            s1.k = [1.0; N_COMPONENTS];
+            s1.apply(&mut b);
+            let c_unscaled = linearise(&b, &xs)?.q;
+            st.apply(&mut b);
+            let fit = bundle::finish(
+                &b,
+                xs,
+                start_rms,
+                iterations,
+                format!("{iterations} variance-component iterations"),
+                started,
+            )?;
+            (fit, c_unscaled, None)
+        };
         drop(b);
         return Ok(Adjustment {
             fit,
             data: cur,
             components: comps,
             joint_prior_mm: st.joint,
+            spread_posterior,
             ball_prior_mm: st.ball,
             global_before: global_before.unwrap_or_else(|| global_after.clone()),
             global_after,

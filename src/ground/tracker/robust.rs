@@ -232,7 +232,12 @@ pub fn run_cell(cfg: &RobustConfig, spread: f64, scale: f64, first: u64) -> Resu
             cell.reference[a] += ar[a];
             cell.worst_ratio[a] = cell.worst_ratio[a].max(ad[a] / ar[a]);
         }
-        cell.joint_prior_mm += d.joint_prior_mm.unwrap_or(f64::NAN);
+        cell.joint_prior_mm += d
+            .spread_posterior
+            .as_ref()
+            .map(|p| p.median_mm)
+            .or(d.joint_prior_mm)
+            .unwrap_or(f64::NAN);
         cell.noise_factor[0] += d.components[0].factor.sqrt();
         cell.noise_factor[1] += d.components[1].factor.sqrt();
         cell.global_rejected += usize::from(!d.global_before.passed);
@@ -504,7 +509,7 @@ pub fn robust_study(cfg: &RobustConfig, progress: &mut dyn FnMut(&str)) -> Resul
         cfg.base.targets.len()
     );
     if cfg.campaigns > 0 {
-        let _ = writeln!(s, "| true spread mm | noise x preset | defaults max um / \" | given the truth | ratio um / \" (mean) | worst campaign ratio | estimated spread mm | estimated range / transverse noise x model | a-priori model rejected | removed | refused | s per fit (defaults / reference) |");
+        let _ = writeln!(s, "| true spread mm | noise x preset | defaults max um / \" | given the truth | ratio um / \" (mean) | worst campaign ratio | estimated spread mm (posterior median) | estimated range / transverse noise x model | a-priori model rejected | removed | refused | s per fit (defaults / reference) |");
         let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|");
         let mut worst = [0.0f64; 2];
         for (i, sp) in cfg.spreads.iter().enumerate() {
