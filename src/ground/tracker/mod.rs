@@ -15,6 +15,7 @@
 
 pub mod campaign;
 pub mod commands;
+pub mod exports;
 pub mod files;
 pub mod plots;
 pub mod robust;
