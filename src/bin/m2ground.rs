@@ -778,12 +778,16 @@ fn point_export_options(
         ("auto", None) => ExportFormat::Auto,
         ("native", None) => ExportFormat::Native,
         ("sa", None) => ExportFormat::SpatialAnalyzer,
-        (f, _) => return Err(format!("--points-format: '{f}' is not auto, native, sa or csv")),
+        (f, _) => {
+            return Err(format!(
+                "--points-format: '{f}' is not auto, native, sa or csv"
+            ))
+        }
     };
     let units = match &a.units {
-        Some(u) => Some(
-            LengthUnit::parse(u).ok_or_else(|| format!("--units: '{u}' is not mm, m or in"))?,
-        ),
+        Some(u) => {
+            Some(LengthUnit::parse(u).ok_or_else(|| format!("--units: '{u}' is not mm, m or in"))?)
+        }
         None => None,
     };
     let tracker_at = match &a.tracker_at {
@@ -883,7 +887,11 @@ fn calibrate_cmd(a: &CalibrateCli) -> Result<(), String> {
 
 fn tracker_defaults_cmd(a: &TrackerDefaultsCli) -> Result<(), String> {
     use m2ctl::ground::tracker::robust::{robust_study, RobustConfig};
-    if a.spreads.iter().chain(a.scales.iter()).any(|v| !(v.is_finite() && *v > 0.0)) {
+    if a.spreads
+        .iter()
+        .chain(a.scales.iter())
+        .any(|v| !(v.is_finite() && *v > 0.0))
+    {
         return Err("--spreads and --scales must be positive numbers".into());
     }
     let base = m2ctl::ground::tracker::study::StudyConfig {

@@ -53,8 +53,7 @@ use std::time::Instant;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 use super::bundle::{
-    self, Bundle, BundleConfig, BundleData, BundleError, BundleFit, Priors,
-    N_COMPONENTS,
+    self, Bundle, BundleConfig, BundleData, BundleError, BundleFit, Priors, N_COMPONENTS,
 };
 use super::stats::{chi2_quantile, chi2_sf, noncentrality_for_power};
 use super::N_PARAMS;
@@ -247,6 +246,8 @@ pub struct SpreadPosterior {
     pub median_mm: f64,
     /// 68 % interval (16 %, 84 % quantiles, mm).
     pub interval_mm: (f64, f64),
+    /// The MAP unknowns at each grid point.
+    pub grid_x: Vec<Vec<f64>>,
 }
 
 impl SpreadPosterior {
@@ -257,7 +258,11 @@ impl SpreadPosterior {
             if cum + w >= q {
                 let f = if *w > 0.0 { (q - cum) / w } else { 0.0 };
                 let (a, b) = (
-                    if i == 0 { self.grid_mm[0] } else { (self.grid_mm[i - 1] * self.grid_mm[i]).sqrt() },
+                    if i == 0 {
+                        self.grid_mm[0]
+                    } else {
+                        (self.grid_mm[i - 1] * self.grid_mm[i]).sqrt()
+                    },
                     if i + 1 == self.grid_mm.len() {
                         self.grid_mm[i]
                     } else {
@@ -413,6 +418,12 @@ struct Linear {
     q: DMatrix<f64>,
     /// Redundancy numbers (all rows).
     red: Vec<f64>,
+}
+
+/// The redundancy numbers `r_i = 1 - j_i^T Q_xx j_i` of every row (data, then priors)
+/// of `bundle` at `x`, with its variance factors and priors in force.
+pub fn redundancy_numbers(bundle: &Bundle, x: &[f64]) -> Result<Vec<f64>, BundleError> {
+    Ok(linearise(bundle, x)?.red)
 }
 
 fn linearise(bundle: &Bundle, x: &[f64]) -> Result<Linear, BundleError> {
@@ -576,7 +587,12 @@ fn estimate(
 }
 
 /// The tests of every point at a linearisation.
-fn point_tests(bundle: &Bundle, lin: &Linear, k: &[f64; N_COMPONENTS], lambda0: f64) -> Vec<PointTest> {
+fn point_tests(
+    bundle: &Bundle,
+    lin: &Linear,
+    k: &[f64; N_COMPONENTS],
+    lambda0: f64,
+) -> Vec<PointTest> {
     let ids = point_ids(bundle.data());
     ids.into_iter()
         .zip(bundle.observations())
@@ -584,11 +600,10 @@ fn point_tests(bundle: &Bundle, lin: &Linear, k: &[f64; N_COMPONENTS], lambda0: 
         .map(|(p, ((id, line, pose, what), obs))| {
             let r0 = 3 * p;
             let jb = lin.j.rows(r0, 3).into_owned();
-            let qvv = Matrix3::identity()
-                - {
-                    let m = &jb * &lin.q * jb.transpose();
-                    Matrix3::from_fn(|a, b| m[(a, b)])
-                };
+            let qvv = Matrix3::identity() - {
+                let m = &jb * &lin.q * jb.transpose();
+                Matrix3::from_fn(|a, b| m[(a, b)])
+            };
             let v = Vector3::new(lin.res[r0], lin.res[r0 + 1], lin.res[r0 + 2]);
             let redundancy = (lin.red[r0] + lin.red[r0 + 1] + lin.red[r0 + 2]) / 3.0;
             let w_max = (0..3)
@@ -766,7 +781,8 @@ fn average_over_spread(
         .unwrap_or(grid.len() - 1);
     let mut order: Vec<usize> = (start..grid.len()).collect();
     order.extend((0..start).rev());
-    let mut results: Vec<Option<(Vec<f64>, DMatrix<f64>, DMatrix<f64>, f64)>> = vec![None; grid.len()];
+    let mut results: Vec<Option<(Vec<f64>, DMatrix<f64>, DMatrix<f64>, f64)>> =
+        vec![None; grid.len()];
     let mut warm = x_vce.to_vec();
     for &i in &order {
         if i + 1 == start {
@@ -789,7 +805,8 @@ fn average_over_spread(
     }
     st.apply(b);
     for r in results.into_iter() {
-        let (x, q, q1, e) = r.ok_or_else(|| BundleError::Solver("spread grid incomplete".into()))?;
+        let (x, q, q1, e) =
+            r.ok_or_else(|| BundleError::Solver("spread grid incomplete".into()))?;
         xs.push(x);
         qs.push(q);
         q1s.push(q1);
@@ -799,7 +816,7 @@ fn average_over_spread(
     let w: Vec<f64> = ev.iter().map(|e| (e - m).exp()).collect();
     let sum: f64 = w.iter().sum();
     let w: Vec<f64> = w.iter().map(|v| v / sum).collect();
-    let n = xs[0].len();
+    let n = xs.first().map_or(0, |x| x.len());
     let mut x = vec![0.0; n];
     for (wi, xi) in w.iter().zip(&xs) {
         for (a, v) in x.iter_mut().zip(xi) {
@@ -821,6 +838,7 @@ fn average_over_spread(
         weights: w,
         median_mm: 0.0,
         interval_mm: (0.0, 0.0),
+        grid_x: xs,
     };
     post.median_mm = post.quantile(0.5);
     post.interval_mm = (post.quantile(0.16), post.quantile(0.84));
@@ -837,8 +855,8 @@ pub fn adjust(data: &BundleData, cfg: &AdjustConfig) -> Result<Adjustment, Bundl
     };
     let n_points_all =
         data.fiducials.len() + data.poses.iter().map(|p| p.balls.len()).sum::<usize>();
-    let max_removed = ((MAX_REMOVED_FRACTION * n_points_all as f64).floor() as usize)
-        .max(MIN_REMOVED_LIMIT);
+    let max_removed =
+        ((MAX_REMOVED_FRACTION * n_points_all as f64).floor() as usize).max(MIN_REMOVED_LIMIT);
     let mut cur = data.clone();
     let mut st = start;
     let mut x: Option<Vec<f64>> = None;

@@ -188,13 +188,22 @@ impl PointObs {
             basis,
             [sr * sr, st * st, st * st],
             fixed_var_mm2,
-            [Component::Range, Component::Transverse, Component::Transverse],
+            [
+                Component::Range,
+                Component::Transverse,
+                Component::Transverse,
+            ],
         )
     }
 
     /// A point with its own isotropic 1-sigma `sigma_mm` ([`Component::Export`]), plus
     /// a fixed isotropic `fixed_var_mm2`.
-    pub fn isotropic(line: usize, y_mm: [f64; 3], sigma_mm: f64, fixed_var_mm2: f64) -> Option<Self> {
+    pub fn isotropic(
+        line: usize,
+        y_mm: [f64; 3],
+        sigma_mm: f64,
+        fixed_var_mm2: f64,
+    ) -> Option<Self> {
         Self::from_parts(
             line,
             y_mm,
@@ -547,20 +556,18 @@ impl<'a> Bundle<'a> {
 
     /// The observations in row order (fiducials, then the balls pose by pose).
     pub fn observations(&self) -> impl Iterator<Item = &PointObs> {
-        self.data
-            .fiducials
-            .iter()
-            .map(|f| &f.obs)
-            .chain(self.data.poses.iter().flat_map(|p| p.balls.iter().map(|b| &b.obs)))
+        self.data.fiducials.iter().map(|f| &f.obs).chain(
+            self.data
+                .poses
+                .iter()
+                .flat_map(|p| p.balls.iter().map(|b| &b.obs)),
+        )
     }
 
     /// Scales every point's tracker variance by its component's factor `k` (1: the
     /// noise model as given).
     pub fn set_variance_factors(&mut self, k: &[f64; N_COMPONENTS]) {
-        let scales: Vec<f64> = self
-            .observations()
-            .flat_map(|o| o.row_scales(k))
-            .collect();
+        let scales: Vec<f64> = self.observations().flat_map(|o| o.row_scales(k)).collect();
         self.row_scale = scales;
     }
 

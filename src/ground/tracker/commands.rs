@@ -7,13 +7,12 @@ use std::path::{Path, PathBuf};
 use nalgebra::Point3;
 
 use super::campaign::{simulate_with_truth, CampaignSeeds, TrackerSetup};
+use super::exports::{read_export, ExportOptions};
 use super::files::{
-    format_export, format_strokes, format_targets, parse_strokes, parse_targets,
-    PointPose, Which,
+    format_export, format_strokes, format_targets, parse_strokes, parse_targets, PointPose, Which,
 };
 use super::plots::{per_pose, Band, Panel, Series};
 use super::study::{rms3, TruthModel};
-use super::exports::{read_export, ExportOptions};
 use crate::ground::calib::adjust::{adjust, AdjustConfig, Adjustment, PriorSetting};
 use crate::ground::calib::bundle::{self, BundleFit};
 use crate::ground::calib::registration::{pose_from_balls, rotation_angles};
@@ -288,7 +287,11 @@ pub fn plot_residuals(path: &Path, adj: &Adjustment) -> Result<(), String> {
         .poses
         .iter()
         .map(|p| p.pose as usize)
-        .chain(adj.removed.iter().filter_map(|o| o.test.pose.map(|p| p as usize)))
+        .chain(
+            adj.removed
+                .iter()
+                .filter_map(|o| o.test.pose.map(|p| p as usize)),
+        )
         .max()
         .unwrap_or(1);
     let mut series: Vec<Series> = adj
@@ -332,8 +335,8 @@ pub fn plot_residuals(path: &Path, adj: &Adjustment) -> Result<(), String> {
     per_pose(
         path,
         &format!(
-            "Standardised residuals sqrt(T) of every point (T = v^T Q_vv^-1 v, chi-square 3 dof when good); band: accepted (sqrt of the critical {:.1})",
-            adj.critical
+            "Standardised residuals sqrt(T), T = v' Q_vv^-1 v (chi-square, 3 dof, when good); critical sqrt(T) {:.2}",
+            adj.critical.sqrt()
         ),
         "pose (number in the files)",
         &[Panel {

@@ -39,9 +39,7 @@
 
 use std::collections::HashMap;
 
-use super::files::{
-    parse_export, PointPose, PointRecord, BASE_POSE, MAX_RANGE_MM, MIN_RANGE_MM,
-};
+use super::files::{parse_export, PointPose, PointRecord, BASE_POSE, MAX_RANGE_MM, MIN_RANGE_MM};
 use crate::ground::files::FileError;
 
 fn err(line: usize, message: impl Into<String>) -> FileError {
@@ -203,7 +201,12 @@ fn unit_declaration(l: &str) -> Option<String> {
         .or_else(|| rest.strip_prefix('='))
         .or_else(|| rest.strip_prefix(','))
         .or_else(|| rest.strip_prefix(';'))?;
-    Some(rest.trim().trim_matches(|c| c == ',' || c == ';').trim().to_string())
+    Some(
+        rest.trim()
+            .trim_matches(|c| c == ',' || c == ';')
+            .trim()
+            .to_string(),
+    )
 }
 
 /// A column name with a unit: `X (mm)`, `X [in]`, `X_m` -> (`x`, Some(unit word)).
@@ -323,12 +326,18 @@ pub fn read_export(text: &str, opts: &ExportOptions) -> Result<Vec<PointRecord>,
         if let Some(u) = opts.units.filter(|u| *u != LengthUnit::Mm) {
             return Err(err(
                 hline,
-                format!("the native export is in mm (x_mm, ...), but the unit given is {}: ambiguous", u.name()),
+                format!(
+                    "the native export is in mm (x_mm, ...), but the unit given is {}: ambiguous",
+                    u.name()
+                ),
             ));
         }
         if let Some((n, u)) = declared.first() {
             if LengthUnit::parse(u) != Some(LengthUnit::Mm) {
-                return Err(err(*n, format!("the native export is in mm, but this line declares '{u}'")));
+                return Err(err(
+                    *n,
+                    format!("the native export is in mm, but this line declares '{u}'"),
+                ));
             }
         }
         let mut pts = parse_export(text)?;
@@ -351,8 +360,14 @@ pub fn read_export(text: &str, opts: &ExportOptions) -> Result<Vec<PointRecord>,
             .collect();
         match hits.as_slice() {
             [i] => Ok(*i),
-            [] => Err(err(hline, format!("no {what} column (one of: {})", want.join(", ")))),
-            _ => Err(err(hline, format!("{} {what} columns: ambiguous", hits.len()))),
+            [] => Err(err(
+                hline,
+                format!("no {what} column (one of: {})", want.join(", ")),
+            )),
+            _ => Err(err(
+                hline,
+                format!("{} {what} columns: ambiguous", hits.len()),
+            )),
         }
     };
     let find_opt = |want: &[&str], what: &str| -> Result<Option<usize>, FileError> {
@@ -367,21 +382,39 @@ pub fn read_export(text: &str, opts: &ExportOptions) -> Result<Vec<PointRecord>,
         ExportFormat::SpatialAnalyzer => (
             Some(find(&["collection"], "Collection")?),
             find(&["group"], "Group")?,
-            find(&["point", "name", "target", "point name", "pointname"], "Point")?,
+            find(
+                &["point", "name", "target", "point name", "pointname"],
+                "Point",
+            )?,
             [find(&["x"], "X")?, find(&["y"], "Y")?, find(&["z"], "Z")?],
             find_opt(&["sigma", "uncertainty", "u"], "Sigma")?,
         ),
         ExportFormat::Generic(c) => (
             None,
             find(&[lower(&c.pose).as_str()], &format!("'{}' (pose)", c.pose))?,
-            find(&[lower(&c.point).as_str()], &format!("'{}' (point)", c.point))?,
+            find(
+                &[lower(&c.point).as_str()],
+                &format!("'{}' (point)", c.point),
+            )?,
             [
-                find(&[split_unit(&c.xyz[0]).0.as_str()], &format!("'{}' (x)", c.xyz[0]))?,
-                find(&[split_unit(&c.xyz[1]).0.as_str()], &format!("'{}' (y)", c.xyz[1]))?,
-                find(&[split_unit(&c.xyz[2]).0.as_str()], &format!("'{}' (z)", c.xyz[2]))?,
+                find(
+                    &[split_unit(&c.xyz[0]).0.as_str()],
+                    &format!("'{}' (x)", c.xyz[0]),
+                )?,
+                find(
+                    &[split_unit(&c.xyz[1]).0.as_str()],
+                    &format!("'{}' (y)", c.xyz[1]),
+                )?,
+                find(
+                    &[split_unit(&c.xyz[2]).0.as_str()],
+                    &format!("'{}' (z)", c.xyz[2]),
+                )?,
             ],
             match &c.sigma {
-                Some(s) => Some(find(&[split_unit(s).0.as_str()], &format!("'{s}' (sigma)"))?),
+                Some(s) => Some(find(
+                    &[split_unit(s).0.as_str()],
+                    &format!("'{s}' (sigma)"),
+                )?),
                 None => None,
             },
         ),
@@ -441,7 +474,11 @@ pub fn read_export(text: &str, opts: &ExportOptions) -> Result<Vec<PointRecord>,
         if f.len() != names.len() {
             return Err(err(
                 ln,
-                format!("expected {} fields as in the header, found {}", names.len(), f.len()),
+                format!(
+                    "expected {} fields as in the header, found {}",
+                    names.len(),
+                    f.len()
+                ),
             ));
         }
         if let Some(c) = c_coll {
@@ -473,21 +510,33 @@ pub fn read_export(text: &str, opts: &ExportOptions) -> Result<Vec<PointRecord>,
         let mut y = [0.0; 3];
         for a in 0..3 {
             let s = f[c_xyz[a]];
-            let v: f64 = s
-                .parse()
-                .map_err(|_| err(ln, format!("column '{}': '{s}' is not a number", names[c_xyz[a]])))?;
+            let v: f64 = s.parse().map_err(|_| {
+                err(
+                    ln,
+                    format!("column '{}': '{s}' is not a number", names[c_xyz[a]]),
+                )
+            })?;
             if !v.is_finite() {
-                return Err(err(ln, format!("column '{}': '{s}' is not finite", names[c_xyz[a]])));
+                return Err(err(
+                    ln,
+                    format!("column '{}': '{s}' is not finite", names[c_xyz[a]]),
+                ));
             }
             y[a] = (v - opts.tracker_at.map_or(0.0, |t| t[a])) * k;
         }
         let sigma_mm = match c_sigma {
             Some(c) if !f[c].is_empty() => {
-                let v: f64 = f[c]
-                    .parse()
-                    .map_err(|_| err(ln, format!("column '{}': '{}' is not a number", names[c], f[c])))?;
+                let v: f64 = f[c].parse().map_err(|_| {
+                    err(
+                        ln,
+                        format!("column '{}': '{}' is not a number", names[c], f[c]),
+                    )
+                })?;
                 if !(v.is_finite() && v > 0.0) {
-                    return Err(err(ln, format!("column '{}': {v} is not a positive number", names[c])));
+                    return Err(err(
+                        ln,
+                        format!("column '{}': {v} is not a positive number", names[c]),
+                    ));
                 }
                 Some(v * k)
             }
@@ -567,14 +616,18 @@ mod tests {
         assert!(e.line == 1 && e.message.contains("furlongs"), "{e}");
         // The native format is mm only.
         let n = "pose,point,x_mm,y_mm,z_mm\nbase,F1,1000,2000,-100\n";
-        assert!(read_export(n, &o).unwrap_err().message.contains("ambiguous"));
+        assert!(read_export(n, &o)
+            .unwrap_err()
+            .message
+            .contains("ambiguous"));
         assert_eq!(read_export(n, &ExportOptions::default()).unwrap().len(), 1);
     }
 
     #[test]
     fn generic_csv_with_named_columns_and_frame() {
         let g = "# exported from the tracker software\nMeas;Target;East [mm];North [mm];Up [mm];U [mm]\nbase;F1;100.0;200.0;-10.0;0.02\n7;B2;150.0;200.0;300.0;\n";
-        let cols = GenericColumns::parse("pose=Meas,point=Target,x=East,y=North,z=Up,sigma=U").unwrap();
+        let cols =
+            GenericColumns::parse("pose=Meas,point=Target,x=East,y=North,z=Up,sigma=U").unwrap();
         let o = ExportOptions {
             format: ExportFormat::Generic(cols),
             tracker_at: Some([-2000.0, 0.0, 0.0]),
@@ -583,7 +636,10 @@ mod tests {
         let p = read_export(g, &o).unwrap();
         assert_eq!(p[0].y_mm, [2100.0, 200.0, -10.0]);
         assert_eq!(p[0].sigma_mm, Some(0.02));
-        assert_eq!((p[1].pose, p[1].line, p[1].sigma_mm), (PointPose::Pose(7), 4, None));
+        assert_eq!(
+            (p[1].pose, p[1].line, p[1].sigma_mm),
+            (PointPose::Pose(7), 4, None)
+        );
         // Without the frame option the points are inside 0.5 m of the tracker: refused.
         let o2 = ExportOptions {
             tracker_at: None,
@@ -605,8 +661,16 @@ mod tests {
         bad(&format!("{h}A,base,F1,1000,0\n"), 3, "fields");
         bad(&format!("{h}A,Pose 3-4,B1,1000,0,0\n"), 3, "ambiguous");
         bad(&format!("{h}A,Setup,B1,1000,0,0\n"), 3, "neither");
-        bad(&format!("{h}A,base,F1,1000,0,0\nB,base,F2,1000,10,0\n"), 4, "collection");
-        bad(&format!("{h}A,base,F1,1000,0,0\nA,base,F1,1000,10,0\n"), 4, "already on line 3");
+        bad(
+            &format!("{h}A,base,F1,1000,0,0\nB,base,F2,1000,10,0\n"),
+            4,
+            "collection",
+        );
+        bad(
+            &format!("{h}A,base,F1,1000,0,0\nA,base,F1,1000,10,0\n"),
+            4,
+            "already on line 3",
+        );
         bad("Units: mm\nFoo,Bar\n1,2\n", 2, "neither the native");
         bad("Units: mm\nCollection,Group;Point\n", 2, "mixes delimiters");
     }

@@ -192,7 +192,9 @@ pub fn bundle_data(
             .filter(|p| p.pose == PointPose::Pose(k))
             .filter_map(|p| Some((p, targets.balls.iter().position(|b| b.name == p.name)?)))
             .collect();
-        let gap = |p: &PointRecord, b: usize| ((inv * Point3::from(p.y_mm)).coords - predicted_of(b)).norm();
+        let gap = |p: &PointRecord, b: usize| {
+            ((inv * Point3::from(p.y_mm)).coords - predicted_of(b)).norm()
+        };
         let mut balls = Vec::new();
         for &(p, b) in &in_pose {
             let d = gap(p, b);

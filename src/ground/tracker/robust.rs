@@ -100,7 +100,8 @@ impl RobustConfig {
     /// numbered as the file `format_export` writes (so that lines are real).
     pub fn campaign(&self, k: u64, spread: f64, scale: f64) -> Result<SimulatedCampaign, String> {
         let seeds = CampaignSeeds::from_one(k);
-        let truth = TruthModel::Gaussian { sigma_mm: spread }.draw(&self.base.nominal, seeds.geometry);
+        let truth =
+            TruthModel::Gaussian { sigma_mm: spread }.draw(&self.base.nominal, seeds.geometry);
         let mut c = simulate_with_truth(
             &self.base.nominal,
             &truth,
@@ -487,7 +488,10 @@ pub fn run_clean(cfg: &RobustConfig) -> Result<CleanDraws, String> {
             Err(e) => {
                 out.refused += 1;
                 if out.first_refusal.is_none() {
-                    out.first_refusal = Some(format!("campaign {} (spread {s} mm, noise x{k}): {e}", CLEAN_FIRST_CAMPAIGN + i as u64));
+                    out.first_refusal = Some(format!(
+                        "campaign {} (spread {s} mm, noise x{k}): {e}",
+                        CLEAN_FIRST_CAMPAIGN + i as u64
+                    ));
                 }
             }
         }
@@ -537,19 +541,31 @@ pub fn robust_study(cfg: &RobustConfig, progress: &mut dyn FnMut(&str)) -> Resul
         );
     }
     if cfg.gross_campaigns > 0 {
-        let _ = writeln!(s, "Planted gross errors ({} campaigns each, true spread 0.1 mm, the preset tracker):\n", cfg.gross_campaigns);
+        let _ = writeln!(
+            s,
+            "Planted gross errors ({} campaigns each, true spread 0.1 mm, the preset tracker):\n",
+            cfg.gross_campaigns
+        );
         let _ = writeln!(s, "| planted | size mm | found and named | refused | good points also removed | its MDB mm (80 %) | example |");
         let _ = writeln!(s, "|---|---|---|---|---|---|---|");
         for p in run_gross(cfg)? {
             let row = format!(
                 "| {} | {} | {}/{} | {} | {} | {} | {} |",
                 p.kind,
-                if p.size_mm > 0.0 { format!("{}", p.size_mm) } else { "-".into() },
+                if p.size_mm > 0.0 {
+                    format!("{}", p.size_mm)
+                } else {
+                    "-".into()
+                },
                 p.found,
                 p.n,
                 p.refused,
                 p.extra_removed,
-                if p.mdb_mm.is_finite() { format!("{:.3}", p.mdb_mm) } else { "-".into() },
+                if p.mdb_mm.is_finite() {
+                    format!("{:.3}", p.mdb_mm)
+                } else {
+                    "-".into()
+                },
                 p.example.replace('|', "/")
             );
             progress(&row);
