@@ -141,37 +141,62 @@ fn the_estimated_noise_is_the_simulated_trackers_and_the_model_test_says_so() {
 }
 
 /// Campaigns per cell of the in-suite check (the README's table: 20 per cell, 16 cells).
-const CELL_CAMPAIGNS: usize = 3;
+const CELL_CAMPAIGNS: u64 = 3;
 
 #[test]
 fn the_defaults_match_the_fit_given_the_true_spread_and_noise() {
-    let mut cfg = study();
-    cfg.campaigns = CELL_CAMPAIGNS;
-    let cells = [(0.05, 1.0), (0.1, 0.3), (0.2, 3.0), (0.5, 2.0)];
-    let mut mean = [0.0f64; 2];
+    let cfg = study();
+    let cells = [(0.05, 1.0), (0.1, 0.3), (0.2, 2.0), (0.5, 2.0), (0.2, 3.0)];
+    // Per-campaign ratios, held-out max of the defaults over that of the plain fit
+    // given the true spread and noise model (um, arcsec).
+    let mut ratios: Vec<[f64; 2]> = Vec::new();
+    let mut old_default = [0.0f64; 2];
+    let mut defaults_wide = [0.0f64; 2];
     for (i, (spread, scale)) in cells.into_iter().enumerate() {
-        let cell =
-            m2ctl::ground::tracker::robust::run_cell(&cfg, spread, scale, 100 + 10 * i as u64)
+        for k in 0..CELL_CAMPAIGNS {
+            let c = cfg
+                .campaign(100 + 10 * i as u64 + k, spread, scale)
                 .unwrap();
-        assert_eq!((cell.n, cell.refused), (CELL_CAMPAIGNS, 0));
-        // The noise is found: the range and transverse sigma factors are the scale.
-        for a in 0..2 {
-            assert!((cell.noise_factor[a] / scale - 1.0).abs() < 0.1, "{cell:?}");
-        }
-        let r = cell.ratio();
-        eprintln!(
-            "spread {spread} mm, noise x{scale}: defaults / given the truth {:.3} um, {:.3} arcsec",
-            r[0], r[1]
-        );
-        // A cell of three campaigns is noisy (single campaigns reach 2-3x both ways at
-        // 3x noise): a loose bound per cell, the goal on the mean.
-        assert!(r[0] < 1.6 && r[1] < 1.6, "{cell:?}");
-        for a in 0..2 {
-            mean[a] += r[a] / cells.len() as f64;
+            let d = cfg
+                .run_defaults(&c, &c.points)
+                .expect("a clean campaign is not refused");
+            // The noise is found: the range and transverse sigma factors are the scale.
+            for f in [d.components[0].factor, d.components[1].factor] {
+                assert!((f.sqrt() / scale - 1.0).abs() < 0.12, "{f} vs {scale}");
+            }
+            let r = cfg.run_reference(&c, spread, scale).unwrap();
+            let acc = |g| max2(&accuracy(g, &c.truth, &cfg.base.targets).unwrap());
+            let (ad, ar) = (acc(&d.fit.params), acc(&r.params));
+            ratios.push([ad[0] / ar[0], ad[1] / ar[1]]);
+            if spread == 0.5 {
+                // The old default, a fixed 0.1 mm prior (even with the true noise model).
+                let old = cfg.run_reference(&c, 0.1, scale).unwrap();
+                let ao = acc(&old.params);
+                for a in 0..2 {
+                    old_default[a] += ao[a];
+                    defaults_wide[a] += ad[a];
+                }
+            }
         }
     }
-    // Over the cells, the defaults are within 1.1 of the fit given the truth.
-    assert!(mean[0] < 1.1 && mean[1] < 1.1, "{mean:?}");
+    // The goal, within the sampling error of 15 campaigns: the mean ratio is below 1.1
+    // plus two standard errors (single campaigns scatter by ~0.3; the README's table,
+    // 20 campaigns in each of 16 cells, is the measurement).
+    let n = ratios.len() as f64;
+    for a in 0..2 {
+        let mean = ratios.iter().map(|r| r[a]).sum::<f64>() / n;
+        let var = ratios.iter().map(|r| (r[a] - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        let se = (var / n).sqrt();
+        eprintln!("axis {a}: mean ratio {mean:.3} +- {se:.3} (1 SE) over {n} campaigns");
+        assert!(mean < 1.1 + 2.0 * se && se < 0.1, "{a}: {mean} +- {se}");
+    }
+    // Where the true spread is 0.5 mm, the old fixed 0.1 mm prior is clearly worse.
+    for a in 0..2 {
+        assert!(
+            old_default[a] > 1.3 * defaults_wide[a],
+            "{old_default:?} vs {defaults_wide:?}"
+        );
+    }
 }
 
 #[test]

@@ -39,7 +39,7 @@ enum Cmd {
     /// Forward kinematics: stroke columns of a CSV -> 12-column CSV with poses (f64).
     Fk(IoArgs),
     /// Calibrate the 36 joint coordinates from a measurement CSV.
-    Calibrate(CalibrateCli),
+    Calibrate(Box<CalibrateCli>),
     /// Write the calibration sampling plan's poses (6-column CSV).
     Plan(PlanCli),
     /// Write a measurement CSV from a simulated campaign (true mechanism + tracker noise).

@@ -880,7 +880,23 @@ pub fn adjust(data: &BundleData, cfg: &AdjustConfig) -> Result<Adjustment, Bundl
             global_before = Some(global_test(&mut b, &xs, &st)?);
         }
         st.apply(&mut b);
-        let lin = linearise(&b, &xs)?;
+        // With the spread marginalised, the tests (and the final figures) are those of
+        // the fit at the posterior median spread: the type-II ML spread can collapse far
+        // below it, biasing the fit and inflating the residuals of the extreme poses.
+        let marginalise = cfg.marginalise_spread && cfg.joint_prior.estimated();
+        let grid = if marginalise {
+            let g = average_over_spread(&mut b, &xs, &st, cfg)?;
+            let mut sm = st;
+            sm.joint = Some(g.3.median_mm);
+            sm.apply(&mut b);
+            let (xm, _, _) = bundle::solve(&b, xs.clone(), &cfg.solver)?;
+            Some((g, xm))
+        } else {
+            None
+        };
+        let x_test = grid.as_ref().map_or(&xs, |g| &g.1).clone();
+        let lin = linearise(&b, &x_test)?;
+        st.apply(&mut b);
         let n_points = cur.fiducials.len() + cur.poses.iter().map(|p| p.balls.len()).sum::<usize>();
         let alpha_per_test = cfg.alpha / n_points.max(1) as f64;
         let critical = chi2_quantile(1.0 - alpha_per_test, 3.0);
@@ -931,15 +947,14 @@ pub fn adjust(data: &BundleData, cfg: &AdjustConfig) -> Result<Adjustment, Bundl
                 )),
                 e => e,
             })?;
-            x = Some(xs);
+            x = Some(x_test);
             continue;
         }
         let global_after = global_test(&mut b, &xs, &st)?;
         let comps = components(&b, &lin, &st, cfg, &start);
         let start_rms = bundle::data_rms(&b, &b.start());
-        let marginalise = cfg.marginalise_spread && cfg.joint_prior.estimated();
-        let (fit, covariance_unscaled, spread_posterior) = if marginalise {
-            let (x_avg, c_scaled, c_unscaled, post) = average_over_spread(&mut b, &xs, &st, cfg)?;
+        let (fit, covariance_unscaled, spread_posterior) = if let Some((g, _)) = grid {
+            let (x_avg, c_scaled, c_unscaled, post) = g;
             // The fit's figures at the averaged unknowns with the median spread.
             let mut sm = st;
             sm.joint = Some(post.median_mm);

@@ -343,8 +343,8 @@ pub fn read_export(text: &str, opts: &ExportOptions) -> Result<Vec<PointRecord>,
         let mut pts = parse_export(text)?;
         if let Some(t) = opts.tracker_at {
             for p in pts.iter_mut() {
-                for a in 0..3 {
-                    p.y_mm[a] -= t[a];
+                for (y, t) in p.y_mm.iter_mut().zip(t.iter()) {
+                    *y -= t;
                 }
             }
         }

@@ -319,8 +319,8 @@ fn plant_move(
         let i = candidates[rng.random_range(0..candidates.len())];
         let u = random_unit(&mut rng);
         let mut pts = c.points.clone();
-        for a in 0..3 {
-            pts[i].y_mm[a] += size_mm * u[a];
+        for (y, u) in pts[i].y_mm.iter_mut().zip(u.iter()) {
+            *y += size_mm * u;
         }
         let line = pts[i].line;
         out.n += 1;
