@@ -68,7 +68,7 @@ pub const GLOBAL_TEST_ALPHA: f64 = 0.05;
 /// Most variance-component iterations.
 pub const MAX_VCE_ITERATIONS: usize = 300;
 /// Convergence: every factor's relative change below this.
-pub const VCE_TOLERANCE: f64 = 1e-5;
+pub const VCE_TOLERANCE: f64 = 1e-3;
 /// Smallest redundancy of a component for its factor to be estimated.
 pub const MIN_COMPONENT_REDUNDANCY: f64 = 1.0;
 /// Largest fraction of the points that may be removed as outliers before the campaign
@@ -796,10 +796,15 @@ fn average_over_spread(
         let e = log_evidence(&lin, grid[i]).ok_or_else(|| {
             BundleError::Solver("marginal likelihood: singular normal matrix".into())
         })?;
-        let mut s1 = si;
-        s1.k = [1.0; N_COMPONENTS];
-        s1.apply(b);
-        let q1 = linearise(b, &x)?.q;
+        // The same information with the a-priori variances: the data rows unscaled.
+        let mut j1 = lin.j.clone();
+        for (i, c) in b.row_scales().iter().enumerate() {
+            j1.row_mut(i).scale_mut(1.0 / c);
+        }
+        let q1 = (j1.transpose() * &j1)
+            .cholesky()
+            .ok_or_else(|| BundleError::Solver("singular normal matrix".into()))?
+            .inverse();
         warm = x.clone();
         results[i] = Some((x, lin.q, q1, e));
     }

@@ -585,6 +585,11 @@ impl<'a> Bundle<'a> {
         self.priors = priors;
     }
 
+    /// The scale of each data row set by [`Bundle::set_variance_factors`].
+    pub fn row_scales(&self) -> &[f64] {
+        &self.row_scale
+    }
+
     /// The priors in force.
     pub fn priors(&self) -> Priors {
         self.priors
