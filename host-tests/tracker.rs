@@ -661,11 +661,13 @@ fn calibrate_command_on_tracker_files_writes_a_validated_table() {
         strokes: dir.join("strokes.csv"),
         targets: dir.join("targets.toml"),
         nominal,
+        export: m2ctl::ground::tracker::exports::ExportOptions::default(),
         noise: TrackerNoise::CLASS_15_6,
-        cfg: BundleConfig::with_priors(0.1, 0.1),
+        adjust: m2ctl::ground::calib::adjust::AdjustConfig::estimated(0.1),
         report: true,
         truth: Some(dir.join("truth.toml")),
         plot: None,
+        residual_plot: Some(dir.join("residuals.svg")),
     };
     let (text, summary) = run_point_calibrate(&args).expect("calibrate");
     let back = m2ctl::ground::files::parse_geometry(&text).expect("parses");
@@ -676,6 +678,11 @@ fn calibrate_command_on_tracker_files_writes_a_validated_table() {
         "observability",
         "predicted accuracy",
         "held-out accuracy",
+        "global test",
+        "outlier test",
+        "variance factor",
+        "joints' spread, posterior",
+        "without it",
     ] {
         assert!(summary.contains(what), "{what}: {summary}");
     }

@@ -40,7 +40,7 @@ enum Cmd {
     /// Forward kinematics: stroke columns of a CSV -> 12-column CSV with poses (f64).
     Fk(IoArgs),
     /// Calibrate the 36 joint coordinates from a measurement CSV.
-    Calibrate(CalibrateCli),
+    Calibrate(Box<CalibrateCli>),
     /// Write the calibration sampling plan's poses (6-column CSV).
     Plan(PlanCli),
     /// Write a measurement CSV from a simulated campaign (true mechanism + tracker noise).
@@ -63,6 +63,9 @@ enum Cmd {
     TrackerPlan(TrackerPlanCli),
     /// Tracker path: the paper's prototype experiment reproduced and explained.
     PaperExperiment(PaperExperimentCli),
+    /// Tracker path: calibrate's defaults on unknown spreads and noise, planted gross
+    /// errors, clean draws never refused.
+    TrackerDefaults(TrackerDefaultsCli),
     /// Encode telecommands (framed PUS-C packets, docs/icd.md) as hex lines or binary.
     Tc(TcCli),
     /// The whole mission story on the simulated plant: move, calibrate, upload, move again.
@@ -567,6 +570,27 @@ struct TrackerPlanCli {
 }
 
 #[derive(clap::Args)]
+struct TrackerDefaultsCli {
+    #[command(flatten)]
+    tracker: TrackerCli,
+    /// True joint spreads (mm, Gaussian, truncated at 3 sigma).
+    #[arg(long, value_delimiter = ',', default_values_t = m2ctl::ground::tracker::robust::DEFAULT_SPREADS)]
+    spreads: Vec<f64>,
+    /// Tracker noise scales (the --tracker preset times each).
+    #[arg(long, value_delimiter = ',', default_values_t = m2ctl::ground::tracker::robust::DEFAULT_SCALES)]
+    scales: Vec<f64>,
+    /// Campaigns per (spread, scale) cell.
+    #[arg(long, default_value_t = m2ctl::ground::tracker::robust::DEFAULT_CELL_CAMPAIGNS)]
+    campaigns: usize,
+    /// Campaigns per planted gross error (0: none).
+    #[arg(long, default_value_t = m2ctl::ground::tracker::robust::DEFAULT_GROSS_CAMPAIGNS)]
+    gross_campaigns: usize,
+    /// Clean campaigns that must not be refused (0: none).
+    #[arg(long, default_value_t = m2ctl::ground::tracker::robust::DEFAULT_CLEAN_DRAWS)]
+    clean_draws: usize,
+}
+
+#[derive(clap::Args)]
 struct PaperExperimentCli {
     #[command(flatten)]
     study: StudyCli,
@@ -591,12 +615,47 @@ struct CalibrateCli {
     targets: Option<PathBuf>,
     #[command(flatten)]
     tracker: TrackerCli,
-    /// Tracker path: prior spread of the joints (mm).
-    #[arg(long, default_value_t = m2ctl::ground::calib::bundle::DEFAULT_JOINT_PRIOR_SIGMA_MM)]
-    joint_prior_mm: f64,
-    /// Tracker path: no priors (the plain maximum-likelihood bundle fit).
+    /// Tracker path: prior spread of the joints (mm); default: estimated from the data.
     #[arg(long)]
+    joint_prior_mm: Option<f64>,
+    /// Tracker path: prior spread of the balls (mm); default: estimated from the data,
+    /// starting at the target file's ball_sigma_mm.
+    #[arg(long)]
+    ball_prior_mm: Option<f64>,
+    /// Tracker path: no priors (the plain maximum-likelihood bundle fit).
+    #[arg(long, conflicts_with_all = ["joint_prior_mm", "ball_prior_mm"])]
     no_prior: bool,
+    /// Tracker path: weight with the --tracker model as given (no variance components).
+    #[arg(long)]
+    fixed_noise: bool,
+    /// Tracker path: family-wise significance of the outlier test (Bonferroni over the
+    /// points).
+    #[arg(long, default_value_t = m2ctl::ground::calib::adjust::DEFAULT_ALPHA)]
+    alpha: f64,
+    /// Tracker path: a point failing the outlier test is removed (and reported) or
+    /// refuses the campaign: remove | refuse.
+    #[arg(long, default_value = "remove")]
+    outliers: String,
+    /// Tracker path: format of the point export: auto | native | sa | csv.
+    #[arg(long, default_value = "auto")]
+    points_format: String,
+    /// Tracker path, csv format: pose=COL,point=COL,x=COL,y=COL,z=COL[,sigma=COL].
+    #[arg(long)]
+    columns: Option<String>,
+    /// Tracker path: unit of the export's coordinates: mm | m | in (must agree with the
+    /// file's own declaration, if any).
+    #[arg(long)]
+    units: Option<String>,
+    /// Tracker path: the tracker head's position X,Y,Z in the export's frame and unit
+    /// (default: the export is in the tracker's own frame).
+    #[arg(long, value_delimiter = ',', num_args = 3, allow_hyphen_values = true)]
+    tracker_at: Option<Vec<f64>>,
+    /// Tracker path: the group (pose column value) of the base fiducials.
+    #[arg(long, default_value = "base")]
+    base_group: String,
+    /// Tracker path: picture of the standardised residuals per pose and ball (SVG).
+    #[arg(long)]
+    residual_plot: Option<PathBuf>,
     /// Nominal geometry file.
     #[arg(long)]
     nominal: PathBuf,
@@ -711,6 +770,82 @@ fn table_config(s: &SolverCli, plot: Option<PathBuf>) -> TableConfig {
     }
 }
 
+/// How `calibrate --points` reads the export.
+fn point_export_options(
+    a: &CalibrateCli,
+) -> Result<m2ctl::ground::tracker::exports::ExportOptions, String> {
+    use m2ctl::ground::tracker::exports::{ExportFormat, GenericColumns, LengthUnit};
+    let format = match (a.points_format.as_str(), &a.columns) {
+        ("csv", Some(c)) => ExportFormat::Generic(GenericColumns::parse(c)?),
+        ("csv", None) => return Err("--points-format csv needs --columns".into()),
+        (_, Some(_)) => return Err("--columns needs --points-format csv".into()),
+        ("auto", None) => ExportFormat::Auto,
+        ("native", None) => ExportFormat::Native,
+        ("sa", None) => ExportFormat::SpatialAnalyzer,
+        (f, _) => {
+            return Err(format!(
+                "--points-format: '{f}' is not auto, native, sa or csv"
+            ))
+        }
+    };
+    let units = match &a.units {
+        Some(u) => {
+            Some(LengthUnit::parse(u).ok_or_else(|| format!("--units: '{u}' is not mm, m or in"))?)
+        }
+        None => None,
+    };
+    let tracker_at = match &a.tracker_at {
+        Some(v) if v.len() == 3 && v.iter().all(|x| x.is_finite()) => Some([v[0], v[1], v[2]]),
+        Some(_) => return Err("--tracker-at needs three finite numbers X,Y,Z".into()),
+        None => None,
+    };
+    Ok(m2ctl::ground::tracker::exports::ExportOptions {
+        format,
+        units,
+        tracker_at,
+        base_group: a.base_group.clone(),
+    })
+}
+
+/// The adjustment settings of `calibrate --points`.
+fn point_adjust_config(
+    a: &CalibrateCli,
+    targets: &std::path::Path,
+) -> Result<m2ctl::ground::calib::adjust::AdjustConfig, String> {
+    use m2ctl::ground::calib::adjust::{AdjustConfig, OutlierRule, PriorSetting};
+    let ball_sigma = m2ctl::ground::tracker::files::parse_targets(
+        &std::fs::read_to_string(targets).map_err(|e| format!("{}: {e}", targets.display()))?,
+    )
+    .map_err(|e| format!("{}: {e}", targets.display()))?
+    .ball_sigma_mm;
+    let positive = |v: Option<f64>, what: &str| match v {
+        Some(x) if !(x.is_finite() && x > 0.0) => Err(format!("{what} must be a positive number")),
+        _ => Ok(v),
+    };
+    let mut c = AdjustConfig::estimated(ball_sigma);
+    if let Some(j) = positive(a.joint_prior_mm, "--joint-prior-mm")? {
+        c.joint_prior = PriorSetting::Fixed(j);
+    }
+    if let Some(b) = positive(a.ball_prior_mm, "--ball-prior-mm")? {
+        c.ball_prior = PriorSetting::Fixed(b);
+    }
+    if a.no_prior {
+        c.joint_prior = PriorSetting::Free;
+        c.ball_prior = PriorSetting::Free;
+    }
+    c.estimate_noise = !a.fixed_noise;
+    if !(a.alpha > 0.0 && a.alpha < 1.0) {
+        return Err("--alpha must be between 0 and 1".into());
+    }
+    c.alpha = a.alpha;
+    c.rule = match a.outliers.as_str() {
+        "remove" => OutlierRule::Remove,
+        "refuse" => OutlierRule::Refuse,
+        o => return Err(format!("--outliers: '{o}' is neither remove nor refuse")),
+    };
+    Ok(c)
+}
+
 fn calibrate_cmd(a: &CalibrateCli) -> Result<(), String> {
     let solver = SolverKind::parse(&a.solver).ok_or_else(|| {
         format!(
@@ -719,30 +854,19 @@ fn calibrate_cmd(a: &CalibrateCli) -> Result<(), String> {
         )
     })?;
     if let (Some(points), Some(strokes), Some(targets)) = (&a.points, &a.strokes, &a.targets) {
-        use m2ctl::ground::calib::bundle::BundleConfig;
         use m2ctl::ground::tracker::commands::{run_point_calibrate, PointCalibrateArgs};
-        if !(a.joint_prior_mm.is_finite() && a.joint_prior_mm > 0.0) {
-            return Err("--joint-prior-mm must be a positive number".into());
-        }
-        let ball_sigma = m2ctl::ground::tracker::files::parse_targets(
-            &std::fs::read_to_string(targets).map_err(|e| format!("{}: {e}", targets.display()))?,
-        )
-        .map_err(|e| format!("{}: {e}", targets.display()))?
-        .ball_sigma_mm;
         let (text, summary) = run_point_calibrate(&PointCalibrateArgs {
             points: points.clone(),
             strokes: strokes.clone(),
             targets: targets.clone(),
             nominal: a.nominal.clone(),
+            export: point_export_options(a)?,
             noise: a.tracker.noise()?,
-            cfg: if a.no_prior {
-                BundleConfig::unbounded()
-            } else {
-                BundleConfig::with_priors(a.joint_prior_mm, ball_sigma)
-            },
+            adjust: point_adjust_config(a, targets)?,
             report: a.report,
             truth: a.truth.clone(),
             plot: a.plot.clone(),
+            residual_plot: a.residual_plot.clone(),
         })?;
         std::fs::write(&a.out, text).map_err(|e| format!("{}: {e}", a.out.display()))?;
         print!("{summary}");
@@ -762,6 +886,32 @@ fn calibrate_cmd(a: &CalibrateCli) -> Result<(), String> {
     std::fs::write(&a.out, text).map_err(|e| format!("{}: {e}", a.out.display()))?;
     print!("{summary}");
     println!("wrote {}", a.out.display());
+    Ok(())
+}
+
+fn tracker_defaults_cmd(a: &TrackerDefaultsCli) -> Result<(), String> {
+    use m2ctl::ground::tracker::robust::{robust_study, RobustConfig};
+    if a.spreads
+        .iter()
+        .chain(a.scales.iter())
+        .any(|v| !(v.is_finite() && *v > 0.0))
+    {
+        return Err("--spreads and --scales must be positive numbers".into());
+    }
+    let base = m2ctl::ground::tracker::study::StudyConfig {
+        setup: a.tracker.setup()?,
+        ..Default::default()
+    };
+    let cfg = RobustConfig {
+        spreads: a.spreads.clone(),
+        scales: a.scales.clone(),
+        campaigns: a.campaigns,
+        gross_campaigns: a.gross_campaigns,
+        clean_draws: a.clean_draws,
+        ..RobustConfig::new(base)
+    };
+    let text = robust_study(&cfg, &mut |row| eprintln!("{row}"))?;
+    print!("{text}");
     Ok(())
 }
 
@@ -1024,6 +1174,7 @@ fn main() -> ExitCode {
             Cmd::TrackerStats(a) => tracker_stats_cmd(a),
             Cmd::TrackerPlan(a) => tracker_plan_cmd(a),
             Cmd::PaperExperiment(a) => paper_experiment_cmd(a),
+            Cmd::TrackerDefaults(a) => tracker_defaults_cmd(a),
             Cmd::Tc(a) => tc_cmd(a),
             Cmd::Mission(a) => mission_cmd(a),
             Cmd::Gateway(a) => gateway_cmd(a),

@@ -196,7 +196,7 @@ impl TrackerNoise {
 }
 
 /// Two unit vectors completing `u` (unit) to a right-handed orthonormal basis.
-fn transverse_basis(u: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+pub fn transverse_basis(u: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
     let helper = if u.z.abs() < 0.9 {
         Vector3::z()
     } else {

@@ -79,30 +79,154 @@ pub const DEFAULT_MC_DRAWS: usize = 400;
 /// fits whose information matrix is numerically singular).
 pub const PSEUDO_INVERSE_FLOOR: f64 = 1.0e-15;
 
+/// The variance component a whitened residual row belongs to (variance component
+/// estimation scales each component's tracker variance by its own factor).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Component {
+    /// The tracker's range (distance meter) error, along the line of sight.
+    Range = 0,
+    /// The tracker's transverse (angle encoder) errors, across the line of sight.
+    Transverse = 1,
+    /// A point with its own 1-sigma from the export (isotropic).
+    Export = 2,
+}
+
+/// Number of observation variance components ([`Component`]).
+pub const N_COMPONENTS: usize = 3;
+
 /// One measured point: tracker-frame coordinates, covariance and its whitening.
+///
+/// The covariance is diagonal in an orthonormal basis (rows of `basis`: the line of
+/// sight and two transverse directions for a tracker point), each row's variance the
+/// sum of a tracker part, scaled by its [`Component`]'s variance factor in a variance
+/// component estimation, and a fixed isotropic part (a fiducial's drawing tolerance).
 #[derive(Clone, Debug, PartialEq)]
 pub struct PointObs {
     /// 1-based line of the point export (0 for generated data).
     pub line: usize,
     /// Measured coordinates, tracker frame (mm).
     pub y_mm: [f64; 3],
-    /// Covariance of the measurement (mm^2).
+    /// Covariance of the measurement (mm^2), variance factors 1.
     pub cov_mm2: Matrix3<f64>,
-    /// `L^-1` with `cov = L L^T` (1/mm).
+    /// Orthonormal basis of the covariance's principal directions (rows).
+    pub basis: Matrix3<f64>,
+    /// Tracker variance along each basis row (mm^2), scaled by the component's factor.
+    pub tracker_var_mm2: [f64; 3],
+    /// Fixed isotropic variance (mm^2), not scaled.
+    pub fixed_var_mm2: f64,
+    /// Component of each basis row.
+    pub components: [Component; 3],
+    /// `diag(1 / sqrt(var)) basis` (1/mm): the whitening, `W^T W = cov^-1`.
     whiten: Matrix3<f64>,
 }
 
 impl PointObs {
-    /// A point with its covariance; `None` if the covariance is not positive definite.
-    pub fn new(line: usize, y_mm: [f64; 3], cov_mm2: Matrix3<f64>) -> Option<Self> {
-        let l = cov_mm2.cholesky()?.l();
-        let whiten = l.try_inverse()?;
+    fn from_parts(
+        line: usize,
+        y_mm: [f64; 3],
+        basis: Matrix3<f64>,
+        tracker_var_mm2: [f64; 3],
+        fixed_var_mm2: f64,
+        components: [Component; 3],
+    ) -> Option<Self> {
+        let var = tracker_var_mm2.map(|v| v + fixed_var_mm2);
+        if !var.iter().all(|v| v.is_finite() && *v > 0.0) {
+            return None;
+        }
+        let d = Matrix3::from_diagonal(&Vector3::from(var));
+        let cov_mm2 = basis.transpose() * d * basis;
+        let whiten = Matrix3::from_diagonal(&Vector3::from(var.map(|v| 1.0 / v.sqrt()))) * basis;
         Some(Self {
             line,
             y_mm,
             cov_mm2,
+            basis,
+            tracker_var_mm2,
+            fixed_var_mm2,
+            components,
             whiten,
         })
+    }
+
+    /// A point with a general covariance (one [`Component::Export`] component); `None`
+    /// if the covariance is not positive definite.
+    pub fn new(line: usize, y_mm: [f64; 3], cov_mm2: Matrix3<f64>) -> Option<Self> {
+        let eig = cov_mm2.symmetric_eigen();
+        let basis = eig.eigenvectors.transpose();
+        let v = eig.eigenvalues;
+        Self::from_parts(
+            line,
+            y_mm,
+            basis,
+            [v[0], v[1], v[2]],
+            0.0,
+            [Component::Export; 3],
+        )
+    }
+
+    /// A point measured by a tracker at the frame's origin with `noise`: range variance
+    /// along the line of sight ([`Component::Range`]), transverse across it
+    /// ([`Component::Transverse`]), plus a fixed isotropic `fixed_var_mm2`.
+    pub fn tracker(
+        line: usize,
+        y_mm: [f64; 3],
+        noise: &crate::sim::tracker::TrackerNoise,
+        fixed_var_mm2: f64,
+    ) -> Option<Self> {
+        let y = Vector3::from(y_mm);
+        let d = y.norm();
+        if !(d.is_finite() && d > 0.0) {
+            return None;
+        }
+        let u = y / d;
+        let (e1, e2) = crate::sim::tracker::transverse_basis(&u);
+        let basis = Matrix3::from_rows(&[u.transpose(), e1.transpose(), e2.transpose()]);
+        let (sr, st) = noise.sigmas_mm(d);
+        Self::from_parts(
+            line,
+            y_mm,
+            basis,
+            [sr * sr, st * st, st * st],
+            fixed_var_mm2,
+            [
+                Component::Range,
+                Component::Transverse,
+                Component::Transverse,
+            ],
+        )
+    }
+
+    /// A point with its own isotropic 1-sigma `sigma_mm` ([`Component::Export`]), plus
+    /// a fixed isotropic `fixed_var_mm2`.
+    pub fn isotropic(
+        line: usize,
+        y_mm: [f64; 3],
+        sigma_mm: f64,
+        fixed_var_mm2: f64,
+    ) -> Option<Self> {
+        Self::from_parts(
+            line,
+            y_mm,
+            Matrix3::identity(),
+            [sigma_mm * sigma_mm; 3],
+            fixed_var_mm2,
+            [Component::Export; 3],
+        )
+    }
+
+    /// Scale of each whitened row for variance factors `k` (per [`Component`]):
+    /// `sqrt(var(1) / var(k))`, `var(k) = k_c tracker_var + fixed_var`.
+    pub fn row_scales(&self, k: &[f64; N_COMPONENTS]) -> [f64; 3] {
+        [0, 1, 2].map(|i| {
+            let t = self.tracker_var_mm2[i];
+            let f = self.fixed_var_mm2;
+            ((t + f) / (k[self.components[i] as usize] * t + f)).sqrt()
+        })
+    }
+
+    /// The whitening `W` (1/mm, rows as `basis`) with variance factors 1.
+    pub fn whitening(&self) -> Matrix3<f64> {
+        self.whiten
     }
 }
 
@@ -354,6 +478,8 @@ pub struct Bundle<'a> {
     fid_local: Vec<LocalObs>,
     /// Ball observations pose by pose, local coordinates.
     ball_local: Vec<Vec<LocalObs>>,
+    /// Scale of each data row (variance factors, [`Bundle::set_variance_factors`]).
+    row_scale: Vec<f64>,
 }
 
 impl<'a> Bundle<'a> {
@@ -424,7 +550,54 @@ impl<'a> Bundle<'a> {
                 .iter()
                 .map(|p| p.balls.iter().map(|b| local(&b.obs)).collect())
                 .collect(),
+            row_scale: vec![1.0; 3 * n_points],
         })
+    }
+
+    /// The observations in row order (fiducials, then the balls pose by pose).
+    pub fn observations(&self) -> impl Iterator<Item = &PointObs> {
+        self.data.fiducials.iter().map(|f| &f.obs).chain(
+            self.data
+                .poses
+                .iter()
+                .flat_map(|p| p.balls.iter().map(|b| &b.obs)),
+        )
+    }
+
+    /// Scales every point's tracker variance by its component's factor `k` (1: the
+    /// noise model as given).
+    pub fn set_variance_factors(&mut self, k: &[f64; N_COMPONENTS]) {
+        let scales: Vec<f64> = self.observations().flat_map(|o| o.row_scales(k)).collect();
+        self.row_scale = scales;
+    }
+
+    /// Replaces the priors (the number of prior rows must not change: `Some` stays
+    /// `Some`).
+    pub fn set_priors(&mut self, priors: Priors) {
+        debug_assert_eq!(
+            priors.joint_sigma_mm.is_some(),
+            self.priors.joint_sigma_mm.is_some()
+        );
+        debug_assert_eq!(
+            priors.ball_sigma_mm.is_some(),
+            self.priors.ball_sigma_mm.is_some()
+        );
+        self.priors = priors;
+    }
+
+    /// The scale of each data row set by [`Bundle::set_variance_factors`].
+    pub fn row_scales(&self) -> &[f64] {
+        &self.row_scale
+    }
+
+    /// The priors in force.
+    pub fn priors(&self) -> Priors {
+        self.priors
+    }
+
+    /// The data the bundle fits.
+    pub fn data(&self) -> &BundleData {
+        self.data
     }
 
     /// Index layout of the unknowns.
@@ -645,6 +818,14 @@ impl<'a> Bundle<'a> {
                 }
             }
         }
+        for (i, c) in self.row_scale.iter().enumerate() {
+            if *c != 1.0 {
+                res[i] *= c;
+                if let Some(j) = jac.as_deref_mut() {
+                    j[i * n..(i + 1) * n].iter_mut().for_each(|v| *v *= c);
+                }
+            }
+        }
         res
     }
 
@@ -656,7 +837,7 @@ impl<'a> Bundle<'a> {
     }
 
     /// Line and description of every data row block (3 rows per point), in row order.
-    fn point_labels(&self) -> Vec<(usize, String)> {
+    pub fn point_labels(&self) -> Vec<(usize, String)> {
         let mut out: Vec<(usize, String)> = self
             .data
             .fiducials
@@ -774,10 +955,36 @@ fn covariance_of(j: &DMatrix<f64>) -> (DMatrix<f64>, bool) {
     (c, true)
 }
 
-/// Runs the bundle fit. Refuses a point farther than [`MAX_POINT_SIGMAS`] from the fit.
+/// Runs the bundle fit. Refuses a point farther than [`MAX_POINT_SIGMAS`] from the fit
+/// (a fixed limit on an assumed noise model: `calibrate --points` uses
+/// [`super::adjust`] instead, which estimates the noise and tests each point).
 pub fn fit(data: &BundleData, cfg: &BundleConfig) -> Result<BundleFit, BundleError> {
+    let fit = fit_plain(data, cfg)?;
+    if fit.worst_point.0 > MAX_POINT_SIGMAS {
+        return Err(BundleError::Outlier {
+            line: fit.worst_point.1,
+            sigmas: fit.worst_point.0,
+            what: fit.worst_point.2,
+        });
+    }
+    Ok(fit)
+}
+
+/// The bundle fit with the given priors and noise model, refusing nothing after the fit
+/// (the reference "fit given the true spread" of the studies).
+pub fn fit_plain(data: &BundleData, cfg: &BundleConfig) -> Result<BundleFit, BundleError> {
     let started = Instant::now();
     let bundle = Bundle::new(data, cfg.priors)?;
+    check_count(&bundle)?;
+    let x0 = bundle.start();
+    let start_rms = data_rms(&bundle, &x0);
+    let (x, evaluations, note) = solve(&bundle, x0, cfg)?;
+    finish(&bundle, x, start_rms, evaluations, note, started)
+}
+
+/// Refuses data with fewer observations than unknowns.
+pub fn check_count(bundle: &Bundle) -> Result<(), BundleError> {
+    let data = bundle.data();
     if data.poses.len() * 6 + data.fiducials.len() * 3 < bundle.n_params() {
         return Err(BundleError::Data(format!(
             "{} poses: too few for {} unknowns",
@@ -785,15 +992,25 @@ pub fn fit(data: &BundleData, cfg: &BundleConfig) -> Result<BundleFit, BundleErr
             bundle.n_params()
         )));
     }
-    let x0 = bundle.start();
+    Ok(())
+}
+
+/// Whitened data residual RMS at `x`.
+pub fn data_rms(bundle: &Bundle, x: &[f64]) -> f64 {
     let nd = bundle.n_data_rows();
-    let r0 = bundle.evaluate(&x0, None);
-    let start_rms = (r0[..nd].iter().map(|v| v * v).sum::<f64>() / nd as f64).sqrt();
+    let r = bundle.evaluate(x, None);
+    (r[..nd].iter().map(|v| v * v).sum::<f64>() / nd.max(1) as f64).sqrt()
+}
+
+/// Levenberg-Marquardt from `x0`: the unknowns, the number of evaluations and the
+/// termination reason.
+pub fn solve(
+    bundle: &Bundle,
+    x0: Vec<f64>,
+    cfg: &BundleConfig,
+) -> Result<(Vec<f64>, usize, String), BundleError> {
     let lm = super::lm::solver(cfg.tol_eps, cfg.patience);
-    let (p, report) = lm.minimize(LmAdapter {
-        bundle: &bundle,
-        x: x0,
-    });
+    let (p, report) = lm.minimize(LmAdapter { bundle, x: x0 });
     if report.termination.was_usage_issue() {
         return Err(BundleError::Solver(format!("{:?}", report.termination)));
     }
@@ -801,6 +1018,24 @@ pub fn fit(data: &BundleData, cfg: &BundleConfig) -> Result<BundleFit, BundleErr
     if !x.iter().all(|v| v.is_finite()) {
         return Err(BundleError::Solver("non-finite unknowns".into()));
     }
+    Ok((
+        x,
+        report.number_of_evaluations,
+        format!("{:?}", report.termination),
+    ))
+}
+
+/// The fit's results at the solution `x` of `bundle` (no refusal).
+pub fn finish(
+    bundle: &Bundle,
+    x: Vec<f64>,
+    start_rms: f64,
+    evaluations: usize,
+    note: String,
+    started: Instant,
+) -> Result<BundleFit, BundleError> {
+    let data = bundle.data();
+    let nd = bundle.n_data_rows();
     let res = bundle.evaluate(&x, None);
     let chi2: f64 = res[..nd].iter().map(|v| v * v).sum();
     if !chi2.is_finite() || chi2 >= FAILED_POSE_RESIDUAL {
@@ -815,13 +1050,6 @@ pub fn fit(data: &BundleData, cfg: &BundleConfig) -> Result<BundleFit, BundleErr
         if d > worst.0 {
             worst = (d, *line, what.clone());
         }
-    }
-    if worst.0 > MAX_POINT_SIGMAS {
-        return Err(BundleError::Outlier {
-            line: worst.1,
-            sigmas: worst.0,
-            what: worst.2,
-        });
     }
     let registration = bundle.registration(&x);
     let fiducial_residuals_um = data
@@ -865,8 +1093,8 @@ pub fn fit(data: &BundleData, cfg: &BundleConfig) -> Result<BundleFit, BundleErr
         fiducial_residuals_um,
         ball_residual_rms_um: (ss / count.max(1) as f64).sqrt(),
         start_rms,
-        evaluations: report.number_of_evaluations,
-        note: format!("{:?}", report.termination),
+        evaluations,
+        note,
         elapsed: started.elapsed(),
         layout: bundle.layout(),
         x,

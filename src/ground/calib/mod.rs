@@ -12,11 +12,13 @@
 //! Solvers: [`lm`] (Levenberg-Marquardt, analytic Jacobian, regularised toward nominal and
 //! kept inside Omega) and [`cuckoo`] (the paper's SMCS and its improved variant).
 
+pub mod adjust;
 pub mod bundle;
 pub mod cuckoo;
 pub mod design;
 pub mod lm;
 pub mod registration;
+pub mod stats;
 
 use std::fmt;
 use std::time::Duration;

@@ -7,13 +7,14 @@ use std::path::{Path, PathBuf};
 use nalgebra::Point3;
 
 use super::campaign::{simulate_with_truth, CampaignSeeds, TrackerSetup};
+use super::exports::{read_export, ExportOptions};
 use super::files::{
-    format_export, format_strokes, format_targets, parse_export, parse_strokes, parse_targets,
-    PointPose, Which,
+    format_export, format_strokes, format_targets, parse_strokes, parse_targets, PointPose, Which,
 };
 use super::plots::{per_pose, Band, Panel, Series};
 use super::study::{rms3, TruthModel};
-use crate::ground::calib::bundle::{self, BundleConfig, BundleFit};
+use crate::ground::calib::adjust::{adjust, AdjustConfig, Adjustment, PriorSetting};
+use crate::ground::calib::bundle::{self, BundleFit};
 use crate::ground::calib::registration::{pose_from_balls, rotation_angles};
 use crate::ground::calib::{param_name, to_vec, N_PARAMS};
 use crate::ground::eval::{accuracy, pose_error, random_poses, Accuracy, AXES};
@@ -45,16 +46,21 @@ pub struct PointCalibrateArgs {
     pub targets: PathBuf,
     /// Nominal geometry file.
     pub nominal: PathBuf,
-    /// The tracker's noise model (weights of points without their own sigma).
+    /// How to read the point export (format, unit, frame).
+    pub export: ExportOptions,
+    /// The tracker's noise model (weights of points without their own sigma): the
+    /// a-priori model that the variance components scale.
     pub noise: TrackerNoise,
-    /// Bundle settings.
-    pub cfg: BundleConfig,
+    /// Adjustment settings (priors, noise estimation, outlier test).
+    pub adjust: AdjustConfig,
     /// Print the pose errors at the measured poses (and, with `truth`, held out).
     pub report: bool,
     /// True geometry of a simulated campaign.
     pub truth: Option<PathBuf>,
     /// Per-pose error plot (with `report`).
     pub plot: Option<PathBuf>,
+    /// Picture of the standardised residuals per pose and ball.
+    pub residual_plot: Option<PathBuf>,
 }
 
 fn read(path: &Path) -> Result<String, String> {
@@ -98,13 +104,262 @@ fn line(out: &mut String, label: &str, a: &Accuracy) {
     let _ = writeln!(out, "  {label:<26} max/RMS: {}", a.max_rms_cells(3));
 }
 
+/// The a-priori noise model with the estimated variance factors applied (range and
+/// transverse sigmas times the square roots of their factors).
+pub fn scaled_noise(noise: &TrackerNoise, adj: &Adjustment) -> TrackerNoise {
+    let f = adj.factors();
+    let (r, t) = (f[0].sqrt(), f[1].sqrt());
+    TrackerNoise {
+        range_um: noise.range_um * r,
+        range_um_per_m: noise.range_um_per_m * r,
+        transverse_um: noise.transverse_um * t,
+        transverse_um_per_m: noise.transverse_um_per_m * t,
+    }
+}
+
+/// Mean tracker-to-ball range of the data (mm).
+fn data_ranges_mm(data: &crate::ground::calib::bundle::BundleData) -> f64 {
+    let r: Vec<f64> = data
+        .poses
+        .iter()
+        .flat_map(|p| p.balls.iter())
+        .map(|b| nalgebra::Vector3::from(b.obs.y_mm).norm())
+        .collect();
+    r.iter().sum::<f64>() / r.len().max(1) as f64
+}
+
+/// The statistics of the adjustment: variance components, the global test, the outlier
+/// test and what it removed.
+pub fn format_statistics(adj: &Adjustment, noise: &TrackerNoise, range_mm: f64) -> String {
+    use crate::ground::calib::adjust::{GLOBAL_TEST_ALPHA, OUTLIER_POWER, SPREAD_RANGE_MM};
+    let mut s = String::new();
+    let (sr, st) = noise.sigmas_mm(range_mm);
+    let _ = writeln!(
+        s,
+        "noise model and priors from the data (variance components, Foerstner's iterative estimator = type-II maximum likelihood; 95 % intervals):"
+    );
+    for (k, c) in adj.components.iter().enumerate() {
+        if c.rows == 0 {
+            continue;
+        }
+        let what = match k {
+            0 => format!(
+                "sigma {:.2} um at {:.2} m (model {:.2} um)",
+                sr * UM_PER_MM * c.factor.sqrt(),
+                range_mm / MM_PER_M,
+                sr * UM_PER_MM
+            ),
+            1 => format!(
+                "sigma {:.2} um at {:.2} m (model {:.2} um)",
+                st * UM_PER_MM * c.factor.sqrt(),
+                range_mm / MM_PER_M,
+                st * UM_PER_MM
+            ),
+            2 => "sigma x the export's".to_string(),
+            3 => format!(
+                "spread {} mm (type-II ML)",
+                adj.joint_prior_mm.map_or("-".into(), |v| format!("{v:.4}"))
+            ),
+            _ => format!(
+                "spread {} mm",
+                adj.ball_prior_mm.map_or("-".into(), |v| format!("{v:.4}"))
+            ),
+        };
+        let _ = writeln!(
+            s,
+            "  {:<30} variance factor {:.3} ({:.3} .. {:.3}), sigma factor {:.3}; {}; redundancy {:.1} of {} rows{}",
+            c.name,
+            c.factor,
+            c.factor_ci.0,
+            c.factor_ci.1,
+            c.factor.sqrt(),
+            what,
+            c.redundancy,
+            c.rows,
+            if c.estimated { "" } else { " (not estimated: fixed or redundancy too small)" }
+        );
+    }
+    if let Some(p) = &adj.spread_posterior {
+        let _ = writeln!(
+            s,
+            "  joints' spread, posterior (marginal likelihood x log-uniform hyperprior over {} .. {} mm): median {:.4} mm, 68 % {:.4} .. {:.4} mm; the calibration is the average of {} fits over the spread, weighted by it",
+            SPREAD_RANGE_MM.0,
+            SPREAD_RANGE_MM.1,
+            p.median_mm,
+            p.interval_mm.0,
+            p.interval_mm.1,
+            p.grid_mm.len()
+        );
+    }
+    let g = |t: &crate::ground::calib::adjust::GlobalTest| {
+        format!(
+            "sigma0^2 = {:.3} (95 % {:.3} .. {:.3}), {:.1} degrees of freedom, accepted region {:.3} .. {:.3} at alpha {}: {}",
+            t.sigma0_sq,
+            t.sigma0_sq_ci.0,
+            t.sigma0_sq_ci.1,
+            t.redundancy,
+            t.accept.0,
+            t.accept.1,
+            GLOBAL_TEST_ALPHA,
+            if t.passed { "accepted" } else { "rejected" }
+        )
+    };
+    let _ = writeln!(
+        s,
+        "global test of the a-priori noise model (chi-square of the data residuals with the model's variances):
+  all points: {}
+  after the outliers: {}
+  {}",
+        g(&adj.global_before),
+        g(&adj.global_after),
+        if adj.global_after.passed {
+            "the model fits; the estimated factors are consistent with 1"
+        } else {
+            "the model does not fit this tracker: the fit's weights and covariances use the estimated variance factors instead (nothing is refused for it)"
+        }
+    );
+    let mdb: Vec<f64> = {
+        let mut v: Vec<f64> = adj
+            .tests
+            .iter()
+            .map(|t| t.mdb_mm)
+            .filter(|v| v.is_finite())
+            .collect();
+        v.sort_by(|a, b| a.total_cmp(b));
+        v
+    };
+    let worst = adj
+        .tests
+        .iter()
+        .filter(|t| t.t.is_finite())
+        .max_by(|a, b| a.t.total_cmp(&b.t));
+    let untestable = adj.tests.iter().filter(|t| !t.t.is_finite()).count();
+    let _ = writeln!(
+        s,
+        "outlier test (data snooping: each point's 3 standardised residuals together, T = v^T Q_vv^-1 v ~ chi-square(3)): critical T {:.2} (family alpha {}, Bonferroni over {} points: {:.2e} per point); minimal detectable bias ({:.0} % power, lambda0 {:.1}, worst direction) {:.3} .. {:.3} mm, median {:.3} mm{}",
+        adj.critical,
+        adj.alpha_per_test * adj.tests.len() as f64,
+        adj.tests.len(),
+        adj.alpha_per_test,
+        OUTLIER_POWER * 100.0,
+        adj.lambda0,
+        mdb.first().copied().unwrap_or(f64::NAN),
+        mdb.last().copied().unwrap_or(f64::NAN),
+        mdb.get(mdb.len() / 2).copied().unwrap_or(f64::NAN),
+        if untestable > 0 { format!("; {untestable} points not testable") } else { String::new() }
+    );
+    if adj.removed.is_empty() {
+        let _ = writeln!(s, "  outliers: none");
+    }
+    for o in &adj.removed {
+        let e = o.test.error_mm;
+        let _ = writeln!(
+            s,
+            "  removed: line {}: {}, T = {:.1} > {:.1} (max |w| {:.1}), estimated error {:.0} um ({:+.0} / {:+.0} / {:+.0} um, tracker frame)",
+            o.test.line,
+            o.test.what,
+            o.test.t,
+            o.critical,
+            o.test.w_max,
+            (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt() * UM_PER_MM,
+            e[0] * UM_PER_MM,
+            e[1] * UM_PER_MM,
+            e[2] * UM_PER_MM
+        );
+    }
+    if let Some(w) = worst {
+        let _ = writeln!(
+            s,
+            "  largest remaining: line {}: {}, T = {:.2} (max |w| {:.2}, mean redundancy number {:.3})",
+            w.line, w.what, w.t, w.w_max, w.redundancy
+        );
+    }
+    s
+}
+
+/// The standardised residuals `sqrt(T)` of every ball at every pose (one series per
+/// ball), the fiducials' (one series, drawn at x = 1, 2, ... in file order) and the
+/// removed outliers' at their removal, with the critical value as the accepted band.
+pub fn plot_residuals(path: &Path, adj: &Adjustment) -> Result<(), String> {
+    use crate::ground::calib::adjust::PointId;
+    let n = adj
+        .data
+        .poses
+        .iter()
+        .map(|p| p.pose as usize)
+        .chain(
+            adj.removed
+                .iter()
+                .filter_map(|o| o.test.pose.map(|p| p as usize)),
+        )
+        .max()
+        .unwrap_or(1);
+    let mut series: Vec<Series> = adj
+        .data
+        .ball_names
+        .iter()
+        .map(|b| Series {
+            label: format!("ball {b}"),
+            values: vec![f64::NAN; n],
+        })
+        .collect();
+    let mut fid = Series {
+        label: "fiducials (at poses 1..)".into(),
+        values: vec![f64::NAN; n],
+    };
+    let mut k_fid = 0;
+    for t in &adj.tests {
+        match t.id {
+            PointId::Ball { pose, ball } => {
+                let p = adj.data.poses[pose].pose as usize;
+                series[ball].values[p - 1] = t.t.sqrt();
+            }
+            PointId::Fiducial(_) => {
+                if k_fid < n {
+                    fid.values[k_fid] = t.t.sqrt();
+                }
+                k_fid += 1;
+            }
+        }
+    }
+    let mut removed = Series {
+        label: "removed outliers".into(),
+        values: vec![f64::NAN; n],
+    };
+    for o in &adj.removed {
+        let p = o.test.pose.unwrap_or(1) as usize;
+        removed.values[p - 1] = o.test.t.sqrt();
+    }
+    series.push(fid);
+    series.push(removed);
+    per_pose(
+        path,
+        &format!(
+            "Standardised residuals sqrt(T), T = v' Q_vv^-1 v (chi-square, 3 dof, when good); critical sqrt(T) {:.2}",
+            adj.critical.sqrt()
+        ),
+        "pose (number in the files)",
+        &[Panel {
+            caption: "sqrt(T) per pose and ball".into(),
+            y_label: "sqrt(T)".into(),
+            series,
+            band: Some(Band {
+                lo: 0.0,
+                hi: adj.critical.sqrt(),
+            }),
+            log: false,
+        }],
+        Some("accepted: sqrt(T) below the critical value"),
+    )
+}
+
 /// Runs `calibrate` on tracker points: the geometry file text and the printed report.
 /// Nothing is returned (so nothing written) unless the flight validation accepts the
 /// result.
 pub fn run_point_calibrate(a: &PointCalibrateArgs) -> Result<(String, String), String> {
     let name = |p: &Path, e: &dyn std::fmt::Display| format!("{}: {e}", p.display());
     let targets = parse_targets(&read(&a.targets)?).map_err(|e| name(&a.targets, &e))?;
-    let points = parse_export(&read(&a.points)?).map_err(|e| name(&a.points, &e))?;
+    let points = read_export(&read(&a.points)?, &a.export).map_err(|e| name(&a.points, &e))?;
     let strokes = parse_strokes(&read(&a.strokes)?).map_err(|e| name(&a.strokes, &e))?;
     let nominal = read_geometry(&a.nominal)?;
     let data = super::bundle_data(&targets, &points, &strokes, &nominal.params, &a.noise).map_err(
@@ -116,25 +371,37 @@ pub fn run_point_calibrate(a: &PointCalibrateArgs) -> Result<(String, String), S
             name(p, &e)
         },
     )?;
-    let fit = bundle::fit(&data, &a.cfg).map_err(|e| match e {
+    let adj = adjust(&data, &a.adjust).map_err(|e| match e {
         bundle::BundleError::Outlier { .. } => name(&a.points, &e),
+        bundle::BundleError::Data(ref m) if m.contains("outlier test") => name(&a.points, &e),
         e => format!("calibration: {e}"),
     })?;
+    let fit = &adj.fit;
+    let data = &adj.data;
+    let estimated_noise = scaled_noise(&a.noise, &adj);
     crate::ground::files::validate_for_flight(&fit.params)
         .map_err(|e| format!("calibration result: {e}"))?;
     let p0 = nominal.params.p0_mm;
     let mut s = String::new();
-    let prior = |v: Option<f64>| v.map_or("none".to_string(), |x| format!("{x} mm"));
+    let prior = |v: Option<f64>, setting: &PriorSetting| match (v, setting) {
+        (None, _) => "none".to_string(),
+        (Some(x), PriorSetting::Estimate { .. }) => format!("{x:.4} mm (estimated)"),
+        (Some(x), _) => format!("{x} mm (given)"),
+    };
     let _ = writeln!(
         s,
-        "calibrated {N_PARAMS} joint coordinates from {} poses ({} ball points, {} fiducials) by a bundle fit in ball coordinates; priors: joints {}, balls {}; tracker noise model: {}",
+        "calibrated {N_PARAMS} joint coordinates from {} poses ({} ball points, {} fiducials) by a bundle fit in ball coordinates; priors: joints {}, balls {}; a-priori tracker noise model: {}",
         data.poses.len(),
         data.poses.iter().map(|p| p.balls.len()).sum::<usize>(),
         data.fiducials.len(),
-        prior(a.cfg.priors.joint_sigma_mm),
-        prior(a.cfg.priors.ball_sigma_mm),
+        match &adj.spread_posterior {
+            Some(p) => format!("{:.4} mm (posterior median; fits averaged over the spread)", p.median_mm),
+            None => prior(adj.joint_prior_mm, &a.adjust.joint_prior),
+        },
+        prior(adj.ball_prior_mm, &a.adjust.ball_prior),
         a.noise.describe()
     );
+    s.push_str(&format_statistics(&adj, &a.noise, data_ranges_mm(data)));
     // Registration.
     let reg_angles = |iso: &nalgebra::Isometry3<f64>| {
         rotation_angles(iso.rotation.to_rotation_matrix().matrix()).map(|v| v.to_degrees())
@@ -206,12 +473,13 @@ pub fn run_point_calibrate(a: &PointCalibrateArgs) -> Result<(String, String), S
         if fit.covariance_pseudo_inverse { "; covariance by pseudo-inverse (information singular)" } else { "" }
     );
     // Observability.
-    let scale = a
-        .cfg
-        .priors
-        .joint_sigma_mm
+    let scale = adj
+        .spread_posterior
+        .as_ref()
+        .map(|p| (p.median_mm * 1e4).round() / 1e4)
+        .or(adj.joint_prior_mm)
         .unwrap_or(bundle::DEFAULT_JOINT_PRIOR_SIGMA_MM);
-    let obs = bundle::observability(&data, &fit.x, scale, REPORTED_DIRECTIONS)
+    let obs = bundle::observability(data, &fit.x, scale, REPORTED_DIRECTIONS)
         .map_err(|e| e.to_string())?;
     let below = |v: &[f64]| v.iter().filter(|x| **x < 1.0).count();
     let tail = |v: &[f64]| {
@@ -277,16 +545,29 @@ pub fn run_point_calibrate(a: &PointCalibrateArgs) -> Result<(String, String), S
             .collect::<Vec<_>>()
             .join("  ")
     };
+    let pred_unscaled = bundle::predict_accuracy(
+        &fit.params,
+        &adj.joint_covariance_unscaled(),
+        &held_out,
+        bundle::DEFAULT_MC_DRAWS,
+        1,
+    )?;
     let _ = writeln!(
         s,
-        "predicted accuracy of the calibrated mechanism over {} poses (+-{} mm, +-{}\"):\n  RMS (1 sigma)  {}\n  largest sigma  {}\n  expected max   {}",
+        "predicted accuracy of the calibrated mechanism over {} poses (+-{} mm, +-{}\"), with the estimated noise scaling (the covariance of the fit):\n  RMS (1 sigma)  {}\n  largest sigma  {}\n  expected max   {}\nwithout it (the a-priori tracker model, same fit and priors):\n  RMS (1 sigma)  {}\n  expected max   {}",
         held_out.len(),
         DEFAULT_EVAL_TRANSLATION_MM,
         DEFAULT_EVAL_ROTATION_ARCSEC,
         fmt6(&pred.rms_sigma),
         fmt6(&pred.max_sigma),
-        fmt6(&pred.expected_max)
+        fmt6(&pred.expected_max),
+        fmt6(&pred_unscaled.rms_sigma),
+        fmt6(&pred_unscaled.expected_max)
     );
+    if let Some(p) = &a.residual_plot {
+        plot_residuals(p, &adj)?;
+        let _ = writeln!(s, "standardised residuals: {}", p.display());
+    }
     if a.report {
         // Pose errors at the measured poses: FK(strokes) - pose from the balls.
         let inv = fit.registration.inverse();
@@ -323,7 +604,7 @@ pub fn run_point_calibrate(a: &PointCalibrateArgs) -> Result<(String, String), S
         }
         let before = Accuracy::from_errors(before);
         let after = Accuracy::from_errors(after);
-        let noise_sigma = pose_noise(&fit, &p0, &a.noise).ok_or("pose noise singular")?;
+        let noise_sigma = pose_noise(fit, &p0, &estimated_noise).ok_or("pose noise singular")?;
         let _ = writeln!(
             s,
             "pose error at the measured poses, FK(strokes) - pose from the balls (fitted centres and registration), um and arcsec; one tracker pose measurement is 1 sigma {:.2}/{:.2}/{:.2} um, {:.2}/{:.2}/{:.2}\":",
@@ -428,6 +709,34 @@ pub fn run_point_calibrate(a: &PointCalibrateArgs) -> Result<(String, String), S
         (
             "predicted_rms_arcsec".to_string(),
             format!("{:.4}", rms3(&pred.rms_sigma[3..])),
+        ),
+        (
+            "noise_factor_range".to_string(),
+            format!("{:.4}", adj.components[0].factor.sqrt()),
+        ),
+        (
+            "noise_factor_transverse".to_string(),
+            format!("{:.4}", adj.components[1].factor.sqrt()),
+        ),
+        (
+            "joint_spread_mm".to_string(),
+            adj.spread_posterior
+                .as_ref()
+                .map(|p| p.median_mm)
+                .or(adj.joint_prior_mm)
+                .map_or("none".into(), |v| format!("{v:.5}")),
+        ),
+        (
+            "outliers_removed".to_string(),
+            if adj.removed.is_empty() {
+                "none".to_string()
+            } else {
+                adj.removed
+                    .iter()
+                    .map(|o| format!("line {}", o.test.line))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            },
         ),
     ];
     let text = format_geometry(

@@ -15,12 +15,14 @@
 
 pub mod campaign;
 pub mod commands;
+pub mod exports;
 pub mod files;
 pub mod plots;
+pub mod robust;
 pub mod session;
 pub mod study;
 
-use nalgebra::{Matrix3, Point3, Vector3};
+use nalgebra::{Point3, Vector3};
 
 use self::files::{check_export, PointPose, PointRecord, StrokeRecord, TargetFile, Which};
 use crate::ground::calib::bundle::{BallObs, BundleData, FiducialObs, PointObs, PoseObs};
@@ -60,12 +62,13 @@ fn data_err(which: Which, line: usize, message: String) -> TrackerDataError {
     }
 }
 
-/// The covariance of a point (mm^2): isotropic from the export's `sigma_mm` if given,
-/// else the tracker class's model.
-fn point_covariance(p: &PointRecord, noise: &TrackerNoise) -> Matrix3<f64> {
+/// The observation of a point: isotropic from the export's `sigma_mm` if given, else
+/// the tracker class's model (range along the line of sight, transverse across it),
+/// plus a fixed isotropic `fixed_var_mm2` (a fiducial's drawing tolerance).
+fn point_obs(p: &PointRecord, noise: &TrackerNoise, fixed_var_mm2: f64) -> Option<PointObs> {
     match p.sigma_mm {
-        Some(s) => Matrix3::identity() * (s * s),
-        None => noise.covariance_mm2(&p.y_mm),
+        Some(s) => PointObs::isotropic(p.line, p.y_mm, s, fixed_var_mm2),
+        None => PointObs::tracker(p.line, p.y_mm, noise, fixed_var_mm2),
     }
 }
 
@@ -83,8 +86,8 @@ pub fn bundle_data(
 ) -> Result<BundleData, TrackerDataError> {
     let poses = check_export(targets, points, strokes)
         .map_err(|(which, error)| TrackerDataError { which, error })?;
-    let cov_ok = |p: &PointRecord, c: Matrix3<f64>| {
-        PointObs::new(p.line, p.y_mm, c).ok_or_else(|| {
+    let cov_ok = |p: &PointRecord, fixed: f64| {
+        point_obs(p, noise, fixed).ok_or_else(|| {
             data_err(
                 Which::Points,
                 p.line,
@@ -104,10 +107,7 @@ pub fn bundle_data(
         fiducials.push(FiducialObs {
             name: p.name.clone(),
             drawing_b_mm: def.mm,
-            obs: cov_ok(
-                p,
-                point_covariance(p, noise) + Matrix3::identity() * fid_var,
-            )?,
+            obs: cov_ok(p, fid_var)?,
         });
     }
     // Registration and its residuals: a fiducial far from the others' fit is refused.
@@ -182,17 +182,38 @@ pub fn bundle_data(
             )
         })?;
         let r = rotation_matrix(&pose.pose.rotation_rad);
-        let mut balls = Vec::new();
-        for p in points.iter().filter(|p| p.pose == PointPose::Pose(k)) {
-            let Some(b) = targets.balls.iter().position(|b| b.name == p.name) else {
-                continue;
-            };
-            let predicted = Vector3::from(nominal.p0_mm)
+        let predicted_of = |b: usize| {
+            Vector3::from(nominal.p0_mm)
                 + Vector3::from(pose.pose.translation_mm)
-                + r * Vector3::from(targets.balls[b].mm);
-            let measured_b = inv * Point3::from(p.y_mm);
-            let d = (measured_b.coords - predicted).norm();
+                + r * Vector3::from(targets.balls[b].mm)
+        };
+        let in_pose: Vec<(&PointRecord, usize)> = points
+            .iter()
+            .filter(|p| p.pose == PointPose::Pose(k))
+            .filter_map(|p| Some((p, targets.balls.iter().position(|b| b.name == p.name)?)))
+            .collect();
+        let gap = |p: &PointRecord, b: usize| {
+            ((inv * Point3::from(p.y_mm)).coords - predicted_of(b)).norm()
+        };
+        let mut balls = Vec::new();
+        for &(p, b) in &in_pose {
+            let d = gap(p, b);
             if d > MAX_PREFIT_MISMATCH_MM {
+                // Two names exchanged: each point is where the other's name should be.
+                if let Some((q, _)) = in_pose.iter().find(|(q, c)| {
+                    q.line != p.line
+                        && gap(p, *c) <= MAX_PREFIT_MISMATCH_MM
+                        && gap(q, b) <= MAX_PREFIT_MISMATCH_MM
+                }) {
+                    return Err(data_err(
+                        Which::Points,
+                        p.line,
+                        format!(
+                            "balls {} (line {}) and {} (line {}) of pose {k} are swapped: each is where the other's name should be ({d:.3} mm from its own, within {MAX_PREFIT_MISMATCH_MM} mm of the other's); correct the names in the export",
+                            p.name, p.line, q.name, q.line
+                        ),
+                    ));
+                }
                 return Err(data_err(
                     Which::Points,
                     p.line,
@@ -204,7 +225,7 @@ pub fn bundle_data(
             }
             balls.push(BallObs {
                 ball: b,
-                obs: cov_ok(p, point_covariance(p, noise))?,
+                obs: cov_ok(p, 0.0)?,
             });
         }
         out_poses.push(PoseObs {

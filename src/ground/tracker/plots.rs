@@ -335,6 +335,7 @@ pub fn per_pose(
                 .values
                 .iter()
                 .enumerate()
+                .filter(|(_, v)| v.is_finite())
                 .map(|(i, v)| ((i + 1) as f64, tr(*v)))
                 .collect();
             draw_markers(&mut chart, m, &pts, c, MARKER_PX)?;
