@@ -568,7 +568,7 @@ fn every_failure_code_in_the_code_is_enumerated() {
         "src/kinematics/fk.rs",
         "src/table/layout.rs",
         "src/table/validate.rs",
-        "src/table/store.rs",
+        "src/table/store/mod.rs",
         "src/motion/trajectory.rs",
         "src/motion/stroke.rs",
         "src/controller/error.rs",

@@ -171,7 +171,7 @@ impl BootReport {
 }
 
 impl<F: NorFlash + FlashStatus> TableStore<F> {
-    /// Selects the table to run with (module documentation, "Boot"). Never fails.
+    /// Selects the table to run with (this module's documentation). Never fails.
     pub fn boot(&mut self, cfg: &ValidationConfig) -> (Table, BootReport) {
         self.write = None;
         self.pending = None;
