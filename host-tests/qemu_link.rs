@@ -23,7 +23,7 @@ const UART_BYTES_PER_MS: usize = 11;
 /// A host stall of the QEMU process: 5 x the watchdog's 200 ms from last feed to reset
 /// (`board::mps2_an386::WATCHDOG_TIMEOUT_CYCLES`, twice).
 const HOST_STALL: Duration = Duration::from_millis(1000);
-/// The flight image's stack budget (issue 9, README "Firmware figures"): the painted
+/// The flight image's stack budget (issue 9, docs/budgets.md "Firmware figures"): the painted
 /// peak over each path stays within it (the STACK region is 12 KiB: the rest is margin).
 const STACK_BUDGET_BYTES: u32 = 8 * 1024;
 

@@ -1,5 +1,5 @@
-//! The figures of the tracker path (README "Calibration from tracker points"), each a
-//! function returning Markdown: the campaign table ([`campaign_table`]), predicted vs
+//! The figures of the tracker path (docs/calibration.md, "Calibration from laser-tracker
+//! points"), each a function returning Markdown: the campaign table ([`campaign_table`]), predicted vs
 //! measured accuracy over many campaigns ([`prediction_check`]), the optimal plan
 //! ([`plan_study`]) and the paper's experiment ([`paper_experiment`]).
 //!
