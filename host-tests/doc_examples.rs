@@ -117,12 +117,12 @@ const NOT_RUN: &[(&str, &str, &str)] = &[
          gross errors, clean draws)",
     ),
     (
-    "docs/ground-segment.md",
-    "gateway --uart unix:PATH",
-    "without --listen the gateway binds the documented 127.0.0.1:10015, where a ground \
-     segment running on this shared machine (scripts/ground-segment.sh, yamcs-e2e.sh) \
-     listens and its Yamcs connects: the test would take or break their link. Every \
-     other form of the example runs, --listen on a port of the test's",
+        "docs/ground-segment.md",
+        "gateway --uart unix:PATH",
+        "without --listen the gateway binds the documented 127.0.0.1:10015, where a ground \
+         segment running on this shared machine (scripts/ground-segment.sh, yamcs-e2e.sh) \
+         listens and its Yamcs connects: the test would take or break their link. Every \
+         other form of the example runs, --listen on a port of the test's",
     ),
 ];
 
@@ -1338,7 +1338,12 @@ fn every_command_example_in_the_documentation_runs() {
                 .push(format!("fixture {f}: {d} does not name it"));
         }
     }
-    for doc in [OPERATIONS, CALIBRATION, "docs/icd.md", "docs/ground-segment.md"] {
+    for doc in [
+        OPERATIONS,
+        CALIBRATION,
+        "docs/icd.md",
+        "docs/ground-segment.md",
+    ] {
         assert!(
             !examples(doc).0.is_empty(),
             "{doc}: no m2ground examples found: the extraction is broken"
