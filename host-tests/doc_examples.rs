@@ -117,9 +117,9 @@ const NOT_RUN: &[(&str, &str, &str)] = &[(
     "docs/ground-segment.md",
     "gateway --uart unix:PATH",
     "without --listen the gateway binds the documented 127.0.0.1:10015, where a ground \
-         segment running on this shared machine (scripts/ground-segment.sh, yamcs-e2e.sh) \
-         listens and its Yamcs connects: the test would take or break their link. Every \
-         other form of the example runs, --listen on a port of the test's",
+     segment running on this shared machine (scripts/ground-segment.sh, yamcs-e2e.sh) \
+     listens and its Yamcs connects: the test would take or break their link. Every \
+     other form of the example runs, --listen on a port of the test's",
 )];
 
 /// Placeholders: (document, the word before it, placeholder, what replaces it and why).
