@@ -296,8 +296,7 @@ impl<F: NorFlash + FlashStatus> TableStore<F> {
         self.flash
             .read(at, &mut body)
             .map_err(|_| BankStatus::ReadFailed)?;
-        let table = header.decode_body(&body)?;
-        Ok((header, table))
+        header.decode_body(&body)
     }
 
     /// Flash offset of byte `at` of `bank`'s record.

@@ -228,9 +228,13 @@ impl CommitHeader {
         })
     }
 
-    /// The table of a body slot committed by this header: it decodes, its CRC is this
-    /// header's copy, and the padding is erased.
-    pub fn decode_body(&self, body: &[u8; BODY_SLOT_LEN]) -> Result<Table, BankStatus> {
+    /// The record of this header and a body slot: the table decodes, its CRC is this
+    /// header's copy, and the padding is erased. (Returning the whole record lets the
+    /// caller's return slot hold the table: one table on the stack, not two.)
+    pub fn decode_body(
+        self,
+        body: &[u8; BODY_SLOT_LEN],
+    ) -> Result<(CommitHeader, Table), BankStatus> {
         use body_field::*;
         let f = Fields::new(body, Order::Little);
         // Both fields are inside the slot (checked at compile time above).
@@ -243,7 +247,7 @@ impl CommitHeader {
         if !erased(padding) {
             return Err(BankStatus::BodyCorrupt(TableError::ReservedNotZero));
         }
-        Ok(decoded)
+        Ok((self, decoded))
     }
 
     /// Writes the record this header commits into `image` ([`record_field`]): the
@@ -395,6 +399,6 @@ mod tests {
         assert_eq!(&image[32..32 + TABLE_LEN], &table[..]);
         assert!(image[32 + TABLE_LEN..].iter().all(|b| *b == 0xFF));
         let body: [u8; BODY_SLOT_LEN] = image[HEADER_SLOT_LEN..].try_into().unwrap();
-        assert_eq!(h.decode_body(&body), Ok(Table::nominal()));
+        assert_eq!(h.decode_body(&body), Ok((h, Table::nominal())));
     }
 }
