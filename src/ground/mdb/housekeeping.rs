@@ -87,7 +87,8 @@ pub(super) fn source_codes(nominal: &str, bank: &str) -> String {
 }
 
 /// The housekeeping report's rows, in offset order (the fields tile
-/// [`HK_REPORT_LEN`] bytes: `host-tests/mdb.rs` reads an emitted report back by them).
+/// [`HK_REPORT_LEN`](crate::link::hk::HK_REPORT_LEN) bytes: `host-tests/mdb.rs` reads an
+/// emitted report back by them).
 pub fn housekeeping_rows() -> Vec<HkRow> {
     let one = |f: Field, get: HkGetter| HkRow::single(f, Some(get));
     let e = |name: &str, off, enumeration, d: &str| {

@@ -11,8 +11,8 @@
 //!   through the description and compare it with the link's encoder;
 //! * every telemetry packet with its fields (offset in the source data, wire type, unit,
 //!   calibration, enumeration or named bit field), the housekeeping fields each with an
-//!   accessor into [`Housekeeping`], so the tests read an emitted report back by the
-//!   description;
+//!   accessor into [`Housekeeping`](crate::link::Housekeeping), so the tests read an
+//!   emitted report back by the description;
 //! * the enumerations (controller state, boot source, bank, memory ID, failure codes,
 //!   event IDs) and the bit fields (fault/warning flags, refusal bits, leg masks);
 //! * the events with their severities and the meaning of their auxiliary words;
