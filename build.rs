@@ -49,8 +49,11 @@ fn main() {
             // change of board features).
             let _ = fs::remove_file(out.join("device.x"));
         } else {
-            fs::write(out.join(BOARD_MEMORY), include_bytes!("memory/mps2-an386.x"))
-                .expect("write board-memory.x");
+            fs::write(
+                out.join(BOARD_MEMORY),
+                include_bytes!("memory/mps2-an386.x"),
+            )
+            .expect("write board-memory.x");
             fs::write(
                 out.join("device.x"),
                 include_bytes!("memory/mps2-an386-device.x"),
