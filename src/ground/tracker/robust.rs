@@ -4,12 +4,14 @@
 //! be refused.
 //!
 //! * **Accuracy grid**: for each true joint spread `s` (Gaussian, truncated at 3 sigma)
-//!   and tracker noise scale `k` (the class preset times `k`), campaigns `1..n` are
-//!   calibrated twice: with the defaults (noise model: the unscaled preset; variance
-//!   factors, joint and ball priors estimated; outliers removed by data snooping), and by
-//!   the reference, the plain bundle fit given the truth (joint prior `s`, ball prior the
-//!   scene's, noise model the tracker's true one). Ratio = mean held-out max (defaults) /
-//!   mean held-out max (reference), per translation (um) and rotation (arcsec).
+//!   and tracker noise scale `k` (the class preset times `k`), `n` campaigns from
+//!   [`cell_first_campaign`] on are calibrated twice: with the defaults (noise model:
+//!   the unscaled preset; variance factors, joint and ball priors estimated; outliers
+//!   removed by data snooping), and by the reference, the plain bundle fit given the
+//!   truth (joint prior `s`, ball prior the scene's, noise model the tracker's true
+//!   one). Ratio = mean held-out max (defaults) / mean held-out max (reference), per
+//!   translation (um) and rotation (arcsec), with its standard error
+//!   ([`Cell::ratio_se`]).
 //! * **Gross errors** planted in the point export of a clean campaign (spread 0.1 mm,
 //!   the preset tracker): one ball moved by 0.1-0.5 mm in a random direction, two balls'
 //!   names swapped in one pose, one fiducial moved by 0.1-0.5 mm; found = the removed
