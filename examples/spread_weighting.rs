@@ -1,9 +1,9 @@
 //! Where the defaults of `calibrate --points` lose against the fit given the truth
-//! (README "The defaults on unknown spreads and noise"): on the campaigns of one cell of
-//! `m2ground tracker-defaults` (same numbering), the held-out max of the defaults and
-//! of variants that each change one ingredient, as the ratio to the plain fit given the
-//! true spread and noise model (ratio of the means over the campaigns, with its
-//! standard error).
+//! (docs/calibration.md, table E, "The defaults on unknown spreads and noise"): on the
+//! campaigns of one cell of `m2ground tracker-defaults` (same numbering), the held-out
+//! max of the defaults and of variants that each change one ingredient, as the ratio to
+//! the plain fit given the true spread and noise model (ratio of the means over the
+//! campaigns, with its standard error).
 //!
 //! `cargo run --release --features host --example spread_weighting -- SPREAD_MM SCALE CAMPAIGNS`
 //!

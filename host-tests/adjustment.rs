@@ -2,7 +2,7 @@
 //! defaults): redundancy numbers and the outlier statistic against their definitions,
 //! the estimated noise against the simulated tracker's, the defaults against the fit
 //! given the truth, planted gross errors named, clean campaigns never refused, and the
-//! real export formats end to end. The README's figures come from
+//! real export formats end to end. The figures of docs/calibration.md come from
 //! `m2ground tracker-defaults` (release); these are the same properties at a smaller
 //! scale.
 
@@ -142,7 +142,7 @@ fn the_estimated_noise_is_the_simulated_trackers_and_the_model_test_says_so() {
     assert!(a.global_before.passed, "{:?}", a.global_before);
 }
 
-/// Campaigns per cell of the in-suite check (the README's table: 20 per cell, 16 cells).
+/// Campaigns per cell of the in-suite check (docs/calibration.md's table E: 20 per cell, 16 cells).
 const CELL_CAMPAIGNS: u64 = 3;
 
 #[test]
@@ -190,8 +190,9 @@ fn the_defaults_match_the_fit_given_the_true_spread_and_noise() {
         }
     }
     // The goal, within the sampling error of 18 campaigns: the mean ratio is below 1.1
-    // plus two standard errors (single campaigns scatter by ~0.3; the README's table,
-    // 20 campaigns in each of 16 cells and 100 in the two hardest, is the measurement).
+    // plus two standard errors (single campaigns scatter by ~0.3; docs/calibration.md's
+    // table E, 20 campaigns in each of 16 cells and 300 in the three nearest 1.1, is the
+    // measurement).
     let n = ratios.len() as f64;
     for a in 0..2 {
         let mean = ratios.iter().map(|r| r[a]).sum::<f64>() / n;
@@ -283,7 +284,7 @@ fn planted_gross_errors_are_named_by_their_line() {
     }
 }
 
-/// Clean draws of the in-suite check (the README's: 200, `m2ground tracker-defaults`).
+/// Clean draws of the in-suite check (docs/calibration.md's: 200, `m2ground tracker-defaults`).
 const CLEAN_DRAWS: usize = 8;
 
 #[test]

@@ -568,7 +568,7 @@ fn stop_while_a_move_is_being_planned_cancels_it() {
     assert_eq!(r.hk().pose_commanded, WirePose::default());
 }
 
-/// README, "The executive": a move check's evaluation (IK of the whole path and FK) is
+/// docs/firmware.md, "The executive": a move check's evaluation (IK of the whole path and FK) is
 /// not part of the telecommand's lock body: executing the TC leaves a copy of what the
 /// check reads and reports nothing but the acceptance; evaluated outside, the copy
 /// gives the same answer the link service reports for the same check.

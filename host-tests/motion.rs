@@ -702,7 +702,7 @@ fn stepwise_planning_gives_the_same_trajectory_as_one_call() {
     }
 }
 
-/// Why `micromath` is not in the flight image (README, "Packages"), measured. Outside
+/// Why `micromath` is not in the flight image (docs/decisions.md, "Packages"), measured. Outside
 /// the kinematics (where its error is excluded by the 1 nm budget) the only non-rational
 /// function of the flight code is the motion planner's square root, evaluated once per
 /// plan (17 times in a trajectory plan of ~12,000 instructions, once in a ramp), never

@@ -23,7 +23,7 @@ const UART_BYTES_PER_MS: usize = 11;
 /// A host stall of the QEMU process: 5 x the watchdog's 200 ms from last feed to reset
 /// (`board::mps2_an386::WATCHDOG_TIMEOUT_CYCLES`, twice).
 const HOST_STALL: Duration = Duration::from_millis(1000);
-/// The flight image's stack budget (issue 9, README "Firmware figures"): the painted
+/// The flight image's stack budget (issue 9, docs/budgets.md "Firmware figures"): the painted
 /// peak over each path stays within it (the STACK region is 12 KiB: the rest is margin).
 const STACK_BUDGET_BYTES: u32 = 8 * 1024;
 
@@ -776,4 +776,146 @@ fn burst_telemetry_counters_gapless_and_every_record_accounted() {
         t0.elapsed().as_secs_f64()
     );
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// What a telecommand produced, as the ground sees it, without packet times and
+/// sequence counts (the guest's clock and the bench's differ): its verification reports,
+/// its move-check report, and the records queued with it ([`m2ctl::ground::station::Station::answer`]:
+/// dump chunks, parameter report, schedule summary, a refusal's event), periodic
+/// housekeeping and time reports left out.
+fn reply_of(st: &m2ctl::ground::station::Station, rid: m2ctl::link::RequestId) -> Vec<Tm> {
+    let mut v: Vec<Tm> = st
+        .log
+        .iter()
+        .filter(|t| matches!(t, Tm::Verify(r, _) | Tm::MoveCheck(r, _) if *r == rid))
+        .cloned()
+        .collect();
+    v.extend(
+        st.answer(rid)
+            .unwrap_or_default()
+            .into_iter()
+            .filter(|(_, t)| !matches!(t, Tm::Hk(_) | Tm::TimeReport(..)))
+            .map(|(_, t)| t.clone()),
+    );
+    v
+}
+
+/// The scripted session of [`the_flight_image_answers_as_the_host_bench`]: each
+/// telecommand is sent once the previous one has its final report. Covers every reply
+/// kind but housekeeping (whose contents are the plant's): ping, dumps of the nominal and
+/// an uploaded table, parameter reports and a refused set, move checks in and out of the
+/// workspace, refused moves (workspace, range, direct stroke), a commit without an
+/// upload, an upload with commit and activation, a move, the schedule's insert, summary
+/// and reset, a refused switch to an empty bank, a revert.
+fn characterisation_script(st: &mut m2ctl::ground::station::Station) -> Vec<Command> {
+    use m2ctl::link::command::{ParameterIds, ParameterValues};
+    use m2ctl::link::schedule::ScheduleCommand;
+    use m2ctl::link::tm::TmTime;
+    use m2ctl::link::MemoryId;
+    let mut table = Table::nominal();
+    table.table_id = 4242;
+    table.legs[2].b_mm[1] -= 0.015;
+    let bytes = table.to_bytes();
+    let pose = |x_nm: i32, rx_uas: i32| WirePose::from_array([x_nm, 0, 0, rx_uas, 0, 0]);
+    let far = |s: u32| TmTime {
+        seconds: s,
+        fraction: 0,
+    };
+    let (insert, _) = st
+        .schedule_insert(&[(far(90_000), Command::Ping), (far(80_000), Command::Stop)])
+        .unwrap();
+    let mut script = vec![
+        Command::Ping,
+        Command::DumpTable(MemoryId::ActiveTable),
+        Command::ReportParameters(ParameterIds::new(&[0x0001, 0x0002, 0x0003, 0x0020]).unwrap()),
+        Command::SetParameters(ParameterValues::new(&[(0x0020, 0)]).unwrap()),
+        Command::CheckMove(pose(20_000, 0)),
+        Command::CheckMove(pose(0, 700_000_000)),
+        Command::MoveAbsolute(pose(0, 700_000_000)),
+        Command::MoveRelative(pose(9_000_000, 0)),
+        Command::DirectStroke {
+            leg: 1,
+            delta_nm: 100_000_000,
+        },
+        Command::CommitTable { crc32: 0xdead_beef },
+    ];
+    for (off, chunk) in dump_chunks(&bytes) {
+        script.push(Command::LoadTableChunk(
+            TableChunk::new(off, chunk).unwrap(),
+        ));
+    }
+    script.extend([
+        Command::CommitTable {
+            crc32: table.crc32(),
+        },
+        Command::ActivateTable {
+            table_id: table.table_id,
+            crc32: table.crc32(),
+        },
+        Command::DumpTable(MemoryId::ActiveTable),
+        Command::MoveAbsolute(pose(30_000, 0)),
+        insert,
+        Command::Schedule(ScheduleCommand::SummaryReport),
+        Command::Schedule(ScheduleCommand::Reset),
+        Command::SwitchBank,
+        Command::RevertToNominal,
+        Command::Ping,
+    ]);
+    script
+}
+
+/// Characterisation of the flight image against the host (issue 20): the same scripted
+/// session run on the host bench (`sim::Bench`, the same controller code over the
+/// simulated plant) and on the flight image in QEMU must give the ground the same reply
+/// to every telecommand, packet for packet (parsed; times and sequence counts aside). The
+/// host side is itself pinned byte for byte by `host-tests/characterisation.rs`'s golden
+/// recording, so this pins the flight image's replies to it.
+#[test]
+#[ignore = "needs QEMU and the firmware image: scripts/qemu-link-test.sh"]
+fn the_flight_image_answers_as_the_host_bench() {
+    const BENCH_MAX_CYCLES: u32 = 60_000;
+    let t = Duration::from_secs(60);
+
+    let mut bench = m2ctl::sim::Bench::new();
+    bench.run(10);
+    let script = characterisation_script(&mut bench.st);
+    let mut host = Vec::new();
+    for cmd in &script {
+        let rid = bench.send(cmd);
+        for _ in 0..BENCH_MAX_CYCLES {
+            if bench.st.finished(rid) {
+                break;
+            }
+            bench.tick();
+        }
+        // A cycle more: a move check's report may follow its completion's cycle.
+        bench.run(2);
+        host.push(reply_of(&bench.st, rid));
+    }
+
+    let mut l = Link::booted(Qemu::start(), Duration::from_secs(20));
+    let script_q = characterisation_script(&mut l.st);
+    assert_eq!(script, script_q, "the same script on both sides");
+    let mut flight = Vec::new();
+    for cmd in &script_q {
+        let rid = l.send(cmd);
+        l.complete(rid, t);
+        flight.push((rid, cmd));
+    }
+    // Everything the last telecommand made has arrived once its final report has.
+    let flight: Vec<Vec<Tm>> = flight
+        .iter()
+        .map(|(rid, _)| reply_of(&l.st, *rid))
+        .collect();
+    let mut packets = 0;
+    for (i, ((h, f), cmd)) in host.iter().zip(&flight).zip(&script).enumerate() {
+        assert!(!h.is_empty(), "TC {i} ({cmd:?}): no reply on the host");
+        assert_eq!(h, f, "TC {i} ({cmd:?}): host bench vs flight image in QEMU");
+        packets += h.len();
+    }
+    println!(
+        "characterisation: {} telecommands, {packets} reply packets, the flight image's equal to the host bench's",
+        script.len()
+    );
+    assert_eq!(l.st.bad_frames, 0);
 }

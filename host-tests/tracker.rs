@@ -505,7 +505,7 @@ fn gross_errors_are_refused_before_the_fit_and_outliers_after() {
 
 // ---- Uncertainty, observability, plan ----
 
-/// Campaigns of the in-suite prediction check (the README's figures use 100 per scale:
+/// Campaigns of the in-suite prediction check (docs/calibration.md's figures use 100 per scale:
 /// `m2ground tracker-stats`).
 const CHECK_CAMPAIGNS: u64 = 8;
 

@@ -3,8 +3,14 @@
 # own instruction counter (tools/qemu-insncount, a QEMU TCG plugin built here with gcc):
 # IK, FK warm-started within 10 um, whole control periods of the flight code per
 # scenario (control cycle, link pass, worker step), image sizes and stack peaks.
-# A benchmark, not a test: it prints figures. Needs only the clone and scripts/setup.sh.
+# Prints the figures, then gates the flight budgets: exits 1 if a control cycle is over
+# 20,000 instructions, a worker or validation step over 100,000, the image's static worst
+# case stack over 8,192 bytes or its flash over 65,536 bytes (scripts/main.sh runs it, so
+# CI fails then). `scripts/bench.sh --write` also rewrites the generated budget table of
+# docs/budgets.md with the figures. Needs only the clone and scripts/setup.sh.
 set -euo pipefail
+write=0
+[ "${1:-}" = "--write" ] && write=1
 cd "$(dirname "$0")/.."
 D=target/thumbv7em-none-eabihf/release
 export DEFMT_LOG=${DEFMT_LOG:-info}
@@ -77,7 +83,7 @@ while read -r name points first steps code detail; do
     END { printf "  %-9s %d grid points: %3d steps, result %s/%s, largest step %6d (step %3d), last %6d, all steps %9d instructions\n", name, n, p, c, d, m, at, last, t }'
 done
 echo "$v" | awk -F'[ =]' -v e="$e" '$1 == "BENCH" && $3 > 1 { x = $5 - e; if (x > m) m = x }
-  END { printf "largest validation step (flight profile):        %d instructions (goal <= 100000)\n", m }'
+  END { printf "largest validation step (flight profile):        %d instructions (goal <= 100000)\n", m }' | tee "$work/validation.txt"
 
 # Whole control periods of the flight code (m2cyclebench): per scenario the largest
 # control cycle, link-service pass and worker step (sections n, n+1, n+2 per period).
@@ -90,7 +96,7 @@ while read -r name first periods; do
   echo "$c" | awk -F'[ =]' -v f="$first" -v p="$periods" -v e="$e" -v name="$name" '
     $1 == "BENCH" { n = $3; v = $5 - e; if (n >= f && n < f + 3 * p) { k = (n - f) % 3; if (v > m[k]) m[k] = v } }
     END { printf "%-13s %5d periods: control cycle max %6d (goal <= 20000), link pass max %8d, worker step max %8d instructions\n", name, p, m[0], m[1], m[2] }'
-done
+done | tee "$work/groups.txt"
 # The controller's lock bodies, each alone (m2cyclebench's `LOCK name=.. section=n`
 # lines): the longest is what a control cycle may wait for the link service's lock.
 echo "$log" | sed -n 's/.*LOCK name=\([a-z_]*\) section=\([0-9]*\).*/\1 \2/p' |
@@ -100,10 +106,52 @@ while read -r name n; do
 done
 # Static worst-case stack of each m2fw task (frames along the deepest direct-call chain);
 # the measured peak of the flight image is printed by scripts/qemu-link-test.sh.
-python3 scripts/stack-depth.py "$F/m2fw" main CONTROL_TIMER LINK_SERVICE WORKER UART_RX UART_TX | grep STATIC
+python3 scripts/stack-depth.py "$F/m2fw" main CONTROL_TIMER LINK_SERVICE WORKER UART_RX UART_TX | grep STATIC | tee "$work/static.txt"
 # The whole image's worst case: idle (thread mode, after init) preempted by a priority-1
 # task, preempted by UART TX, by the control task, by UART RX (goal <= 8192); the boot
 # path (main's STATIC line: init, before any interrupt is enabled) is the other candidate.
-python3 scripts/stack-depth.py "$F/m2fw" --nested main:frame LINK_SERVICE,WORKER UART_TX CONTROL_TIMER UART_RX
+python3 scripts/stack-depth.py "$F/m2fw" --nested main:frame LINK_SERVICE,WORKER UART_TX CONTROL_TIMER UART_RX | tee "$work/nested.txt"
 read -r ftext fdata fbss _ < <(sizes "$F/m2fw")
 echo "flight image m2fw flash (text + data):           $((ftext + fdata)) bytes (goal <= 65536); RAM data + bss $((fdata + fbss)) bytes"
+
+# The budgets (the design card's; docs/budgets.md): each figure against its limit.
+cycle=$(sed -n 's/.*control cycle max *\([0-9]*\).*/\1/p' "$work/groups.txt" | sort -n | tail -1)
+step=$(sed -n 's/.*worker step max *\([0-9]*\).*/\1/p' "$work/groups.txt" | sort -n | tail -1)
+vstep=$(sed -n 's/.*largest validation step.*: *\([0-9]*\) instructions.*/\1/p' "$work/validation.txt")
+nested=$(sed -n 's/^NESTED depth_bytes=\([0-9]*\).*/\1/p' "$work/nested.txt")
+boot=$(sed -n 's/^STATIC root=main depth_bytes=\([0-9]*\).*/\1/p' "$work/static.txt")
+flash=$((ftext + fdata))
+fail=0
+table="| budget | measured | limit |
+|---|---|---|"
+gate() { # name value limit unit
+  local verdict=ok
+  [ -n "$2" ] || { echo "bench: no figure for $1" >&2; fail=1; return; }
+  if [ "$2" -gt "$3" ]; then verdict=EXCEEDED; fail=1; fi
+  printf 'BUDGET %-52s %8d %s (limit %d): %s\n' "$1" "$2" "$4" "$3" "$verdict"
+  table="$table
+| $1 | $2 $4 | <= $3 |"
+}
+gate "control cycle, largest of every scenario" "$cycle" 20000 instructions
+gate "worker step, largest of every scenario" "$step" 100000 instructions
+gate "table validation step, largest" "$vstep" 100000 instructions
+gate "stack, static worst case of the whole image (NESTED)" "$nested" 8192 bytes
+gate "stack, boot path (STATIC main: init, no interrupt enabled)" "$boot" 8192 bytes
+gate "flight image m2fw flash (text + data)" "$flash" 65536 bytes
+if [ "$write" = 1 ]; then
+  python3 - "$table" "$(git rev-parse --short HEAD)" <<'PY'
+import sys, re
+table, rev = sys.argv[1], sys.argv[2]
+p = "docs/budgets.md"
+s = open(p).read()
+begin, end = "<!-- BEGIN GENERATED: scripts/bench.sh -->", "<!-- END GENERATED: scripts/bench.sh -->"
+block = f"{begin}\n_Written by `scripts/bench.sh --write` at commit {rev}._\n\n{table}\n{end}"
+if begin in s:
+    s = re.sub(re.escape(begin) + ".*?" + re.escape(end), lambda m: block, s, flags=re.S)
+else:
+    s = s.replace("\n## Firmware figures", "\n" + block + "\n\n## Firmware figures", 1)
+open(p, "w").write(s)
+PY
+  echo "docs/budgets.md: budget table written"
+fi
+[ "$fail" = 0 ] || { echo "bench: a flight budget is exceeded (BUDGET lines above)" >&2; exit 1; }

@@ -65,7 +65,7 @@ SOCK=$W/uart.sock
 # -icount shift=auto stretched instructions under load until cycles overran). While the
 # guest idles its clock follows the host's (sleep=on), which paces the controller to
 # UTC; a QEMU stalled for two watchdog windows (200 ms) would see them pass in one step
-# and reset (README, "Firmware in QEMU"), so QEMU runs at a higher scheduling priority
+# and reset (docs/firmware.md, "Firmware in QEMU"), so QEMU runs at a higher scheduling priority
 # where the user may set one.
 prio=()
 if [ "$(id -u)" -eq 0 ]; then prio=(nice -n -10); fi

@@ -15,7 +15,7 @@
 //! Tested on the host ([`copy`], [`fill`], [`compare`]: host test `mem`, every
 //! alignment and length against the slice operations); on the target they serve every
 //! copy of the flight code (the QEMU tests). The exported symbols replace
-//! `compiler_builtins`' weak ones on the target only ([`exports`]).
+//! `compiler_builtins`' weak ones on the target only (`exports`).
 #![allow(unsafe_code)] // Raw-pointer memory routines: the contracts of memcpy and memset.
 
 use core::ptr::{read_volatile, write_volatile};

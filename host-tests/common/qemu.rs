@@ -41,7 +41,7 @@ pub fn elf_at(relative: &str) -> PathBuf {
 /// did not schedule for 10 ms (two cores shared by parallel builds) saw 10 ms pass in
 /// one step while its guest idled, more than the watchdog's window, and the watchdog
 /// reset a guest whose every control cycle had completed (the link test failed so in
-/// about 1 run of 5; README, "Firmware in QEMU").
+/// about 1 run of 5; docs/firmware.md, "Firmware in QEMU").
 pub const ICOUNT_SHIFT: u32 = 3;
 
 /// QEMU arguments of the default board.

@@ -34,6 +34,7 @@ use m2ctl::link::schedule::{ActivityBlock, ScheduleCommand, MAX_SCHEDULED_TC_LEN
 use m2ctl::link::tc::{encode_telecommand, TcHeader};
 use m2ctl::link::TmTime;
 use m2ctl::link::{encode_frame, Command, MAX_TC_PACKET_LEN};
+use m2ctl::pass::Period;
 use m2ctl::table::{Table, TableStore, ValidationConfig};
 use m2ctl::timing::{cycle_to_us, HK_PERIOD_CYCLES};
 
@@ -133,42 +134,53 @@ struct Rig {
     down: Downlink,
     results: Deque<JobResult, 2>,
     peaks: Peaks,
+    /// Stack depth of the bench itself where a period's parts are called (bytes):
+    /// subtracted from each part's painted peak.
+    base_depth_bytes: u32,
     /// Sections measured so far (the counter's `n` of the last one).
     sections: u32,
     seq: u16,
 }
 
-impl Rig {
-    /// One control period: control cycle, link pass, worker step, each measured (each
-    /// in its own function, as in the flight image's tasks, so the bench's stack does
-    /// not carry all three frames at once).
-    #[inline(never)]
-    fn period(&mut self) {
-        self.timer.acknowledge();
-        // Depth of the bench itself at the calls: subtracted from each part's peak.
-        let base = hw::stack_depth_bytes();
+impl Period for Rig {
+    fn control(&mut self) {
         hw::repaint_stack();
         self.control_part();
-        self.peaks.control = self
-            .peaks
-            .control
-            .max(hw::stack_peak_bytes().saturating_sub(base));
+        self.peaks.control = self.peaks.control.max(self.part_peak_bytes());
+    }
+
+    fn link(&mut self) {
         hw::repaint_stack();
         self.link_part();
-        self.peaks.link = self
-            .peaks
-            .link
-            .max(hw::stack_peak_bytes().saturating_sub(base));
+        self.peaks.link = self.peaks.link.max(self.part_peak_bytes());
+    }
+
+    fn worker(&mut self) {
         hw::repaint_stack();
         let r = self.worker_part();
-        self.peaks.worker = self
-            .peaks
-            .worker
-            .max(hw::stack_peak_bytes().saturating_sub(base));
+        self.peaks.worker = self.peaks.worker.max(self.part_peak_bytes());
         if let Some(r) = r {
             let _ = self.results.push_back(r);
         }
+    }
+}
+
+impl Rig {
+    /// One control period in the firmware's order (`m2ctl::pass::period`, the one
+    /// description of that order): control cycle, link pass, worker step, each measured
+    /// ([`Period`] below; each in its own function, as in the flight image's tasks, so
+    /// the bench's stack does not carry all three frames at once).
+    #[inline(never)]
+    fn period(&mut self) {
+        self.timer.acknowledge();
+        self.base_depth_bytes = hw::stack_depth_bytes();
+        m2ctl::pass::period(self);
         self.sections += 3;
+    }
+
+    /// The painted stack peak since the last repaint, less the bench's own depth.
+    fn part_peak_bytes(&self) -> u32 {
+        hw::stack_peak_bytes().saturating_sub(self.base_depth_bytes)
     }
 
     #[inline(never)]
@@ -349,6 +361,7 @@ fn run(tm_queue: &'static mut m2ctl::controller::TmQueue) -> bool {
         },
         results: Deque::new(),
         peaks: Peaks::default(),
+        base_depth_bytes: 0,
         sections: 1,
         seq: 1,
     }) else {

@@ -3,16 +3,16 @@
 //!
 //! The controller never touches flash and never validates a table in its control
 //! cycle: a telecommand that needs it (commit, activate, switch bank, revert to nominal)
-//! becomes a [`JobRequest`]; the [`Worker`], at the lowest priority, does the work in
-//! steps ([`Worker::step`]: one validation, or one flash operation of the non-blocking
+//! becomes a [`JobRequest`]; the [`Worker`](crate::worker::Worker), at the lowest priority, does the work in
+//! steps ([`Worker::step`](crate::worker::Worker::step): one validation, or one flash operation of the non-blocking
 //! store, or one scrub check) and answers with a [`JobResult`], which the controller
 //! applies between motions. The two talk only through these messages (on the target
 //! two bounded single-producer queues), so the worker never blocks the control task.
 //!
-//! The worker also scrubs: every [`SCRUB_PERIOD_CYCLES`] the controller sends a
+//! The worker also scrubs: every [`SCRUB_PERIOD_CYCLES`](crate::timing::SCRUB_PERIOD_CYCLES) the controller sends a
 //! [`ScrubImage`] of its running table, derived geometry and supervision thresholds;
 //! the worker re-derives them from the table, checks the table's CRC and compares bit
-//! for bit. And every [`SCRUB_PERIOD_CYCLES`] the worker reads both flash banks and
+//! for bit. And every [`SCRUB_PERIOD_CYCLES`](crate::timing::SCRUB_PERIOD_CYCLES) the worker reads both flash banks and
 //! reports a change of their health.
 //!
 //! ## Job semantics (what the operator sees)

@@ -8,12 +8,12 @@
 //!    reads the encoders, runs FK, supervision and the motion, commands the drives,
 //!    and queues telemetry records. Bounded: it never waits for I/O, never decodes or
 //!    encodes packets, never touches flash.
-//! 2. **Link service** (below it): [`comms::LinkService`] deframes received bytes,
-//!    hands each telecommand to [`Controller::handle_telecommand`] (at most
+//! 2. **Link service** (below it): [`comms::LinkService`] deframes and decodes received
+//!    bytes, hands each decoded telecommand to [`Controller::execute_telecommand`] (at most
 //!    [`comms::MAX_TC_PER_PASS`] per pass), encodes queued telemetry records into
 //!    frames, and moves job requests and results between the controller and the
 //!    background worker.
-//! 3. **Background** (lowest priority): [`jobs::Worker`] validates tables, writes
+//! 3. **Background** (lowest priority): [`crate::worker::Worker`] validates tables, writes
 //!    flash through the non-blocking store, scrubs the flash banks and checks the RAM
 //!    image of the running table.
 //!

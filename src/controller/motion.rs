@@ -447,7 +447,7 @@ impl<M: MechanismIo> Controller<M> {
     /// evaluation reads is copied into a [`MoveCheckJob`], evaluated by the link service
     /// outside the controller's lock ([`Controller::take_move_check`]). (A check a
     /// direct caller left uncollected was evaluated when this telecommand arrived:
-    /// [`Controller::handle_telecommand`].)
+    /// [`Controller::execute_telecommand`].)
     #[inline(never)]
     pub(super) fn queue_move_check(&mut self, token: Token<Accepted>, target: Pose<f32>) {
         self.motion.check = Some(MoveCheckJob {

@@ -25,7 +25,7 @@
 //!   uplink, so at most that many telecommands run per cycle). An activity is removed
 //!   from the schedule before its telecommand runs (it cannot run twice), announced by
 //!   event [`event::ACTIVITY_RELEASED`], and its packet goes through
-//!   [`Controller::handle_telecommand`] exactly as a received one: its own service-1
+//!   [`Controller::execute_released`], which executes it exactly as a received one: its own service-1
 //!   reports under its own request ID and acknowledgement flags. If that telecommand
 //!   fails (acceptance, start or, for a move or a table job, completion), the failure
 //!   report is accompanied by event [`event::ACTIVITY_FAILED`] (request ID, subtype and

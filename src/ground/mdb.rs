@@ -34,7 +34,7 @@ use crate::link::command::{
     FunctionId, MemoryId, ParameterIds, ParameterValues, TableChunk, WirePose, FUNCTION_ID_LEN,
     MAX_PARAMETERS_PER_TC, TABLE_CHUNK_MAX_LEN,
 };
-use crate::link::hk::{HK_REPORT_LEN, HK_STRUCTURE_ID, NO_SELECTION};
+use crate::link::hk::{field as hk_field, HK_REPORT_LEN, HK_STRUCTURE_ID, NO_SELECTION};
 use crate::link::schedule::{
     ActivityBlock, ObtOffset, RequestIdList, ScheduleCommand, ACTIVITY_COUNT_LEN,
     MAX_INSERT_APP_DATA_LEN, MAX_SCHEDULED_TC_LEN, RELEASE_TIME_LEN, SCHEDULE_CAPACITY,
@@ -1334,20 +1334,26 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         HkRow::single(
             fixed(
                 "structure_id",
-                0,
+                hk_field::STRUCTURE_ID.start,
                 Wire::U8,
                 i64::from(HK_STRUCTURE_ID),
                 &format!("structure ID = {HK_STRUCTURE_ID}"),
             ),
             None,
         ),
-        one(e("state", 1, "controller_state", "controller state"), |h| {
-            i64::from(h.state)
-        }),
+        one(
+            e(
+                "state",
+                hk_field::STATE.start,
+                "controller_state",
+                "controller state",
+            ),
+            |h| i64::from(h.state),
+        ),
         one(
             e(
                 "boot_source",
-                2,
+                hk_field::BOOT_SOURCE.start,
                 "boot_source",
                 &format!("boot source: {}", source_codes("nominal", "bank ")),
             ),
@@ -1356,7 +1362,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             e(
                 "active_bank",
-                3,
+                hk_field::ACTIVE_BANK.start,
                 "bank",
                 &format!(
                     "source of the running table: {}",
@@ -1368,7 +1374,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             count(
                 "fk_iterations",
-                4,
+                hk_field::FK_ITERATIONS.start,
                 Wire::U8,
                 "last FK Newton iteration count",
             ),
@@ -1377,7 +1383,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             field(
                 "fk_valid",
-                5,
+                hk_field::FK_VALID.start,
                 Wire::U8,
                 Meaning::Boolean,
                 "FK valid (1: the FK pose is this cycle's; 0: FK failed or no reading)",
@@ -1387,7 +1393,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             count(
                 "cycle_counter",
-                6,
+                hk_field::CYCLE_COUNTER.start,
                 Wire::U32,
                 "control cycle counter: the cycle the report was sampled in, the one its time \
                  stamp names",
@@ -1397,7 +1403,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             b(
                 "fault_flags",
-                10,
+                hk_field::FAULT_FLAGS.start,
                 Wire::U32,
                 "fault_flags",
                 "fault flags (latched)",
@@ -1407,7 +1413,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             b(
                 "warning_flags",
-                14,
+                hk_field::WARNING_FLAGS.start,
                 Wire::U32,
                 "fault_flags",
                 "warning flags",
@@ -1417,7 +1423,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             b(
                 "refusal_bits",
-                18,
+                hk_field::REFUSAL_BITS.start,
                 Wire::U32,
                 "refusal_bits",
                 "refusal bits of the last refused move",
@@ -1425,25 +1431,35 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
             |h| i64::from(h.refusal_bits),
         ),
         one(
-            count("active_table_id", 22, Wire::U32, "running table ID"),
+            count(
+                "active_table_id",
+                hk_field::ACTIVE_TABLE_ID.start,
+                Wire::U32,
+                "running table ID",
+            ),
             |h| i64::from(h.active_table_id),
         ),
         one(
-            count("active_table_crc32", 26, Wire::U32, "running table CRC-32"),
+            count(
+                "active_table_crc32",
+                hk_field::ACTIVE_TABLE_CRC32.start,
+                Wire::U32,
+                "running table CRC-32",
+            ),
             |h| i64::from(h.active_table_crc32),
         ),
     ];
     let poses: [(&str, usize, &str, String, [HkGetter; 6]); 2] = [
         (
             "pose_fk_",
-            30,
+            hk_field::POSE_FK.start,
             "pose from FK of the encoders",
             "pose from FK of the encoders (nm, µas; order as the TC pose)".into(),
             pose_getters!(pose_fk),
         ),
         (
             "pose_cmd_",
-            54,
+            hk_field::POSE_COMMANDED.start,
             "commanded pose",
             "commanded pose: the path setpoint, or the pose of the held strokes (nm, µas)".into(),
             pose_getters!(pose_commanded),
@@ -1460,14 +1476,14 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
     let legs: [(&str, usize, &str, String, [HkGetter; 6]); 2] = [
         (
             "stroke_cmd_leg",
-            78,
+            hk_field::STROKES_COMMANDED.start,
             "commanded stroke (um; wire i32 in nm)",
             format!("commanded (or held) strokes, legs 1..{LEGS} (nm)"),
             leg_getters!(strokes_commanded_nm),
         ),
         (
             "encoder_leg",
-            102,
+            hk_field::ENCODERS.start,
             "encoder reading (um; wire i32 in nm, multiples of one 0.1 um count)",
             format!(
                 "encoder readings, legs 1..{LEGS} (nm; the encoders count 0.1 µm, so multiples \
@@ -1516,7 +1532,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             count(
                 "tc_accepted",
-                126,
+                hk_field::TC_ACCEPTED.start,
                 Wire::U16,
                 "telecommands accepted (wrapping)",
             ),
@@ -1525,7 +1541,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             count(
                 "tc_rejected",
-                128,
+                hk_field::TC_REJECTED.start,
                 Wire::U16,
                 "telecommands rejected (wrapping)",
             ),
@@ -1534,7 +1550,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             field(
                 "last_failure_code",
-                130,
+                hk_field::LAST_FAILURE_CODE.start,
                 Wire::U16,
                 Meaning::Enum {
                     enumeration: "failure_code",
@@ -1546,7 +1562,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             b(
                 "moving_legs",
-                132,
+                hk_field::MOVING_LEGS.start,
                 Wire::U8,
                 "leg_mask",
                 &format!("legs commanded to move ({leg_bits})"),
@@ -1556,7 +1572,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             b(
                 "fault_legs",
-                133,
+                hk_field::FAULT_LEGS.start,
                 Wire::U8,
                 "leg_mask",
                 &format!("legs named by the latched faults ({leg_bits})"),
@@ -1566,7 +1582,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             e(
                 "pending_bank",
-                134,
+                hk_field::PENDING_BANK.start,
                 "bank",
                 &format!(
                     "bank of the pending (committed, not activated) table: {}",
@@ -1578,7 +1594,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             count(
                 "pending_table_id",
-                135,
+                hk_field::PENDING_TABLE_ID.start,
                 Wire::U32,
                 "pending table ID (0 if none)",
             ),
@@ -1587,7 +1603,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             count(
                 "job",
-                139,
+                hk_field::JOB.start,
                 Wire::U8,
                 &format!("background job running: 0 none, {}", jobs.join(", ")),
             ),
@@ -1596,7 +1612,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             count(
                 "selected_source",
-                140,
+                hk_field::SELECTED_SOURCE.start,
                 Wire::U8,
                 &format!(
                     "selected table (what boots): {}, {NO_SELECTION} no selection record",
@@ -1608,7 +1624,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             count(
                 "tm_dropped",
-                141,
+                hk_field::TM_DROPPED.start,
                 Wire::U16,
                 "telemetry records dropped (queue full; wrapping)",
             ),
@@ -1617,7 +1633,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             count(
                 "tc_frames_dropped",
-                143,
+                hk_field::TC_FRAMES_DROPPED.start,
                 Wire::U16,
                 "telecommand frames dropped (too long or bad COBS; wrapping)",
             ),
@@ -1626,7 +1642,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             count(
                 "uart_overruns",
-                145,
+                hk_field::UART_OVERRUNS.start,
                 Wire::U16,
                 "UART receive overruns and receive-queue overflows (wrapping)",
             ),
@@ -1635,7 +1651,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             count(
                 "cycle_overruns",
-                147,
+                hk_field::CYCLE_OVERRUNS.start,
                 Wire::U16,
                 "control-cycle overruns (wrapping)",
             ),
@@ -1644,7 +1660,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             count(
                 "reset_cause",
-                149,
+                hk_field::RESET_CAUSE.start,
                 Wire::U8,
                 &format!(
                     "reset cause (as in event 0x{:04X}): {}",
@@ -1659,13 +1675,18 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
             |h| i64::from(h.reset_cause),
         ),
         one(
-            count("boot_count", 150, Wire::U16, "boot count (wrapping)"),
+            count(
+                "boot_count",
+                hk_field::BOOT_COUNT.start,
+                Wire::U16,
+                "boot count (wrapping)",
+            ),
             |h| i64::from(h.boot_count),
         ),
         one(
             count(
                 "bank_health",
-                152,
+                hk_field::BANK_HEALTH.start,
                 Wire::U8,
                 "flash bank health: bit 0 bank A, bit 1 bank B record corrupt",
             ),
@@ -1691,7 +1712,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
             (
                 calibrated(
                     &format!("pivot_{axis}"),
-                    153 + 4 * k,
+                    hk_field::PIVOT.start + 4 * k,
                     Wire::I32,
                     UNIT_UM,
                     UM_PER_NM,
@@ -1714,14 +1735,14 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
     let operator: [(&str, usize, &str, &str, [HkGetter; 6]); 2] = [
         (
             "pose_fk_op_",
-            165,
+            hk_field::POSE_FK_OPERATOR.start,
             "pose from FK in the operator's frames (about the pivot, in the user frame)",
             "pose from FK in the operator's frames (pivot, user frame; nm, µas)",
             pose_getters!(pose_fk_operator),
         ),
         (
             "pose_cmd_op_",
-            189,
+            hk_field::POSE_COMMANDED_OPERATOR.start,
             "commanded pose in the operator's frames (about the pivot, in the user frame)",
             "commanded pose in the operator's frames (nm, µas)",
             pose_getters!(pose_commanded_operator),
@@ -1738,7 +1759,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
     v.push(one(
         count(
             "parameters_set",
-            213,
+            hk_field::PARAMETERS_SET.start,
             Wire::U32,
             "on-board parameters set by TC[20,3] (bit i = parameter index i, rows of section \
              5a in order; clear: default)",
@@ -1750,7 +1771,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             count(
                 "schedule_activities",
-                217,
+                hk_field::SCHEDULE_ACTIVITIES.start,
                 Wire::U8,
                 &format!("time-tagged activities in the schedule (0..{SCHEDULE_CAPACITY})"),
             ),
@@ -1759,7 +1780,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             field(
                 "schedule_release_enabled",
-                218,
+                hk_field::SCHEDULE_RELEASE_ENABLED.start,
                 Wire::U8,
                 Meaning::Boolean,
                 "release of activities: 1 enabled, 0 disabled",
@@ -1769,7 +1790,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             count(
                 "schedule_released",
-                219,
+                hk_field::SCHEDULE_RELEASED.start,
                 Wire::U16,
                 "activities released since boot (wrapping)",
             ),
@@ -1778,7 +1799,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         one(
             count(
                 "schedule_failed",
-                221,
+                hk_field::SCHEDULE_FAILED.start,
                 Wire::U16,
                 "released activities whose telecommand failed (wrapping)",
             ),
@@ -1792,16 +1813,20 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
     ];
     v.push(HkRow::group(
         next_what.into(),
-        obt_fields("schedule_next_release_", 223, next_what)
-            .into_iter()
-            .zip(next)
-            .map(|(f, g)| (f, Some(g)))
-            .collect(),
+        obt_fields(
+            "schedule_next_release_",
+            hk_field::SCHEDULE_NEXT_RELEASE.start,
+            next_what,
+        )
+        .into_iter()
+        .zip(next)
+        .map(|(f, g)| (f, Some(g)))
+        .collect(),
     ));
     v.push(one(
         field(
             "time_report_rate",
-            229,
+            hk_field::TIME_REPORT_RATE.start,
             Wire::U8,
             Meaning::Enum {
                 enumeration: "time_report_rate",
@@ -1818,25 +1843,25 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
     let switches: [(&str, usize, String, HkGetter); 4] = [
         (
             "limit_lower_legs",
-            230,
+            hk_field::LIMIT_LOWER_LEGS.start,
             format!("legs at their lower end-of-travel switch ({leg_bits}; the last cycle's read)"),
             |h| i64::from(h.limit_lower_legs),
         ),
         (
             "limit_upper_legs",
-            231,
+            hk_field::LIMIT_UPPER_LEGS.start,
             format!("legs at their upper end-of-travel switch ({leg_bits})"),
             |h| i64::from(h.limit_upper_legs),
         ),
         (
             "reference_legs",
-            232,
+            hk_field::REFERENCE_LEGS.start,
             format!("legs at their reference (home) sensor ({leg_bits}; information only)"),
             |h| i64::from(h.reference_legs),
         ),
         (
             "switch_unreadable_legs",
-            233,
+            hk_field::SWITCH_UNREADABLE_LEGS.start,
             format!(
                 "legs with a switch input that cannot be read ({leg_bits}; treated as both \
                  ends active)"

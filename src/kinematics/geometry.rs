@@ -158,7 +158,7 @@ impl Geometry<f32> {
     /// A check word over every `f32` of the working geometry (each word's bits rotated
     /// in): any single flipped bit changes it. Not used by the flight image, which
     /// checks the geometry by re-deriving it in the scrub; it is what a per-cycle check
-    /// would cost, measured by `m2cyclebench` (`geometry_check_word`, README "Upsets").
+    /// would cost, measured by `m2cyclebench` (`geometry_check_word`, docs/budgets.md).
     pub fn check_word(&self) -> u32 {
         let mut c = 0u32;
         let mut fold = |x: f32| c = c.rotate_left(1) ^ x.to_bits();

@@ -11,7 +11,7 @@
 //!
 //! Joint positions, rod vectors and rotations are nalgebra's fixed-size `Vector3` and
 //! `Matrix3` (the ground tools' vocabulary); this costs no instruction and no byte on
-//! the target against plain arrays (measured, README "Kinematics and numerics"). The
+//! the target against plain arrays (measured, docs/kinematics.md). The
 //! 6x6 solve is our own: it uses the Jacobian's structure, and nalgebra's LU measured
 //! 1.6 times the FK's instructions on the target.
 

@@ -238,6 +238,33 @@ impl<'a> Writer<'a> {
         Some(())
     }
 
+    /// Checks, on the host, that the next byte is the first of `f`, a field of a layout
+    /// that starts at `base` in this buffer (a layout written in the order of its named
+    /// fields): `None` if it is not, so a write out of place fails every host test. The
+    /// flight build trusts those tests and pays nothing (no check, no code).
+    #[inline]
+    pub fn at(&mut self, base: usize, f: &Field) -> Option<()> {
+        #[cfg(any(test, feature = "host"))]
+        if base.checked_add(f.start)? != self.pos {
+            return None;
+        }
+        #[cfg(not(any(test, feature = "host")))]
+        let _ = (base, f);
+        Some(())
+    }
+
+    /// The next `n` bytes, taken whole (a fixed layout written by its named fields
+    /// through [`FieldsMut`]); `None`, and nothing taken, if they do not fit.
+    pub fn reserve(&mut self, n: usize) -> Option<&mut [u8]> {
+        let start = self.pos;
+        let end = start.checked_add(n)?;
+        if end > self.buf.len() {
+            return None;
+        }
+        self.pos = end;
+        self.buf.get_mut(start..end)
+    }
+
     /// A u8.
     pub fn u8(&mut self, v: u8) -> Option<()> {
         self.put(&[v])
@@ -320,6 +347,7 @@ pub struct Fields<'a> {
 }
 
 /// The bytes of `f` in `buf` if they are exactly `N`.
+#[inline]
 fn exact<const N: usize>(buf: &[u8], f: Field) -> Option<&[u8]> {
     buf.get(f).filter(|b| b.len() == N)
 }
@@ -331,41 +359,49 @@ impl<'a> Fields<'a> {
     }
 
     /// The bytes of `f`.
+    #[inline]
     pub fn bytes(&self, f: Field) -> Option<&'a [u8]> {
         self.buf.get(f)
     }
 
     /// A reader over `f` (a field holding an array or a nested layout).
+    #[inline]
     pub fn reader(&self, f: Field) -> Option<Reader<'a>> {
         Some(Reader::new(self.bytes(f)?, self.order))
     }
 
     /// A one-byte field.
+    #[inline]
     pub fn u8(&self, f: Field) -> Option<u8> {
         Reader::new(exact::<1>(self.buf, f)?, self.order).u8()
     }
 
     /// A two-byte field.
+    #[inline]
     pub fn u16(&self, f: Field) -> Option<u16> {
         Reader::new(exact::<2>(self.buf, f)?, self.order).u16()
     }
 
     /// A four-byte unsigned field.
+    #[inline]
     pub fn u32(&self, f: Field) -> Option<u32> {
         Reader::new(exact::<4>(self.buf, f)?, self.order).u32()
     }
 
     /// A four-byte signed field.
+    #[inline]
     pub fn i32(&self, f: Field) -> Option<i32> {
         Reader::new(exact::<4>(self.buf, f)?, self.order).i32()
     }
 
     /// A four-byte IEEE-754 field.
+    #[inline]
     pub fn f32(&self, f: Field) -> Option<f32> {
         Reader::new(exact::<4>(self.buf, f)?, self.order).f32()
     }
 
     /// An eight-byte IEEE-754 field.
+    #[inline]
     pub fn f64(&self, f: Field) -> Option<f64> {
         Reader::new(exact::<8>(self.buf, f)?, self.order).f64()
     }
@@ -385,11 +421,13 @@ impl<'a> FieldsMut<'a> {
     }
 
     /// A writer over `f` (a field holding an array or a nested layout).
+    #[inline]
     pub fn writer(&mut self, f: Field) -> Option<Writer<'_>> {
         Some(Writer::new(self.buf.get_mut(f)?, self.order))
     }
 
     /// Writes `bytes` into `f` (exactly its width).
+    #[inline]
     pub fn set_bytes(&mut self, f: Field, bytes: &[u8]) -> Option<()> {
         let dst = self.buf.get_mut(f)?;
         if dst.len() != bytes.len() {
@@ -399,11 +437,13 @@ impl<'a> FieldsMut<'a> {
     }
 
     /// A one-byte field.
+    #[inline]
     pub fn set_u8(&mut self, f: Field, v: u8) -> Option<()> {
         self.set_bytes(f, &[v])
     }
 
     /// A two-byte field.
+    #[inline]
     pub fn set_u16(&mut self, f: Field, v: u16) -> Option<()> {
         let b = match self.order {
             Order::Big => v.to_be_bytes(),
@@ -413,6 +453,7 @@ impl<'a> FieldsMut<'a> {
     }
 
     /// A four-byte unsigned field.
+    #[inline]
     pub fn set_u32(&mut self, f: Field, v: u32) -> Option<()> {
         let b = match self.order {
             Order::Big => v.to_be_bytes(),
@@ -422,16 +463,19 @@ impl<'a> FieldsMut<'a> {
     }
 
     /// A four-byte signed field.
+    #[inline]
     pub fn set_i32(&mut self, f: Field, v: i32) -> Option<()> {
         self.set_u32(f, v as u32)
     }
 
     /// A four-byte IEEE-754 field.
+    #[inline]
     pub fn set_f32(&mut self, f: Field, v: f32) -> Option<()> {
         self.set_u32(f, v.to_bits())
     }
 
     /// An eight-byte IEEE-754 field.
+    #[inline]
     pub fn set_f64(&mut self, f: Field, v: f64) -> Option<()> {
         let b = match self.order {
             Order::Big => v.to_bits().to_be_bytes(),
@@ -470,6 +514,22 @@ mod tests {
         assert_eq!(mm_to_nm_f32(0.0015), 1500);
         assert_eq!(mm_to_nm_f32(-0.0015), -1500);
         assert_eq!(mm_to_nm_f32(f32::NAN), 0);
+    }
+
+    #[test]
+    fn a_layout_written_out_of_place_fails_on_the_host() {
+        const A: Field = field(0, 2);
+        const B: Field = after(&A, 4);
+        let mut buf = [0u8; 9];
+        let mut w = Writer::new(&mut buf, Order::Big);
+        w.u8(7).unwrap();
+        // The layout starts at 1: A is next, B is not.
+        assert_eq!(w.at(1, &A), Some(()));
+        assert_eq!(w.at(1, &B), None);
+        w.u16(0x0102).unwrap();
+        assert_eq!(w.at(1, &B), Some(()));
+        assert_eq!(w.at(1, &A), None);
+        assert_eq!(w.at(usize::MAX, &B), None);
     }
 
     #[test]

@@ -10,7 +10,7 @@
 //! * [`campaign`]: a simulated campaign with the realistic tracker
 //!   ([`crate::sim::tracker`]), written as the same files.
 //! * [`session`]: the tracker at work in the mission demo (measure, export, fit, verify).
-//! * [`study`]: the figures of the README (campaign table, predicted vs measured over
+//! * [`study`]: the figures of docs/calibration.md (campaign table, predicted vs measured over
 //!   many campaigns, optimal plan, the paper's experiment) and [`plots`].
 
 pub mod campaign;

@@ -1,7 +1,7 @@
-//! `calibrate --points` with its defaults on campaigns it was not tuned for (README
-//! "Defaults on unknown spreads and noise"): true joint spreads and tracker noise levels
-//! the defaults do not know, planted gross errors, and clean campaigns that must never
-//! be refused.
+//! `calibrate --points` with its defaults on campaigns it was not tuned for
+//! (docs/calibration.md, table E, "The defaults on unknown spreads and noise"): true
+//! joint spreads and tracker noise levels the defaults do not know, planted gross
+//! errors, and clean campaigns that must never be refused.
 //!
 //! * **Accuracy grid**: for each true joint spread `s` (Gaussian, truncated at 3 sigma)
 //!   and tracker noise scale `k` (the class preset times `k`), `n` campaigns from
@@ -76,7 +76,7 @@ pub struct RobustConfig {
 }
 
 impl RobustConfig {
-    /// The README's study with `base`'s setup.
+    /// The study of docs/calibration.md (table E) with `base`'s setup.
     pub fn new(base: StudyConfig) -> Self {
         let ball = base.setup.targets.ball_sigma_mm;
         Self {

@@ -1,7 +1,7 @@
-//! The figures of the tracker path (README "Calibration from tracker points"), each a
-//! function returning Markdown: the campaign table ([`campaign_table`]), predicted vs
-//! measured accuracy over many campaigns ([`prediction_check`]), the optimal plan
-//! ([`plan_study`]) and the paper's experiment ([`paper_experiment`]).
+//! The figures of the tracker path (docs/calibration.md, "Calibration from laser-tracker
+//! points"), each a function returning Markdown: the campaign table ([`campaign_table`]),
+//! predicted vs measured accuracy over many campaigns ([`prediction_check`]), the
+//! optimal plan ([`plan_study`]) and the paper's experiment ([`paper_experiment`]).
 //!
 //! Every campaign `k` draws its true joints, its scene (balls, fiducials) and its tracker
 //! noise from seeds derived from `k` ([`CampaignSeeds::from_one`]); held-out poses are
