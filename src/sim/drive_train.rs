@@ -191,7 +191,8 @@ impl LegDriveTrain {
             return Err(DriveTrainParam::LeadErrorPhaseRad);
         }
         // A period is needed (and must be positive) only where its error is on.
-        if self.microstep_error_um > 0.0 && !(self.full_step_um.is_finite() && self.full_step_um > 0.0)
+        if self.microstep_error_um > 0.0
+            && !(self.full_step_um.is_finite() && self.full_step_um > 0.0)
         {
             return Err(DriveTrainParam::FullStepUm);
         }
@@ -390,8 +391,7 @@ impl DriveTrain {
                     || (st.friction == Friction::SlidingUp && g - e > dk_mm)
                 {
                     (Friction::SlidingUp, g - dk_mm)
-                } else if e - g > ds_mm || (st.friction == Friction::SlidingDown && e - g > dk_mm)
-                {
+                } else if e - g > ds_mm || (st.friction == Friction::SlidingDown && e - g > dk_mm) {
                     (Friction::SlidingDown, g + dk_mm)
                 } else {
                     (Friction::Stuck, e)
@@ -402,7 +402,8 @@ impl DriveTrain {
             // Settling.
             let e = st.equilibrium_mm;
             st.slider_mm = if c.settling_time_constant_s > 0.0 {
-                let s = st.slider_mm + (e - st.slider_mm) * -(-dt_s / c.settling_time_constant_s).exp_m1();
+                let s = st.slider_mm
+                    + (e - st.slider_mm) * -(-dt_s / c.settling_time_constant_s).exp_m1();
                 if (e - s).abs() <= SETTLED_SNAP_MM {
                     e
                 } else {

@@ -292,8 +292,7 @@ impl Plant {
     pub fn set_strokes_mm(&mut self, strokes_mm: &[f64; LEGS]) {
         self.sliders = Sliders::at(*strokes_mm);
         let m = self.motor_mm();
-        self.train =
-            DriveTrain::new(*self.train.config(), &m).unwrap_or_else(|_| ideal_train(&m));
+        self.train = DriveTrain::new(*self.train.config(), &m).unwrap_or_else(|_| ideal_train(&m));
     }
 
     /// Removes every injected fault (a repaired mechanism). Drives that missed steps
