@@ -16,7 +16,7 @@ use m2ctl::plant::Sliders;
 use m2ctl::sim::bench::DEFAULT_PLANT_SEED;
 use m2ctl::sim::drive_train::{
     drive_full_step_um, drive_microstep_um, drive_screw_lead_mm, DriveTrain, DriveTrainConfig,
-    DriveTrainError, DriveTrainParam, LegDriveTrain,
+    DriveTrainError, DriveTrainParam, LegDriveTrain, DEFAULT_MICROSTEP_ERROR_UM,
 };
 use m2ctl::sim::{Bench, InjectedFault, Plant, PlantConfig};
 
@@ -541,7 +541,7 @@ fn open_loop_accuracy_study() {
             l
         }),
     };
-    let rows: [(&str, DriveTrainConfig); 7] = [
+    let rows: [(&str, DriveTrainConfig); 10] = [
         ("ideal", DriveTrainConfig::ideal()),
         ("backlash 2 um", leg(|l| l.backlash_um = 2.0)),
         ("backlash 5 um", leg(|l| l.backlash_um = 5.0)),
@@ -568,6 +568,23 @@ fn open_loop_accuracy_study() {
                 l.stiction_um = 0.1;
                 l.kinetic_lag_um = 0.1;
             }),
+        ),
+        // Beyond the table: the other stages alone.
+        (
+            "stiction 0.2 um, stick-slip (no kinetic lag)",
+            leg(|l| l.stiction_um = 0.2),
+        ),
+        (
+            "microsteps 0.3125 um + nonlinearity 0.14 um",
+            leg(|l| {
+                l.microstep_um = drive_microstep_um();
+                l.microstep_error_um = DEFAULT_MICROSTEP_ERROR_UM;
+                l.full_step_um = drive_full_step_um();
+            }),
+        ),
+        (
+            "settling 20 ms",
+            leg(|l| l.settling_time_constant_s = 0.020),
         ),
         (
             "realistic defaults (sim::drive_train)",
