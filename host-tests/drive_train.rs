@@ -414,6 +414,55 @@ fn the_encoder_reads_the_slider_not_the_drive() {
     assert_eq!(p.read_counts().unwrap(), [20; LEGS]);
 }
 
+#[test]
+fn the_plant_is_settled_only_when_the_sliders_are() {
+    // Settling lag 20 ms: the drive arrives first, the slider (and encoder) after.
+    let tau_s = 0.020;
+    let cfg = DriveTrainConfig::uniform(LegDriveTrain {
+        settling_time_constant_s: tau_s,
+        ..LegDriveTrain::IDEAL
+    });
+    let mut p = Plant::new(
+        &PROTOTYPE,
+        PlantConfig {
+            encoder_noise_mm: 0.0,
+            ..PlantConfig::default()
+        },
+    )
+    .unwrap()
+    .with_drive_train(cfg)
+    .unwrap();
+    // 0.1 mm at 0.5 mm/s: the drive arrives after 200 cycles.
+    p.command_strokes_mm(&[0.1; LEGS]).unwrap();
+    for _ in 0..200 {
+        p.step(DT_S);
+    }
+    // (to rounding: 200 steps of 0.5 um, the last 1.5 pm left for the next step).
+    assert!((p.drive_positions_mm()[0] - 0.1f32 as f64).abs() < 1e-8);
+    assert!(!p.settled());
+    // Behind by about v tau = 0.5 mm/s * 20 ms = 10 um. Exactly, for the drive moving
+    // h = 0.5 um at the start of each 1 ms and the lag closing a share a = 1 - exp(-dt /
+    // tau) of the gap in it: the gap after k cycles is e_k = (e_{k-1} + h)(1 - a), so
+    // e_200 = h (1 - a) (1 - (1 - a)^200) / a = 9.7516 um (v tau less about v dt / 2).
+    let h_mm = 0.0005;
+    let keep = (-DT_S / tau_s).exp();
+    let hand_lag_mm = h_mm * keep * (1.0 - keep.powi(200)) / (1.0 - keep);
+    let lag_mm = p.drive_positions_mm()[0] - p.strokes_mm()[0];
+    assert!(
+        (lag_mm - hand_lag_mm).abs() < 1e-9,
+        "{lag_mm} vs {hand_lag_mm}"
+    );
+    let mut n = 0;
+    while !p.settled() {
+        p.step(DT_S);
+        n += 1;
+        assert!(n < 1000);
+    }
+    // The remaining ~10 um decay to 1 pm: tau ln(10 um / 1 pm) = 322 ms.
+    assert!((300..=340).contains(&n), "{n}");
+    assert_eq!(p.strokes_mm(), [0.1f32 as f64; LEGS]);
+}
+
 // -------------------------------------------------------------------------------------
 // Issue 21's measurement: today's (open-loop) controller on drive trains.
 
