@@ -1,12 +1,13 @@
 //! Build script:
-//! * puts the board's memory map on the linker search path as `memory.x` (what
-//!   cortex-m-rt's `link.x` includes) and, for a board with its own interrupt table, its
-//!   `device.x` (cortex-m-rt's `device` feature), for the firmware, thumb targets only:
-//!   `memory/mps2-an386.x` + `memory/mps2-an386-device.x` (the default board) or
-//!   `memory/netduinoplus2.x` (feature `board-netduinoplus2`; its `device.x` is the
-//!   stm32f4 PAC's). No `memory.x` or
-//!   `device.x` may sit in the package root: the linker searches its working directory
-//!   first and would take that one for every board;
+//! * puts the board's memory map on the linker search path as `board-memory.x`, which
+//!   the package root's `memory.x` (what cortex-m-rt's `link.x` includes; the linker
+//!   finds it first, in its working directory) includes, and, for a board with its own
+//!   interrupt table, its `device.x` (cortex-m-rt's `device` feature), for the firmware,
+//!   thumb targets only: `memory/mps2-an386.x` + `memory/mps2-an386-device.x` (the
+//!   default board) or `memory/netduinoplus2.x` (feature `board-netduinoplus2`; its
+//!   `device.x` is the stm32f4 PAC's). No `device.x` may sit in the package root (the
+//!   linker would take that one for every board), and `memory.x` there stays
+//!   board-independent;
 //! * reads the TABLE and STACK regions of the board's memory map into Rust constants
 //!   (`memory_x.rs`), so the board glue can assert at compile time that its table
 //!   layout and stack guard match it;
@@ -21,6 +22,8 @@ const MEMORY_MPS2: &str = "memory/mps2-an386.x";
 const MEMORY_NETDUINOPLUS2: &str = "memory/netduinoplus2.x";
 /// Interrupt handler names of the default board (its RTIC device description).
 const DEVICE_MPS2: &str = "memory/mps2-an386-device.x";
+/// The board's map in OUT_DIR, included by the package root's `memory.x`.
+const BOARD_MEMORY: &str = "board-memory.x";
 const GOLDEN_COLUMNS: usize = 12;
 /// The flight image's boot self-test takes every this-many-th golden row (flash).
 const BOOT_ROW_STRIDE: usize = 5;
@@ -30,6 +33,7 @@ fn main() {
     println!("cargo:rerun-if-changed={DEVICE_MPS2}");
     println!("cargo:rerun-if-changed={MEMORY_NETDUINOPLUS2}");
     println!("cargo:rerun-if-changed=build.rs");
+    println!("cargo:rerun-if-changed=memory.x");
     println!("cargo:rerun-if-changed={GOLDEN_CSV}");
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
     let target = env::var("TARGET").unwrap_or_default();
@@ -37,22 +41,28 @@ fn main() {
     if target.starts_with("thumb") {
         if netduinoplus2 {
             fs::write(
-                out.join("memory.x"),
+                out.join(BOARD_MEMORY),
                 include_bytes!("memory/netduinoplus2.x"),
             )
-            .expect("write memory.x");
+            .expect("write board-memory.x");
             // The PAC's device.x is the one: none of ours may shadow it (OUT_DIR outlives a
             // change of board features).
             let _ = fs::remove_file(out.join("device.x"));
         } else {
-            fs::write(out.join("memory.x"), include_bytes!("memory/mps2-an386.x"))
-                .expect("write memory.x");
+            fs::write(
+                out.join(BOARD_MEMORY),
+                include_bytes!("memory/mps2-an386.x"),
+            )
+            .expect("write board-memory.x");
             fs::write(
                 out.join("device.x"),
                 include_bytes!("memory/mps2-an386-device.x"),
             )
             .expect("write device.x");
         }
+        // A memory.x of an older build in OUT_DIR would shadow nothing (the root's is
+        // found first) but would mislead a reader: gone.
+        let _ = fs::remove_file(out.join("memory.x"));
         println!("cargo:rustc-link-search={}", out.display());
     }
     write_memory_constants(

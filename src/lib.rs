@@ -56,3 +56,5 @@ pub mod board;
 pub mod ground;
 #[cfg(feature = "host")]
 pub mod sim;
+#[cfg(feature = "host")]
+pub mod station;

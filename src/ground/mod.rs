@@ -22,6 +22,7 @@ pub mod mdb;
 pub mod mission;
 pub mod plan;
 pub mod report;
-pub mod station;
+/// The ground station's link side, shared with the simulated bench (`crate::station`).
+pub use crate::station;
 pub mod tc;
 pub mod tracker;

@@ -43,7 +43,6 @@
 use std::collections::HashMap;
 
 use crate::controller::{event, State};
-use crate::ground::station::Tm;
 use crate::kinematics::LEGS;
 use crate::link::command::WirePose;
 use crate::link::tm::{dump_chunks, Verification};
@@ -52,6 +51,7 @@ use crate::motion::{CYCLE_S, DEFAULT_MAX_SPEED_MM_PER_S};
 use crate::nominal::PROTOTYPE;
 use crate::sim::bench::UART_115200_BYTES_PER_CYCLE;
 use crate::sim::{Bench, BenchConfig, InjectedFault, Plant, PlantConfig, SwitchEnd};
+use crate::station::Tm;
 use crate::table::mock_flash::{MockFlash, TearMode};
 use crate::table::Table;
 use crate::units::UM_PER_MM;
@@ -563,7 +563,7 @@ impl<C: Choices> Soak<C> {
                     let (mut p, rid) = self.r.st.packet(&Command::Ping).unwrap();
                     let last = p.len() - 1;
                     p[last] ^= 0x40;
-                    self.r.uplink_bytes(&crate::ground::tc::frame(&p));
+                    self.r.uplink_bytes(&crate::station::frame(&p));
                     self.tcs_sent += 1;
                     self.in_flight.push((rid, from));
                 }

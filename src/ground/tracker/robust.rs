@@ -4,12 +4,14 @@
 //! errors, and clean campaigns that must never be refused.
 //!
 //! * **Accuracy grid**: for each true joint spread `s` (Gaussian, truncated at 3 sigma)
-//!   and tracker noise scale `k` (the class preset times `k`), campaigns `1..n` are
-//!   calibrated twice: with the defaults (noise model: the unscaled preset; variance
-//!   factors, joint and ball priors estimated; outliers removed by data snooping), and by
-//!   the reference, the plain bundle fit given the truth (joint prior `s`, ball prior the
-//!   scene's, noise model the tracker's true one). Ratio = mean held-out max (defaults) /
-//!   mean held-out max (reference), per translation (um) and rotation (arcsec).
+//!   and tracker noise scale `k` (the class preset times `k`), `n` campaigns from
+//!   [`cell_first_campaign`] on are calibrated twice: with the defaults (noise model:
+//!   the unscaled preset; variance factors, joint and ball priors estimated; outliers
+//!   removed by data snooping), and by the reference, the plain bundle fit given the
+//!   truth (joint prior `s`, ball prior the scene's, noise model the tracker's true
+//!   one). Ratio = mean held-out max (defaults) / mean held-out max (reference), per
+//!   translation (um) and rotation (arcsec), with its standard error
+//!   ([`Cell::ratio_se`]).
 //! * **Gross errors** planted in the point export of a clean campaign (spread 0.1 mm,
 //!   the preset tracker): one ball moved by 0.1-0.5 mm in a random direction, two balls'
 //!   names swapped in one pose, one fiducial moved by 0.1-0.5 mm; found = the removed
@@ -193,6 +195,8 @@ pub struct Cell {
     pub refused: usize,
     /// Mean wall time of the defaults (s) and of the reference (s).
     pub seconds: [f64; 2],
+    /// Per campaign: held-out max with the defaults and with the reference (um, arcsec).
+    pub pairs: Vec<([f64; 2], [f64; 2])>,
 }
 
 impl Cell {
@@ -203,6 +207,41 @@ impl Cell {
             self.defaults[1] / self.reference[1],
         ]
     }
+
+    /// Standard error of [`Cell::ratio`] over the campaigns (um, arcsec): the delta
+    /// method for a ratio of paired means, `sd(a_k - R b_k) / (mean(b) sqrt(n))`; NaN
+    /// with fewer than two campaigns.
+    pub fn ratio_se(&self) -> [f64; 2] {
+        let n = self.pairs.len();
+        let r = self.ratio();
+        [0, 1].map(|a| {
+            if n < 2 {
+                return f64::NAN;
+            }
+            let d: Vec<f64> = self.pairs.iter().map(|(x, y)| x[a] - r[a] * y[a]).collect();
+            let m = d.iter().sum::<f64>() / n as f64;
+            let var = d.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (n - 1) as f64;
+            (var / n as f64).sqrt() / self.reference[a]
+        })
+    }
+}
+
+/// First campaign number of a grid cell: a function of its spread and noise scale only,
+/// so that a cell run alone (`--spreads`, `--scales`) draws the same campaigns as in the
+/// whole table. The default grid's cells are numbered in table order (`1 + 1000 i`);
+/// any other cell from its values.
+pub fn cell_first_campaign(spread: f64, scale: f64) -> u64 {
+    let default_index = DEFAULT_SPREADS
+        .iter()
+        .position(|s| *s == spread)
+        .zip(DEFAULT_SCALES.iter().position(|k| *k == scale))
+        .map(|(i, j)| (i * DEFAULT_SCALES.len() + j) as u64);
+    let index = default_index.unwrap_or_else(|| {
+        // Outside the default grid: 100 + the values in um and per mille, so distinct
+        // cells get distinct campaigns.
+        100 + (spread * 1e3).round() as u64 * 10_000 + (scale * 1e3).round() as u64
+    });
+    1 + 1000 * index
 }
 
 /// Runs one grid cell.
@@ -228,6 +267,7 @@ pub fn run_cell(cfg: &RobustConfig, spread: f64, scale: f64, first: u64) -> Resu
         let score = |p| accuracy(p, &c.truth, &cfg.base.targets).map_err(|e| e.to_string());
         let (ad, ar) = (max2(&score(&d.fit.params)?), max2(&score(&r.params)?));
         cell.n += 1;
+        cell.pairs.push((ad, ar));
         for a in 0..2 {
             cell.defaults[a] += ad[a];
             cell.reference[a] += ar[a];
@@ -513,19 +553,19 @@ pub fn robust_study(cfg: &RobustConfig, progress: &mut dyn FnMut(&str)) -> Resul
         cfg.base.targets.len()
     );
     if cfg.campaigns > 0 {
-        let _ = writeln!(s, "| true spread mm | noise x preset | defaults max um / \" | given the truth | ratio um / \" (mean) | worst campaign ratio | estimated spread mm (posterior median) | estimated range / transverse noise x model | a-priori model rejected | removed | refused | s per fit (defaults / reference) |");
-        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|");
+        let _ = writeln!(s, "| true spread mm | noise x preset | defaults max um / \" | given the truth | ratio um / \" (mean) | its standard error | worst campaign ratio | estimated spread mm (posterior median) | estimated range / transverse noise x model | a-priori model rejected | removed | refused | s per fit (defaults / reference) |");
+        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|---|");
         let mut worst = [0.0f64; 2];
-        for (i, sp) in cfg.spreads.iter().enumerate() {
-            for (j, k) in cfg.scales.iter().enumerate() {
-                let first = 1 + 1000 * (i * cfg.scales.len() + j) as u64;
-                let c = run_cell(cfg, *sp, *k, first)?;
+        for sp in &cfg.spreads {
+            for k in &cfg.scales {
+                let c = run_cell(cfg, *sp, *k, cell_first_campaign(*sp, *k))?;
                 let r = c.ratio();
+                let se = c.ratio_se();
                 worst[0] = worst[0].max(r[0]);
                 worst[1] = worst[1].max(r[1]);
                 let row = format!(
-                    "| {sp} | {k} | {:.2} / {:.2} | {:.2} / {:.2} | {:.3} / {:.3} | {:.2} / {:.2} | {:.3} | {:.2} / {:.2} | {}/{} | {} | {} | {:.2} / {:.2} |",
-                    c.defaults[0], c.defaults[1], c.reference[0], c.reference[1], r[0], r[1],
+                    "| {sp} | {k} | {:.2} / {:.2} | {:.2} / {:.2} | {:.3} / {:.3} | {:.3} / {:.3} | {:.2} / {:.2} | {:.3} | {:.2} / {:.2} | {}/{} | {} | {} | {:.2} / {:.2} |",
+                    c.defaults[0], c.defaults[1], c.reference[0], c.reference[1], r[0], r[1], se[0], se[1],
                     c.worst_ratio[0], c.worst_ratio[1], c.joint_prior_mm,
                     c.noise_factor[0], c.noise_factor[1], c.global_rejected, c.n, c.removed, c.refused,
                     c.seconds[0], c.seconds[1]

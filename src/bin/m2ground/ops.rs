@@ -1,9 +1,12 @@
-//! `m2ground`: the ground tool of the M2 mechanism controller (host only).
+//! Operations: the subcommands an operator runs on the real mechanism or to rehearse
+//! on the simulated one (kinematics, the sampling plan, simulated campaigns as input of
+//! `calibrate`, calibration, telecommands, the mission story, the Yamcs gateway, the
+//! mission database and the ICD's generated tables), and the argument groups they
+//! share with the study ([`SolverCli`], [`TrackerCli`]).
 
 use std::path::PathBuf;
-use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::Subcommand;
 use m2ctl::ground::calib::{cuckoo::CuckooConfig, CalibConfig, SolverKind};
 use m2ctl::ground::calib_cmd::{
     run_calibrate, run_campaign, run_plan, CalibrateArgs, CampaignArgs,
@@ -13,7 +16,6 @@ use m2ctl::ground::ikfk::{run_file, IkFk};
 use m2ctl::ground::plan::{
     PlanConfig, DEFAULT_AXIS_MM, DEFAULT_CUBE_HALF_MM, DEFAULT_ROTATION_ARCSEC,
 };
-use m2ctl::ground::report::{bench, compare_cuckoo, table3, TableConfig};
 use m2ctl::ground::tc::{
     command_from_args, run_tc, schedule_from_args, telecommand_list, upload_procedure, TcOutput,
     TcSequencer,
@@ -22,73 +24,9 @@ use m2ctl::link::tc::SEQ_COUNT_MASK;
 use m2ctl::link::AckFlags;
 use m2ctl::sim::tracker::PoseTracker;
 
-#[derive(Parser)]
-#[command(
-    name = "m2ground",
-    version,
-    about = "Ground tool of the M2 mechanism controller"
-)]
-struct Cli {
-    #[command(subcommand)]
-    cmd: Cmd,
-}
-
-#[derive(Subcommand)]
-enum Cmd {
-    /// Inverse kinematics: pose columns of a CSV -> 12-column CSV with strokes (f64).
-    Ik(IoArgs),
-    /// Forward kinematics: stroke columns of a CSV -> 12-column CSV with poses (f64).
-    Fk(IoArgs),
-    /// Calibrate the 36 joint coordinates from a measurement CSV.
-    Calibrate(Box<CalibrateCli>),
-    /// Write the calibration sampling plan's poses (6-column CSV).
-    Plan(PlanCli),
-    /// Write a measurement CSV from a simulated campaign (true mechanism + tracker noise).
-    SimulateCampaign(CampaignCli),
-    /// Print the paper's Table 3 comparison on a simulated campaign (and write the plot).
-    Table3(TableCli),
-    /// Print the wall time of each solver on the simulated campaign.
-    Bench(BenchCli),
-    /// Compare SMCS and the improved algorithm over several solver seeds.
-    CompareCuckoo(CompareCli),
-    /// Write a simulated laser-tracker campaign: targets.toml, points.csv, strokes.csv,
-    /// truth.toml (input of `calibrate --points`).
-    SimulateTrackerCampaign(SimulateTrackerCli),
-    /// Tracker path: before / two-step / bundle without and with prior, three tracker
-    /// classes, over many simulated campaigns.
-    TrackerTable(StudyCli),
-    /// Tracker path: predicted vs measured held-out accuracy over many campaigns.
-    TrackerStats(TrackerStatsCli),
-    /// Tracker path: optimal measurement plan vs the paper's 120 poses.
-    TrackerPlan(TrackerPlanCli),
-    /// Tracker path: the paper's prototype experiment reproduced and explained.
-    PaperExperiment(PaperExperimentCli),
-    /// Tracker path: calibrate's defaults on unknown spreads and noise, planted gross
-    /// errors, clean draws never refused.
-    TrackerDefaults(TrackerDefaultsCli),
-    /// Encode telecommands (framed PUS-C packets, docs/icd.md) as hex lines or binary.
-    Tc(TcCli),
-    /// The whole mission story on the simulated plant: move, calibrate, upload, move again.
-    Mission(MissionCli),
-    /// Join Yamcs' TCP link and the controller's COBS byte stream (docs/ground-segment.md).
-    Gateway(GatewayCli),
-    /// Write the mission database (every TC, TM packet, enumeration, event) as JSON, the
-    /// input of yamcs/tools/gen_xtce.py (docs/ground-segment.md).
-    MdbJson {
-        /// Output file (default: stdout).
-        #[arg(long)]
-        out: Option<PathBuf>,
-    },
-    /// The tables of docs/icd.md that restate the code (codes, IDs, offsets, units,
-    /// ranges), generated from the mission database: printed, checked against the
-    /// document's marked blocks, or written into them (nothing outside the markers
-    /// changes).
-    IcdTables(IcdTablesCli),
-}
-
 #[derive(clap::Args)]
 #[group(multiple = false)]
-struct IcdTablesCli {
+pub(crate) struct IcdTablesCli {
     /// Exit 1 with a diff if this document's generated blocks differ from the code.
     #[arg(long, value_name = "ICD")]
     check: Option<PathBuf>,
@@ -98,7 +36,7 @@ struct IcdTablesCli {
 }
 
 /// `m2ground icd-tables`: Ok(true) when the document is (now) as generated.
-fn icd_tables_cmd(a: &IcdTablesCli) -> Result<bool, String> {
+pub(crate) fn icd_tables_cmd(a: &IcdTablesCli) -> Result<bool, String> {
     use m2ctl::ground::icd;
     let read =
         |p: &PathBuf| std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()));
@@ -135,7 +73,7 @@ fn icd_tables_cmd(a: &IcdTablesCli) -> Result<bool, String> {
 }
 
 #[derive(clap::Args)]
-struct MissionCli {
+pub(crate) struct MissionCli {
     /// Seed of the manufacturing errors, tracker noise, targets and solver.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -157,7 +95,7 @@ struct MissionCli {
     quiet: bool,
 }
 
-fn mission_cmd(a: &MissionCli) -> Result<(), String> {
+pub(crate) fn mission_cmd(a: &MissionCli) -> Result<(), String> {
     use m2ctl::ground::mission::{format_summary, run_mission, MissionConfig};
     use m2ctl::ground::tracker::campaign::{noise_preset, TrackerSetup};
     let noise = match a.tracker.as_str() {
@@ -190,7 +128,7 @@ fn mission_cmd(a: &MissionCli) -> Result<(), String> {
 }
 
 #[derive(clap::Args)]
-struct GatewayCli {
+pub(crate) struct GatewayCli {
     /// The controller's byte stream: unix:PATH (QEMU UART socket), tcp:HOST:PORT, or a
     /// serial device path (configured first: stty -F DEV 115200 raw -echo).
     #[arg(long)]
@@ -210,7 +148,7 @@ struct GatewayCli {
     stats_s: u64,
 }
 
-fn gateway_cmd(a: &GatewayCli) -> Result<(), String> {
+pub(crate) fn gateway_cmd(a: &GatewayCli) -> Result<(), String> {
     use m2ctl::ground::gateway::{run, Options, Stats, Uart, DEFAULT_BACKLOG_PACKETS};
     use std::sync::{atomic::AtomicBool, Arc};
     use std::time::Duration;
@@ -242,7 +180,7 @@ fn gateway_cmd(a: &GatewayCli) -> Result<(), String> {
 }
 
 #[derive(clap::Args)]
-struct TcCli {
+pub(crate) struct TcCli {
     /// Sequence count of the first telecommand (14 bits: 0..=16383); later ones count up.
     #[arg(long, default_value_t = 0, global = true,
           value_parser = clap::value_parser!(u16).range(0..=i64::from(SEQ_COUNT_MASK)))]
@@ -325,7 +263,7 @@ impl TcWhat {
     }
 }
 
-fn tc_cmd(a: &TcCli) -> Result<(), String> {
+pub(crate) fn tc_cmd(a: &TcCli) -> Result<(), String> {
     let mut seq = TcSequencer::new(a.seq);
     seq.source_id = a.source_id;
     seq.ack = AckFlags(a.ack);
@@ -350,16 +288,7 @@ fn tc_cmd(a: &TcCli) -> Result<(), String> {
 }
 
 #[derive(clap::Args)]
-struct CompareCli {
-    #[command(flatten)]
-    solver_cli: SolverCli,
-    /// Solver seeds 1..=N.
-    #[arg(long, default_value_t = 5)]
-    seeds: u64,
-}
-
-#[derive(clap::Args)]
-struct SolverCli {
+pub(crate) struct SolverCli {
     /// Half-width of the feasible box Omega around nominal (mm).
     #[arg(long, default_value_t = m2ctl::ground::calib::DEFAULT_OMEGA_HALF_WIDTH_MM)]
     omega_mm: f64,
@@ -397,7 +326,7 @@ enum CoordArg {
 }
 
 impl SolverCli {
-    fn config(&self, solver: SolverKind) -> CalibConfig {
+    pub(crate) fn config(&self, solver: SolverKind) -> CalibConfig {
         let mut c = CalibConfig {
             solver,
             omega_half_width_mm: self.omega_mm,
@@ -422,7 +351,7 @@ impl SolverCli {
 
 /// The laser tracker of the tracker path.
 #[derive(clap::Args, Clone)]
-struct TrackerCli {
+pub(crate) struct TrackerCli {
     /// Tracker noise preset: class15+6 (the +-(15 um + 6 um/m) class), iso15 (isotropic
     /// 15 um), paper (0.07 um, the paper's ~0.1" per pose), perfect.
     #[arg(long, default_value = "class15+6")]
@@ -454,7 +383,7 @@ impl TrackerCli {
         Ok(n.scaled(self.tracker_scale))
     }
 
-    fn setup(&self) -> Result<m2ctl::ground::tracker::campaign::TrackerSetup, String> {
+    pub(crate) fn setup(&self) -> Result<m2ctl::ground::tracker::campaign::TrackerSetup, String> {
         if !(self.distance_m > 0.5 && self.distance_m < 40.0) {
             return Err("--distance-m must be between 0.5 and 40 m".into());
         }
@@ -473,52 +402,8 @@ impl TrackerCli {
     }
 }
 
-/// Settings of the tracker-path studies.
-#[derive(clap::Args, Clone)]
-struct StudyCli {
-    #[command(flatten)]
-    tracker: TrackerCli,
-    /// True joints: gauss:SIGMA_MM (truncated at 3 sigma) or uniform:HALF_MM.
-    #[arg(long, default_value = "gauss:0.1")]
-    truth: String,
-    /// Prior spread of the joints in the bundle fit (mm); default: the truth's sigma.
-    #[arg(long)]
-    joint_prior_mm: Option<f64>,
-    /// Number of simulated campaigns.
-    #[arg(long, default_value_t = m2ctl::ground::tracker::study::DEFAULT_TABLE_CAMPAIGNS)]
-    campaigns: usize,
-    /// Number of the first campaign (seeds).
-    #[arg(long, default_value_t = 1)]
-    first_campaign: u64,
-}
-
-impl StudyCli {
-    fn config(&self) -> Result<m2ctl::ground::tracker::study::StudyConfig, String> {
-        use m2ctl::ground::tracker::study::{StudyConfig, TruthModel};
-        let truth = TruthModel::parse(&self.truth).ok_or_else(|| {
-            format!(
-                "--truth: '{}' is neither gauss:SIGMA nor uniform:HALF",
-                self.truth
-            )
-        })?;
-        if let Some(p) = self.joint_prior_mm {
-            if !(p.is_finite() && p > 0.0) {
-                return Err("--joint-prior-mm must be a positive number".into());
-            }
-        }
-        Ok(StudyConfig {
-            truth,
-            setup: self.tracker.setup()?,
-            joint_prior_sigma_mm: self.joint_prior_mm,
-            campaigns: self.campaigns.max(1),
-            first_campaign: self.first_campaign,
-            ..StudyConfig::default()
-        })
-    }
-}
-
 #[derive(clap::Args)]
-struct SimulateTrackerCli {
+pub(crate) struct SimulateTrackerCli {
     #[command(flatten)]
     tracker: TrackerCli,
     /// Output directory (created).
@@ -537,70 +422,7 @@ struct SimulateTrackerCli {
 }
 
 #[derive(clap::Args)]
-struct TrackerStatsCli {
-    #[command(flatten)]
-    study: StudyCli,
-    /// Tracker noise scales (the --tracker preset times each).
-    #[arg(long, value_delimiter = ',', default_values_t = m2ctl::ground::tracker::study::DEFAULT_SWEEP_SCALES)]
-    scales: Vec<f64>,
-    /// Write the predicted-vs-measured plot (SVG).
-    #[arg(long)]
-    plot: Option<PathBuf>,
-}
-
-#[derive(clap::Args)]
-struct TrackerPlanCli {
-    #[command(flatten)]
-    study: StudyCli,
-    /// Plan sizes to compare with the paper's plan.
-    #[arg(long, value_delimiter = ',', default_value = "20,30,40,60,120")]
-    sizes: Vec<usize>,
-    /// Design criterion: i-optimal or d-optimal.
-    #[arg(long, default_value = "i-optimal")]
-    criterion: String,
-    /// Write the plan of this size (from --sizes) as a pose CSV to --out.
-    #[arg(long, default_value_t = 40)]
-    poses: usize,
-    /// Output pose CSV of the --poses plan.
-    #[arg(long)]
-    out: Option<PathBuf>,
-    /// Write the plan map (SVG): the --poses plan against the paper's.
-    #[arg(long)]
-    plot: Option<PathBuf>,
-}
-
-#[derive(clap::Args)]
-struct TrackerDefaultsCli {
-    #[command(flatten)]
-    tracker: TrackerCli,
-    /// True joint spreads (mm, Gaussian, truncated at 3 sigma).
-    #[arg(long, value_delimiter = ',', default_values_t = m2ctl::ground::tracker::robust::DEFAULT_SPREADS)]
-    spreads: Vec<f64>,
-    /// Tracker noise scales (the --tracker preset times each).
-    #[arg(long, value_delimiter = ',', default_values_t = m2ctl::ground::tracker::robust::DEFAULT_SCALES)]
-    scales: Vec<f64>,
-    /// Campaigns per (spread, scale) cell.
-    #[arg(long, default_value_t = m2ctl::ground::tracker::robust::DEFAULT_CELL_CAMPAIGNS)]
-    campaigns: usize,
-    /// Campaigns per planted gross error (0: none).
-    #[arg(long, default_value_t = m2ctl::ground::tracker::robust::DEFAULT_GROSS_CAMPAIGNS)]
-    gross_campaigns: usize,
-    /// Clean campaigns that must not be refused (0: none).
-    #[arg(long, default_value_t = m2ctl::ground::tracker::robust::DEFAULT_CLEAN_DRAWS)]
-    clean_draws: usize,
-}
-
-#[derive(clap::Args)]
-struct PaperExperimentCli {
-    #[command(flatten)]
-    study: StudyCli,
-    /// Write the per-pose error plot (SVG).
-    #[arg(long)]
-    plot: Option<PathBuf>,
-}
-
-#[derive(clap::Args)]
-struct CalibrateCli {
+pub(crate) struct CalibrateCli {
     /// Measurement CSV (12 columns: pose mm/arcsec, strokes mm): the idealised pose path.
     #[arg(long, required_unless_present = "points", conflicts_with = "points")]
     data: Option<PathBuf>,
@@ -706,7 +528,7 @@ impl PlanArgsCli {
 }
 
 #[derive(clap::Args)]
-struct PlanCli {
+pub(crate) struct PlanCli {
     #[command(flatten)]
     plan: PlanArgsCli,
     /// Output file (default: stdout).
@@ -715,7 +537,7 @@ struct PlanCli {
 }
 
 #[derive(clap::Args)]
-struct CampaignCli {
+pub(crate) struct CampaignCli {
     /// Nominal geometry file (default: the compiled-in prototype).
     #[arg(long)]
     nominal: Option<PathBuf>,
@@ -742,32 +564,6 @@ struct CampaignCli {
     noise_seed: u64,
     #[command(flatten)]
     plan: PlanArgsCli,
-}
-
-#[derive(clap::Args)]
-struct TableCli {
-    #[command(flatten)]
-    solver_cli: SolverCli,
-    /// Write the per-pose error plot (SVG).
-    #[arg(long)]
-    plot: Option<PathBuf>,
-}
-
-#[derive(clap::Args)]
-struct BenchCli {
-    #[command(flatten)]
-    solver_cli: SolverCli,
-    /// Runs per solver.
-    #[arg(long, default_value_t = 3)]
-    repeats: usize,
-}
-
-fn table_config(s: &SolverCli, plot: Option<PathBuf>) -> TableConfig {
-    TableConfig {
-        calib: SolverCli::config(s, SolverKind::Lm),
-        plot,
-        ..TableConfig::default()
-    }
 }
 
 /// How `calibrate --points` reads the export.
@@ -846,7 +642,7 @@ fn point_adjust_config(
     Ok(c)
 }
 
-fn calibrate_cmd(a: &CalibrateCli) -> Result<(), String> {
+pub(crate) fn calibrate_cmd(a: &CalibrateCli) -> Result<(), String> {
     let solver = SolverKind::parse(&a.solver).ok_or_else(|| {
         format!(
             "unknown solver '{}' (lm, lm-unbounded, smcs, improved, improved+lm)",
@@ -889,33 +685,7 @@ fn calibrate_cmd(a: &CalibrateCli) -> Result<(), String> {
     Ok(())
 }
 
-fn tracker_defaults_cmd(a: &TrackerDefaultsCli) -> Result<(), String> {
-    use m2ctl::ground::tracker::robust::{robust_study, RobustConfig};
-    if a.spreads
-        .iter()
-        .chain(a.scales.iter())
-        .any(|v| !(v.is_finite() && *v > 0.0))
-    {
-        return Err("--spreads and --scales must be positive numbers".into());
-    }
-    let base = m2ctl::ground::tracker::study::StudyConfig {
-        setup: a.tracker.setup()?,
-        ..Default::default()
-    };
-    let cfg = RobustConfig {
-        spreads: a.spreads.clone(),
-        scales: a.scales.clone(),
-        campaigns: a.campaigns,
-        gross_campaigns: a.gross_campaigns,
-        clean_draws: a.clean_draws,
-        ..RobustConfig::new(base)
-    };
-    let text = robust_study(&cfg, &mut |row| eprintln!("{row}"))?;
-    print!("{text}");
-    Ok(())
-}
-
-fn simulate_tracker_cmd(a: &SimulateTrackerCli) -> Result<(), String> {
+pub(crate) fn simulate_tracker_cmd(a: &SimulateTrackerCli) -> Result<(), String> {
     use m2ctl::ground::tracker::commands::{run_simulate, SimulateArgs, SIMULATED_FILES};
     use m2ctl::ground::tracker::study::TruthModel;
     let truth = TruthModel::parse(&a.truth).ok_or_else(|| {
@@ -954,157 +724,7 @@ fn simulate_tracker_cmd(a: &SimulateTrackerCli) -> Result<(), String> {
     Ok(())
 }
 
-fn tracker_stats_cmd(a: &TrackerStatsCli) -> Result<(), String> {
-    use m2ctl::ground::tracker::plots::PredictionGroup;
-    use m2ctl::ground::tracker::study::{format_prediction_sweep, prediction_sweep, rms3};
-    let cfg = a.study.config()?;
-    if a.scales.iter().any(|k| !(k.is_finite() && *k > 0.0)) {
-        return Err("--scales: every scale must be a positive number".into());
-    }
-    let rows = prediction_sweep(&cfg, &a.scales)?;
-    print!("{}", format_prediction_sweep(&cfg, &rows));
-    if let Some(p) = &a.plot {
-        let groups = |rot: bool| -> Vec<PredictionGroup> {
-            let range = if rot { 3..6 } else { 0..3 };
-            rows.iter()
-                .map(|(k, r)| PredictionGroup {
-                    label: format!("noise x{k}"),
-                    points: r
-                        .points
-                        .iter()
-                        .map(|q| {
-                            (
-                                rms3(&q.predicted_rms[range.clone()]),
-                                rms3(&q.measured_rms[range.clone()]),
-                            )
-                        })
-                        .collect(),
-                })
-                .collect()
-        };
-        m2ctl::ground::tracker::plots::predicted_vs_measured(
-            p,
-            &format!(
-                "Predicted vs measured held-out RMS, bundle fit with prior, {} campaigns per tracker noise scale",
-                cfg.campaigns
-            ),
-            &[
-                ("translation (x, y, z combined)".into(), "um".into(), groups(false)),
-                ("rotation (alpha, beta, gamma combined)".into(), "arcsec".into(), groups(true)),
-            ],
-        )?;
-        println!("\nplot: {}", p.display());
-    }
-    Ok(())
-}
-
-fn tracker_plan_cmd(a: &TrackerPlanCli) -> Result<(), String> {
-    use m2ctl::ground::calib::design::Criterion;
-    use m2ctl::ground::tracker::study::plan_study;
-    let cfg = a.study.config()?;
-    let criterion = Criterion::parse(&a.criterion).ok_or_else(|| {
-        format!(
-            "--criterion: '{}' is neither i-optimal nor d-optimal",
-            a.criterion
-        )
-    })?;
-    let mut sizes = a.sizes.clone();
-    if !sizes.contains(&a.poses) {
-        sizes.push(a.poses);
-    }
-    let (text, plans) = plan_study(&cfg, criterion, &sizes)?;
-    print!("{text}");
-    let chosen = plans
-        .iter()
-        .skip(1)
-        .find(|(_, p)| p.len() == a.poses)
-        .ok_or("no plan of that size")?;
-    if let Some(out) = &a.out {
-        let csv = m2ctl::ground::plan::format_plan(
-            &chosen.1,
-            &format!(
-                "Optimal calibration plan ({}), m2ground tracker-plan",
-                chosen.0
-            ),
-        );
-        std::fs::write(out, csv).map_err(|e| format!("{}: {e}", out.display()))?;
-        println!("\nwrote {}", out.display());
-    }
-    if let Some(p) = &a.plot {
-        m2ctl::ground::tracker::plots::plan_map(
-            p,
-            &format!(
-                "Plan map: {} against the paper's {} poses",
-                chosen.0,
-                cfg.plan.len()
-            ),
-            &[plans[0].clone(), chosen.clone()],
-        )?;
-        println!("plot: {}", p.display());
-    }
-    Ok(())
-}
-
-fn paper_experiment_cmd(a: &PaperExperimentCli) -> Result<(), String> {
-    use m2ctl::ground::tracker::commands::noise_band;
-    use m2ctl::ground::tracker::plots::{per_pose, Panel, Series};
-    use m2ctl::ground::tracker::study::{format_paper_experiment, paper_experiment};
-    let cfg = a.study.config()?;
-    let r = paper_experiment(&cfg)?;
-    print!("{}", format_paper_experiment(&cfg, &r));
-    if let Some(p) = &a.plot {
-        let s = &r.pose_noise_sigma;
-        let series = |rot: bool| {
-            [
-                (
-                    "before (poses from nominal ball centres)",
-                    &r.sampling_before_naive,
-                ),
-                (
-                    "before (poses from fitted ball centres)",
-                    &r.sampling_before,
-                ),
-                ("after calibration", &r.sampling_after),
-            ]
-            .iter()
-            .map(|(l, acc)| Series {
-                label: l.to_string(),
-                values: acc
-                    .per_pose_max()
-                    .iter()
-                    .map(|(t, q)| if rot { *q } else { *t })
-                    .collect(),
-            })
-            .collect::<Vec<_>>()
-        };
-        per_pose(
-            p,
-            &format!("The paper's experiment, simulated: pose error at the {} sampling poses, FK(strokes) - tracker-measured pose", cfg.plan.len()),
-            "sampling pose",
-            &[
-                Panel {
-                    caption: "largest |translation error| of each pose (um, log scale)".into(),
-                    y_label: "um".into(),
-                    series: series(false),
-                    band: Some(noise_band(&s[..3])),
-                    log: true,
-                },
-                Panel {
-                    caption: "largest |rotation error| of each pose (arcsec, log scale)".into(),
-                    y_label: "arcsec".into(),
-                    series: series(true),
-                    band: Some(noise_band(&s[3..])),
-                    log: true,
-                },
-            ],
-            Some("tracker noise floor (90 % of pure-noise poses)"),
-        )?;
-        println!("\nplot: {}", p.display());
-    }
-    Ok(())
-}
-
-fn campaign_cmd(a: &CampaignCli) -> Result<(), String> {
+pub(crate) fn campaign_cmd(a: &CampaignCli) -> Result<(), String> {
     let nominal = match &a.nominal {
         Some(p) => m2ctl::ground::files::read_geometry(p)?.params,
         None => m2ctl::nominal::PROTOTYPE,
@@ -1127,7 +747,7 @@ fn campaign_cmd(a: &CampaignCli) -> Result<(), String> {
 }
 
 #[derive(clap::Args)]
-struct IoArgs {
+pub(crate) struct IoArgs {
     /// Geometry file (geometry.toml format, optional [limits]).
     #[arg(long)]
     geometry: PathBuf,
@@ -1139,60 +759,27 @@ struct IoArgs {
     output: Option<PathBuf>,
 }
 
+/// `m2ground ik` / `fk`.
+pub(crate) fn ik_fk_cmd(which: IkFk, a: &IoArgs) -> Result<(), String> {
+    run_file(which, &a.geometry, &a.input).and_then(|t| write_out(a.output.as_ref(), &t))
+}
+
+/// `m2ground plan`.
+pub(crate) fn plan_cmd(a: &PlanCli) -> Result<(), String> {
+    write_out(a.out.as_ref(), &run_plan(&a.plan.config()))
+}
+
+/// `m2ground mdb-json`.
+pub(crate) fn mdb_json_cmd(out: Option<&PathBuf>) -> Result<(), String> {
+    write_out(out, &m2ctl::ground::mdb::mdb().to_json())
+}
+
 fn write_out(out: Option<&PathBuf>, text: &str) -> Result<(), String> {
     match out {
         Some(p) => std::fs::write(p, text).map_err(|e| format!("{}: {e}", p.display())),
         None => {
             print!("{text}");
             Ok(())
-        }
-    }
-}
-
-fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let result =
-        match &cli.cmd {
-            Cmd::Ik(a) => run_file(IkFk::Ik, &a.geometry, &a.input)
-                .and_then(|t| write_out(a.output.as_ref(), &t)),
-            Cmd::Fk(a) => run_file(IkFk::Fk, &a.geometry, &a.input)
-                .and_then(|t| write_out(a.output.as_ref(), &t)),
-            Cmd::Calibrate(a) => calibrate_cmd(a),
-            Cmd::Plan(a) => write_out(a.out.as_ref(), &run_plan(&a.plan.config())),
-            Cmd::SimulateCampaign(a) => campaign_cmd(a),
-            Cmd::Table3(a) => {
-                table3(&table_config(&a.solver_cli, a.plot.clone())).map(|t| print!("{t}"))
-            }
-            Cmd::CompareCuckoo(a) => {
-                compare_cuckoo(&table_config(&a.solver_cli, None), a.seeds).map(|t| print!("{t}"))
-            }
-            Cmd::SimulateTrackerCampaign(a) => simulate_tracker_cmd(a),
-            Cmd::TrackerTable(a) => a
-                .config()
-                .and_then(|c| m2ctl::ground::tracker::study::campaign_table(&c))
-                .map(|t| print!("{t}")),
-            Cmd::TrackerStats(a) => tracker_stats_cmd(a),
-            Cmd::TrackerPlan(a) => tracker_plan_cmd(a),
-            Cmd::PaperExperiment(a) => paper_experiment_cmd(a),
-            Cmd::TrackerDefaults(a) => tracker_defaults_cmd(a),
-            Cmd::Tc(a) => tc_cmd(a),
-            Cmd::Mission(a) => mission_cmd(a),
-            Cmd::Gateway(a) => gateway_cmd(a),
-            Cmd::MdbJson { out } => write_out(out.as_ref(), &m2ctl::ground::mdb::mdb().to_json()),
-            Cmd::IcdTables(a) => match icd_tables_cmd(a) {
-                Ok(true) => Ok(()),
-                Ok(false) => return ExitCode::FAILURE,
-                Err(e) => Err(e),
-            },
-            Cmd::Bench(a) => {
-                bench(&table_config(&a.solver_cli, None), a.repeats).map(|t| print!("{t}"))
-            }
-        };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("m2ground: {e}");
-            ExitCode::FAILURE
         }
     }
 }
