@@ -4,6 +4,8 @@
 //! * [`plant`]: six sliders with finite speed and encoders with 0.1 um quantisation and
 //!   noise, implementing the same [`crate::hw`] traits the board glue implements on the
 //!   target; everything is deterministic from a seed.
+//! * [`drive_train`]: the opt-in drive train between each drive and its slider
+//!   (microsteps, backlash, lead error, stiction, settling).
 //! * [`tracker`]: the measuring instruments: the idealised pose tracker and a laser
 //!   tracker measuring target balls in its own frame, with its noise model.
 //! * [`soak`]: the model-based soak: random operator/adversary sequences on the bench
@@ -22,6 +24,7 @@
 )]
 
 pub mod bench;
+pub mod drive_train;
 pub mod manufacturing;
 pub mod plant;
 pub mod soak;

@@ -13,6 +13,12 @@
 //! within [`REFERENCE_HALF_WIDTH_MM`] of home. They are read when the controller reads
 //! them ([`EndOfTravel::read_switches`]), from where the sliders are then.
 //!
+//! Drive train: by default each true slider is exactly where its drive has moved it. A
+//! realistic drive train (microsteps, backlash, lead error, stiction, settling) between
+//! the drives and the sliders is opt-in ([`Plant::with_drive_train`],
+//! [`super::drive_train`]); the encoders and switches then see the slider, the drives
+//! report their own position.
+//!
 //! The controller owns its hardware; the simulation's test bench must still advance the
 //! plant's time and inject faults. [`SharedPlant`] is that: a cheap handle onto one
 //! plant, one copy given to the controller as its drives and encoders, one kept by the
@@ -25,6 +31,7 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use rand_pcg::Pcg64;
 
+use super::drive_train::{DriveTrain, DriveTrainConfig, DriveTrainError};
 use crate::hw::{
     DriveError, EncoderError, EncoderWarnings, EndOfTravel, SliderDrives, StrokeEncoders,
     TravelSwitches,
@@ -205,6 +212,8 @@ pub struct Plant {
     loss_mm: [f64; LEGS],
     /// Legs whose encoder warned in the last [`StrokeEncoders::read_counts`].
     warning_legs: u8,
+    /// Between the drives and the sliders (ideal unless [`Plant::with_drive_train`]).
+    train: DriveTrain,
 }
 
 impl Plant {
@@ -227,7 +236,37 @@ impl Plant {
             faults: Vec::new(),
             loss_mm: [0.0; LEGS],
             warning_legs: 0,
+            train: ideal_train(&[0.0; LEGS]),
         })
+    }
+
+    /// This plant with `cfg` between its drives and its sliders, at rest where the drives
+    /// are now (backlash gaps centred, [`DriveTrain::new`]). Refuses parameters
+    /// [`DriveTrainConfig::check`] refuses (the plant is then dropped: build another).
+    pub fn with_drive_train(mut self, cfg: DriveTrainConfig) -> Result<Self, DriveTrainError> {
+        self.train = DriveTrain::new(cfg, &self.motor_mm())?;
+        Ok(self)
+    }
+
+    /// The drive train.
+    pub fn drive_train(&self) -> &DriveTrain {
+        &self.train
+    }
+
+    /// Where the motors have turned the screws (mm of travel): the drive positions less
+    /// any travel lost to missed steps.
+    fn motor_mm(&self) -> [f64; LEGS] {
+        let mut s = self.sliders.positions_mm();
+        for (v, l) in s.iter_mut().zip(self.loss_mm.iter()) {
+            *v -= l;
+        }
+        s
+    }
+
+    /// The drive train follows the motors, settling for `dt_s`.
+    fn follow(&mut self, dt_s: f64) {
+        let m = self.motor_mm();
+        self.train.update(&m, dt_s);
     }
 
     /// Injects a fault now (the test chooses the time by the cycle it calls this in).
@@ -242,14 +281,18 @@ impl Plant {
             if let Some(l) = self.loss_mm.get_mut(leg) {
                 *l += lost_mm;
             }
+            self.follow(0.0);
         }
         self.faults.push((fault, frozen));
     }
 
     /// Places the sliders (drive positions and setpoints) at these strokes (mm), e.g.
-    /// where they were found at power-on.
+    /// where they were found at power-on. A drive train starts over at rest there
+    /// ([`DriveTrain::new`]; its configuration was checked when it was set).
     pub fn set_strokes_mm(&mut self, strokes_mm: &[f64; LEGS]) {
         self.sliders = Sliders::at(*strokes_mm);
+        let m = self.motor_mm();
+        self.train = DriveTrain::new(*self.train.config(), &m).unwrap_or_else(|_| ideal_train(&m));
     }
 
     /// Removes every injected fault (a repaired mechanism). Drives that missed steps
@@ -261,6 +304,7 @@ impl Plant {
             self.sliders.shift(leg, -*l);
             *l = 0.0;
         }
+        self.follow(0.0);
     }
 
     /// The injected faults still active.
@@ -276,23 +320,21 @@ impl Plant {
         self.has(leg, |f| matches!(f, InjectedFault::StuckSlider { .. }))
     }
 
-    /// Advances time by `dt_s`: every slider moves toward its setpoint at most
-    /// `max_speed * dt`.
+    /// Advances time by `dt_s`: every drive moves toward its setpoint at most
+    /// `max_speed * dt`, the drive train follows.
     pub fn step(&mut self, dt_s: f64) {
         let max_step = self.cfg.max_speed_mm_per_s * dt_s.max(0.0);
         let jammed: [bool; LEGS] = core::array::from_fn(|leg| self.jammed(leg));
         self.sliders
             .step(max_step, |leg| jammed.get(leg).copied().unwrap_or(false));
+        self.follow(dt_s.max(0.0));
         self.time_s += dt_s.max(0.0);
     }
 
-    /// True slider positions (mm): the drive positions less any travel lost.
+    /// True slider positions (mm): the drive positions less any travel lost, through
+    /// the drive train (with the ideal one: exactly that).
     pub fn strokes_mm(&self) -> [f64; LEGS] {
-        let mut s = self.sliders.positions_mm();
-        for (v, l) in s.iter_mut().zip(self.loss_mm.iter()) {
-            *v -= l;
-        }
-        s
+        self.train.sliders_mm()
     }
 
     /// The drives' setpoints (mm): what each drive holds or is moving to.
@@ -311,10 +353,10 @@ impl Plant {
         self.time_s
     }
 
-    /// Whether every slider has reached its setpoint (a jammed slider counts as
-    /// settled: it will not move).
+    /// Whether every drive has reached its setpoint (a jammed slider counts as
+    /// settled: it will not move) and every slider has settled on its drive train.
     pub fn settled(&self) -> bool {
-        self.sliders.settled(|leg| self.jammed(leg))
+        self.sliders.settled(|leg| self.jammed(leg)) && self.train.at_rest()
     }
 
     /// The mirror's true pose: FK of the true geometry at the true strokes (f64).
@@ -464,6 +506,12 @@ impl SliderDrives for Plant {
             None => Ok(()),
         }
     }
+}
+
+/// The ideal drive train at rest at `drive_mm` (its configuration cannot be refused).
+fn ideal_train(drive_mm: &[f64; LEGS]) -> DriveTrain {
+    DriveTrain::new(DriveTrainConfig::ideal(), drive_mm)
+        .unwrap_or_else(|e| unreachable!("the ideal drive train is valid: {e:?}"))
 }
 
 /// A shared handle onto one [`Plant`]: the controller gets one as its hardware, the
