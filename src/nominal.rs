@@ -13,6 +13,23 @@ pub const WORKSPACE_ROTATION_ARCSEC: f64 = 600.0;
 /// about 4 mm; 5 mm leaves margin without letting the mechanism reach its hard stops.
 pub const STROKE_LIMIT_MM: f64 = 5.0;
 
+/// The prototype's slider drives, one per leg: the lead of the lead screw (nm of slider
+/// travel per screw revolution). With [`DRIVE_FULL_STEPS_PER_REV`],
+/// [`DRIVE_MICROSTEPS_PER_STEP`] and the gear ([`DRIVE_GEAR_MOTOR_REVS`] motor turns per
+/// [`DRIVE_GEAR_SCREW_REVS`] screw turns) it fixes the microstep: 1 mm / (200 * 16) =
+/// 0.3125 um of stroke. The second board's step/direction drives
+/// (`board::netduinoplus2::STEPPERS`) and the simulated drive train
+/// (`sim::drive_train::DRIVE_STEPPERS`) both take these.
+pub const DRIVE_LEAD_SCREW_PITCH_NM: u32 = 1_000_000;
+/// Full steps per motor revolution (a 1.8 degree two-phase hybrid stepper).
+pub const DRIVE_FULL_STEPS_PER_REV: u16 = 200;
+/// Microsteps per full step set on the drive.
+pub const DRIVE_MICROSTEPS_PER_STEP: u16 = 16;
+/// Gear between motor and screw: this many motor revolutions ...
+pub const DRIVE_GEAR_MOTOR_REVS: u16 = 1;
+/// ... turn the lead screw this many revolutions (1:1, direct drive).
+pub const DRIVE_GEAR_SCREW_REVS: u16 = 1;
+
 const fn leg(a_mm: [f64; 3], b_mm: [f64; 3]) -> LegParams {
     LegParams { a_mm, b_mm }
 }

@@ -45,21 +45,22 @@
 
 use crate::drivers::stepper::{StepperConfig, StepperPolarity};
 use crate::kinematics::LEGS;
+use crate::nominal;
 use crate::units::{MM_PER_UM, NM_PER_MM, UM_PER_MM};
 
-/// The slider drives' mechanics, as the second board's step/direction drives are
-/// configured (`board::netduinoplus2::STEPPERS`, a firmware-only constant the host build
-/// cannot name): a 1 mm lead screw, 200-step motors, 16 microsteps, direct drive, so
-/// 3,200 microsteps per mm (0.3125 um) and 5 um per full step. The microstep, full step
+/// The slider drives' mechanics, the same constants the second board's step/direction
+/// drives are configured with (`board::netduinoplus2::STEPPERS`; both take them from
+/// [`crate::nominal`]): a 1 mm lead screw, 200-step motors, 16 microsteps, direct drive,
+/// so 3,200 microsteps per mm (0.3125 um) and 5 um per full step. The microstep, full step
 /// and screw lead of [`LegDriveTrain::realistic`] are derived from it with the driver's
 /// own arithmetic ([`StepperConfig::microsteps_per_mm`]). The pulse rate, travel limit
 /// and pin levels are placeholders: the simulation uses none of them.
 pub const DRIVE_STEPPERS: StepperConfig = StepperConfig {
-    lead_screw_pitch_nm: 1_000_000,
-    full_steps_per_rev: 200,
-    microsteps_per_step: 16,
-    gear_motor_revs: 1,
-    gear_screw_revs: 1,
+    lead_screw_pitch_nm: nominal::DRIVE_LEAD_SCREW_PITCH_NM,
+    full_steps_per_rev: nominal::DRIVE_FULL_STEPS_PER_REV,
+    microsteps_per_step: nominal::DRIVE_MICROSTEPS_PER_STEP,
+    gear_motor_revs: nominal::DRIVE_GEAR_MOTOR_REVS,
+    gear_screw_revs: nominal::DRIVE_GEAR_SCREW_REVS,
     max_microsteps_per_cycle: 1,
     travel_limit_nm: 6_000_000,
     polarity: StepperPolarity {

@@ -12,6 +12,7 @@ use crate::drivers::stepper::{StepDirDrives, StepperConfig, StepperPolarity};
 use crate::drivers::switches::{SwitchPolarity, TravelSwitchInputs};
 use crate::drivers::Mechanism as DriverMechanism;
 use crate::kinematics::LEGS;
+use crate::nominal;
 
 /// BiSS clock (Hz) requested from SPI1 (84 MHz APB2 / 32 = 2.6 MHz).
 pub const BISS_CLOCK_HZ: u32 = 2_625_000;
@@ -27,15 +28,16 @@ pub const ENCODER_LSB_PM: u32 = 1_000;
 /// Raw encoder position at zero stroke, per leg. Installation values (mid-scale until
 /// the mechanism's are measured); the parameter table has no field for them yet.
 pub const ENCODER_ZERO_LSB: [u64; LEGS] = [1 << 31; LEGS];
-/// The drives: 1 mm lead screw, 200-step motors, 16 microsteps, direct drive
-/// (3,200 microsteps per mm), at most [`MAX_PULSES_PER_CYCLE`] per cycle (15 mm/s),
-/// clamped beyond 6 mm; DRV8825-style pins (ENABLE and FAULT active low).
+/// The drives: the prototype's mechanics ([`crate::nominal`]: 1 mm lead screw, 200-step
+/// motors, 16 microsteps, direct drive, 3,200 microsteps per mm), at most
+/// [`MAX_PULSES_PER_CYCLE`] per cycle (15 mm/s), clamped beyond 6 mm; DRV8825-style pins
+/// (ENABLE and FAULT active low).
 pub const STEPPERS: StepperConfig = StepperConfig {
-    lead_screw_pitch_nm: 1_000_000,
-    full_steps_per_rev: 200,
-    microsteps_per_step: 16,
-    gear_motor_revs: 1,
-    gear_screw_revs: 1,
+    lead_screw_pitch_nm: nominal::DRIVE_LEAD_SCREW_PITCH_NM,
+    full_steps_per_rev: nominal::DRIVE_FULL_STEPS_PER_REV,
+    microsteps_per_step: nominal::DRIVE_MICROSTEPS_PER_STEP,
+    gear_motor_revs: nominal::DRIVE_GEAR_MOTOR_REVS,
+    gear_screw_revs: nominal::DRIVE_GEAR_SCREW_REVS,
     max_microsteps_per_cycle: MAX_PULSES_PER_CYCLE,
     travel_limit_nm: 6_000_000,
     polarity: StepperPolarity {
