@@ -56,32 +56,39 @@ pub fn gamma_p(a: f64, x: f64) -> f64 {
         }
         (sum.ln() + lead).exp().min(1.0)
     } else {
-        // Continued fraction (Lentz) of Q.
-        let tiny = 1e-300;
-        let mut b = x + 1.0 - a;
-        let mut c = 1.0 / tiny;
-        let mut d = 1.0 / b;
-        let mut h = d;
-        for i in 1..10_000 {
-            let an = -(i as f64) * (i as f64 - a);
-            b += 2.0;
-            d = an * d + b;
-            if d.abs() < tiny {
-                d = tiny;
-            }
-            c = b + an / c;
-            if c.abs() < tiny {
-                c = tiny;
-            }
-            d = 1.0 / d;
-            let del = d * c;
-            h *= del;
-            if (del - 1.0).abs() < 1e-16 {
-                break;
-            }
-        }
-        (1.0 - (lead.exp() * h)).max(0.0)
+        (1.0 - gamma_q_continued_fraction(a, x)).max(0.0)
     }
+}
+
+/// Regularised upper incomplete gamma `Q(a, x)` by its continued fraction (Lentz), for
+/// `x >= a + 1` where it converges fast and, unlike `1 - P`, keeps its precision far into
+/// the tail.
+fn gamma_q_continued_fraction(a: f64, x: f64) -> f64 {
+    let lead = -x + a * x.ln() - ln_gamma(a);
+    let tiny = 1e-300;
+    let mut b = x + 1.0 - a;
+    let mut c = 1.0 / tiny;
+    let mut d = 1.0 / b;
+    let mut h = d;
+    for i in 1..10_000 {
+        let an = -(i as f64) * (i as f64 - a);
+        b += 2.0;
+        d = an * d + b;
+        if d.abs() < tiny {
+            d = tiny;
+        }
+        c = b + an / c;
+        if c.abs() < tiny {
+            c = tiny;
+        }
+        d = 1.0 / d;
+        let del = d * c;
+        h *= del;
+        if (del - 1.0).abs() < 1e-16 {
+            break;
+        }
+    }
+    lead.exp() * h
 }
 
 /// CDF of the chi-square distribution with `dof` degrees of freedom.
@@ -97,31 +104,7 @@ pub fn chi2_sf(x: f64, dof: f64) -> f64 {
         1.0 - gamma_p(a, h)
     } else {
         // Q directly from the continued fraction (no cancellation).
-        let lead = -h + a * h.ln() - ln_gamma(a);
-        let tiny = 1e-300;
-        let mut b = h + 1.0 - a;
-        let mut c = 1.0 / tiny;
-        let mut d = 1.0 / b;
-        let mut q = d;
-        for i in 1..10_000 {
-            let an = -(i as f64) * (i as f64 - a);
-            b += 2.0;
-            d = an * d + b;
-            if d.abs() < tiny {
-                d = tiny;
-            }
-            c = b + an / c;
-            if c.abs() < tiny {
-                c = tiny;
-            }
-            d = 1.0 / d;
-            let del = d * c;
-            q *= del;
-            if (del - 1.0).abs() < 1e-16 {
-                break;
-            }
-        }
-        lead.exp() * q
+        gamma_q_continued_fraction(a, h)
     }
 }
 
