@@ -39,7 +39,9 @@
 
 use std::collections::HashMap;
 
-use super::files::{parse_export, PointPose, PointRecord, BASE_POSE, MAX_RANGE_MM, MIN_RANGE_MM};
+use super::files::{
+    parse_export, push_unique, PointPose, PointRecord, BASE_POSE, MAX_RANGE_MM, MIN_RANGE_MM,
+};
 use crate::ground::files::FileError;
 
 fn err(line: usize, message: impl Into<String>) -> FileError {
@@ -552,19 +554,17 @@ pub fn read_export(text: &str, opts: &ExportOptions) -> Result<Vec<PointRecord>,
                 ),
             ));
         }
-        if let Some(prev) = seen.insert((pose, name.clone()), ln) {
-            return Err(err(
-                ln,
-                format!("point {name} of the same measurement already on line {prev}"),
-            ));
-        }
-        out.push(PointRecord {
-            line: ln,
-            pose,
-            name,
-            y_mm: y,
-            sigma_mm,
-        });
+        push_unique(
+            &mut out,
+            &mut seen,
+            PointRecord {
+                line: ln,
+                pose,
+                name,
+                y_mm: y,
+                sigma_mm,
+            },
+        )?;
     }
     Ok(out)
 }

@@ -427,6 +427,26 @@ pub struct PointRecord {
     pub sigma_mm: Option<f64>,
 }
 
+/// Appends `rec` unless its point was already measured in the same pose (fiducial set
+/// or pose): that is refused naming both lines. `seen` maps (pose, name) to the line.
+pub(super) fn push_unique(
+    out: &mut Vec<PointRecord>,
+    seen: &mut HashMap<(PointPose, String), usize>,
+    rec: PointRecord,
+) -> Result<(), FileError> {
+    if let Some(prev) = seen.insert((rec.pose, rec.name.clone()), rec.line) {
+        return Err(err(
+            rec.line,
+            format!(
+                "point {} of the same measurement already on line {prev}",
+                rec.name
+            ),
+        ));
+    }
+    out.push(rec);
+    Ok(())
+}
+
 /// Parses a tracker point export (see the module docs). Checks that need the target file
 /// (names, counts) are in [`check_export`].
 pub fn parse_export(text: &str) -> Result<Vec<PointRecord>, FileError> {
@@ -481,19 +501,17 @@ pub fn parse_export(text: &str) -> Result<Vec<PointRecord>, FileError> {
             }
             _ => None,
         };
-        if let Some(prev) = seen.insert((pose, name.clone()), ln) {
-            return Err(err(
-                ln,
-                format!("point {name} of the same measurement already on line {prev}"),
-            ));
-        }
-        out.push(PointRecord {
-            line: ln,
-            pose,
-            name,
-            y_mm: y,
-            sigma_mm,
-        });
+        push_unique(
+            &mut out,
+            &mut seen,
+            PointRecord {
+                line: ln,
+                pose,
+                name,
+                y_mm: y,
+                sigma_mm,
+            },
+        )?;
     }
     Ok(out)
 }
