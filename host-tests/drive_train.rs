@@ -8,7 +8,8 @@ use common::{wire, TestRng};
 use m2ctl::ground::eval::pose_error;
 use m2ctl::ground::mdb::fault_flags_doc;
 use m2ctl::hw::{SliderDrives, StrokeEncoders};
-use m2ctl::kinematics::{Pose, LEGS};
+use m2ctl::kinematics::{ik, Pose, LEGS};
+use m2ctl::link::command::ParameterValues;
 use m2ctl::link::tm::Verification;
 use m2ctl::link::Command;
 use m2ctl::nominal::PROTOTYPE;
@@ -480,6 +481,13 @@ const MOVE_CYCLES: u32 = 60_000;
 
 /// One configuration's figures.
 struct Row {
+    /// Largest true slider error at completion (um): |true slider - IK of the target on
+    /// the true geometry|.
+    max_slider_um: f64,
+    /// Moves completed with every true slider within [`GOOD_UM`] of its setpoint.
+    sliders_good: usize,
+    /// Moves ended by the in-position timeout (0x070F).
+    not_in_position: usize,
     max_um: f64,
     max_arcsec: f64,
     max_settled_um: f64,
@@ -499,7 +507,12 @@ fn flag_names(bits: u32) -> String {
         .join("+")
 }
 
-fn study(train: DriveTrainConfig) -> Row {
+/// The open-loop controller of before issue 21, as a configuration: an in-position
+/// tolerance (100 um) no drive train's error reaches and a dwell of one cycle, so every
+/// move completes the cycle after its path, uncorrected.
+const OPEN_LOOP: &[(u16, i32)] = &[(0x0015, 100_000), (0x0016, 1)];
+
+fn study(train: DriveTrainConfig, params: &[(u16, i32)]) -> Row {
     let plant = Plant::new(
         &PROTOTYPE,
         PlantConfig {
@@ -512,8 +525,16 @@ fn study(train: DriveTrainConfig) -> Row {
     .unwrap();
     let mut r = Bench::with_plant(plant);
     r.run(2);
+    if !params.is_empty() {
+        let set = ParameterValues::new(params).unwrap();
+        let reps = r.command(&Command::SetParameters(set), MOVE_CYCLES);
+        assert_eq!(reps.last(), Some(&Verification::CompletionSuccess));
+    }
     let mut rng = TestRng(STUDY_SEED);
     let mut row = Row {
+        max_slider_um: 0.0,
+        sliders_good: 0,
+        not_in_position: 0,
         max_um: 0.0,
         max_arcsec: 0.0,
         max_settled_um: 0.0,
@@ -545,6 +566,16 @@ fn study(train: DriveTrainConfig) -> Row {
                 // The pose the moment the completion is reported.
                 let truth = r.plant.with(|p| p.true_pose()).unwrap();
                 let (e_um, e_as) = worst(&pose_error(&truth, &target));
+                let set_mm = r.plant.with(|p| ik(p.truth(), &target)).unwrap();
+                let sliders = r.plant.with(|p| p.strokes_mm());
+                let s_um = sliders
+                    .iter()
+                    .zip(set_mm)
+                    .fold(0.0f64, |m, (s, t)| m.max((s - t).abs() * 1e3));
+                row.max_slider_um = row.max_slider_um.max(s_um);
+                if s_um <= GOOD_UM {
+                    row.sliders_good += 1;
+                }
                 row.completed += 1;
                 row.max_um = row.max_um.max(e_um);
                 row.max_arcsec = row.max_arcsec.max(e_as);
@@ -556,6 +587,10 @@ fn study(train: DriveTrainConfig) -> Row {
                 let (s_um, s_as) = worst(&pose_error(&settled, &target));
                 row.max_settled_um = row.max_settled_um.max(s_um);
                 row.max_settled_arcsec = row.max_settled_arcsec.max(s_as);
+            }
+            Some(Verification::CompletionFailure { code: 0x070F, .. }) => {
+                row.not_in_position += 1;
+                r.try_settle(MOVE_CYCLES);
             }
             Some(Verification::CompletionFailure { code: 0x0709, data }) => {
                 row.aborted.push(flag_names(*data));
@@ -641,35 +676,117 @@ fn open_loop_accuracy_study() {
         ),
     ];
     println!(
-        "| drive train | pose error at completion, max | after settling, max | moves within {GOOD_UM} um / {GOOD_ARCSEC}\" | moves aborted by a fault |"
+        "| drive train | controller | pose error at completion, max | after settling, max | slider error at completion, max | moves with every slider within {GOOD_UM} um | moves within {GOOD_UM} um / {GOOD_ARCSEC}\" | aborted by a fault | not in position (0x070F) |"
     );
-    println!("|---|---|---|---|---|");
-    for (name, cfg) in rows {
-        let row = study(cfg);
-        let mut codes: Vec<(String, usize)> = Vec::new();
-        for a in &row.aborted {
-            match codes.iter_mut().find(|(c, _)| c == a) {
-                Some((_, n)) => *n += 1,
-                None => codes.push((a.clone(), 1)),
+    println!("|---|---|---|---|---|---|---|---|---|");
+    // `M2_STUDY_ROWS=word` runs only the rows whose name contains it.
+    let only = std::env::var("M2_STUDY_ROWS").unwrap_or_default();
+    for (name, cfg) in rows.into_iter().filter(|(n, _)| n.contains(only.as_str())) {
+        for (ctl, params) in [("open loop", OPEN_LOOP), ("closed loop", &[][..])] {
+            let row = study(cfg, params);
+            let mut codes: Vec<(String, usize)> = Vec::new();
+            for a in &row.aborted {
+                match codes.iter_mut().find(|(c, _)| c == a) {
+                    Some((_, n)) => *n += 1,
+                    None => codes.push((a.clone(), 1)),
+                }
+            }
+            let codes = codes
+                .iter()
+                .map(|(c, n)| format!("{n} {c}"))
+                .collect::<Vec<_>>()
+                .join(", ");
+            println!(
+                "| {name} | {ctl} | {:.4} um / {:.4}\" | {:.4} um / {:.4}\" | {:.4} um | {:.0} % | {:.0} % ({} of {} completed) | {}{}{} | {} |",
+                row.max_um,
+                row.max_arcsec,
+                row.max_settled_um,
+                row.max_settled_arcsec,
+                row.max_slider_um,
+                100.0 * row.sliders_good as f64 / STUDY_MOVES as f64,
+                100.0 * row.good as f64 / STUDY_MOVES as f64,
+                row.good,
+                row.completed,
+                row.aborted.len(),
+                if codes.is_empty() { String::new() } else { format!(" ({codes})") },
+                if row.refused > 0 { format!("; {} refused", row.refused) } else { String::new() },
+                row.not_in_position,
+            );
+        }
+    }
+}
+
+#[test]
+#[ignore]
+fn scratch_trace() {
+    let plant = Plant::new(
+        &PROTOTYPE,
+        PlantConfig {
+            seed: DEFAULT_PLANT_SEED,
+            ..PlantConfig::default()
+        },
+    )
+    .unwrap()
+    .with_drive_train(DriveTrainConfig::realistic())
+    .unwrap();
+    let mut r = Bench::with_plant(plant);
+    r.run(2);
+    let mut rng = TestRng(STUDY_SEED);
+    let mut shown = 0;
+    for k in 0..200 {
+        let t = wire(
+            rng.sym() * STUDY_UM,
+            rng.sym() * STUDY_UM,
+            rng.sym() * STUDY_UM,
+            rng.sym() * STUDY_ARCSEC,
+            rng.sym() * STUDY_ARCSEC,
+            rng.sym() * STUDY_ARCSEC,
+        );
+        let target: Pose<f64> = t.to_pose();
+        let set_mm = r.plant.with(|p| ik(p.truth(), &target)).unwrap();
+        let rid = r.send(&Command::MoveAbsolute(t));
+        let mut lines = Vec::new();
+        for c in 0..20000 {
+            r.run(1);
+            let s = r.plant.with(|p| p.strokes_mm());
+            let cmd = r.ctl.strokes_commanded_mm();
+            let near = cmd
+                .iter()
+                .zip(set_mm)
+                .all(|(a, b)| (*a as f64 - b).abs() < 0.01);
+            if near && c % 10 == 0 {
+                let e: Vec<String> = s
+                    .iter()
+                    .zip(set_mm)
+                    .map(|(a, b)| format!("{:+.3}", (a - b) * 1e3))
+                    .collect();
+                let d: Vec<String> = cmd
+                    .iter()
+                    .zip(set_mm)
+                    .map(|(a, b)| format!("{:+.3}", (*a as f64 - b) * 1e3))
+                    .collect();
+                let enc = r.ctl.hk_sample().encoders_mm;
+                let en: Vec<String> = enc
+                    .iter()
+                    .zip(set_mm)
+                    .map(|(a, b)| format!("{:+.3}", (*a as f64 - b) * 1e3))
+                    .collect();
+                lines.push(format!(
+                    "move {k} c {c} inpos {:06b} err {e:?} enc {en:?} cmd-set {d:?}",
+                    r.ctl.in_position_legs()
+                ));
+            }
+            if r.st.finished(rid) {
+                break;
             }
         }
-        let codes = codes
-            .iter()
-            .map(|(c, n)| format!("{n} {c}"))
-            .collect::<Vec<_>>()
-            .join(", ");
-        println!(
-            "| {name} | {:.4} um / {:.4}\" | {:.4} um / {:.4}\" | {:.0} % ({} of {} completed) | {}{}{} |",
-            row.max_um,
-            row.max_arcsec,
-            row.max_settled_um,
-            row.max_settled_arcsec,
-            100.0 * row.good as f64 / STUDY_MOVES as f64,
-            row.good,
-            row.completed,
-            row.aborted.len(),
-            if codes.is_empty() { String::new() } else { format!(" ({codes})") },
-            if row.refused > 0 { format!("; {} refused", row.refused) } else { String::new() },
-        );
+        let reps = r.st.reports(rid);
+        if matches!(reps.last(), Some(Verification::CompletionFailure { .. })) && shown < 2 {
+            shown += 1;
+            for l in lines.iter().take(120) {
+                println!("{l}");
+            }
+        }
+        r.try_settle(MOVE_CYCLES);
     }
 }

@@ -24,7 +24,7 @@ pub const DRIVE_LEAD_SCREW_PITCH_NM: u32 = 1_000_000;
 /// Full steps per motor revolution (a 1.8 degree two-phase hybrid stepper).
 pub const DRIVE_FULL_STEPS_PER_REV: u16 = 200;
 /// Microsteps per full step set on the drive.
-pub const DRIVE_MICROSTEPS_PER_STEP: u16 = 16;
+pub const DRIVE_MICROSTEPS_PER_STEP: u16 = 64;
 /// Gear between motor and screw: this many motor revolutions ...
 pub const DRIVE_GEAR_MOTOR_REVS: u16 = 1;
 /// ... turn the lead screw this many revolutions (1:1, direct drive).

@@ -61,6 +61,11 @@ pub enum CommandError {
     /// was seen since the limit-switch fault latched (data: the legs blocked in the
     /// move's direction, bit i = leg i+1).
     TowardEndOfTravel(u8),
+    /// 0x070F: the move's sliders were not in position (every encoder within the
+    /// in-position tolerance of its setpoint for the dwell) within the fine
+    /// positioning's timeout (`motion::fine::TIMEOUT_CYCLES`) after the path (data: the
+    /// legs out of tolerance, bit i = leg i+1).
+    NotInPosition(u8),
 }
 
 /// Reasons a leg's encoder is suspect for a direct-stroke move (0x070B's data bits).
@@ -101,6 +106,7 @@ impl CommandError {
             CommandError::NoGeometry => 0x070C,
             CommandError::JobBusy(_) => 0x070D,
             CommandError::TowardEndOfTravel(_) => 0x070E,
+            CommandError::NotInPosition(_) => 0x070F,
             CommandError::Parameter(e) => e.code(),
             CommandError::Schedule(e) => e.code(),
         }
@@ -125,7 +131,9 @@ impl CommandError {
             CommandError::PendingMismatch { pending_id } => *pending_id,
             CommandError::EncoderSuspect(bits) => *bits,
             CommandError::JobBusy(job) => *job as u32,
-            CommandError::TowardEndOfTravel(legs) => u32::from(*legs),
+            CommandError::TowardEndOfTravel(legs) | CommandError::NotInPosition(legs) => {
+                u32::from(*legs)
+            }
             CommandError::Parameter(e) => e.data(),
             CommandError::Schedule(e) => e.data(),
             _ => 0,

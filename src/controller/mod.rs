@@ -143,6 +143,8 @@ pub struct Ops {
     pub direct: (f32, f32, f32),
     /// Housekeeping period (cycles).
     pub hk_period_cycles: u32,
+    /// In-position tolerance (mm) and dwell (cycles): [`Parameters::in_position`].
+    pub in_position: (f32, u16),
 }
 
 impl Ops {
@@ -153,6 +155,7 @@ impl Ops {
             motion: params.motion_limits(table),
             direct: params.direct_limits(table),
             hk_period_cycles: params.hk_period_cycles(table),
+            in_position: params.in_position(table),
         }
     }
 }
@@ -287,6 +290,8 @@ impl<M: MechanismIo> Controller<M> {
                 plan_aborted: false,
                 refusal_bits: 0,
                 check: None,
+                setpoint_mm: [0.0; LEGS],
+                approach: crate::motion::fine::Approach::new([0.0; LEGS]),
             },
             deadline: parts::DeadlineMonitor::default(),
             ledger: parts::TcLedger::default(),
@@ -410,6 +415,8 @@ impl<M: MechanismIo> Controller<M> {
     fn sync_to_drives(&mut self) {
         let held = self.mech.setpoints_mm();
         self.motion.strokes_mm = held;
+        // At rest where the drives hold: in position means there.
+        self.motion.setpoint_mm = held;
         if let Ok(sol) = fk(
             &self.tables.active.geom,
             &held,
@@ -623,10 +630,10 @@ impl<M: MechanismIo> Controller<M> {
                 }
             }
             Motion::Planning(_) => State::Moving,
-            Motion::Path { stopping: true, .. } | Motion::Stroke { stopping: true, .. } => {
-                State::Stopping
-            }
-            Motion::Path { .. } => State::Moving,
+            Motion::Path { stopping: true, .. }
+            | Motion::Stroke { stopping: true, .. }
+            | Motion::Fine { stopping: true, .. } => State::Stopping,
+            Motion::Path { .. } | Motion::Fine { .. } => State::Moving,
             Motion::Stroke { .. } => State::StrokeMoving,
         }
     }
@@ -668,7 +675,7 @@ impl<M: MechanismIo> Controller<M> {
     pub fn hk_sample(&self) -> HkSample {
         let moving_legs = match &self.motion.now {
             Motion::Hold | Motion::Planning(_) => 0,
-            Motion::Path { .. } => crate::supervision::ALL_LEGS,
+            Motion::Path { .. } | Motion::Fine { .. } => crate::supervision::ALL_LEGS,
             Motion::Stroke { mv, .. } => 1u8.checked_shl(u32::from(mv.leg())).unwrap_or(0),
         };
         let latched = self.supervisor.latched();

@@ -9,10 +9,11 @@ use crate::hw::MechanismIo;
 use crate::kinematics::{fk, ik, FkConfig, Frames, Geometry, Pose, LEGS};
 
 use crate::link::tm::EventSeverity;
+use crate::motion::fine::{in_position_legs, Fine, FineStep};
 use crate::motion::{
     DirectStrokeLimits, PlanStart, StrokeMove, Trajectory, TrajectoryPlanner, PATH_SAMPLE_INTERVALS,
 };
-use crate::motion::{LimitKind, MotionLimits};
+use crate::motion::{LimitKind, MotionLimits, Ramp};
 use crate::supervision::FaultFlags;
 
 /// The motion in progress.
@@ -31,6 +32,15 @@ pub(super) enum Motion {
     /// One slider by a stroke (recovery).
     Stroke {
         mv: StrokeMove,
+        start_cycle: u32,
+        stopping: bool,
+    },
+    /// A coordinated move's fine positioning after its path (or instead of it, when the
+    /// target is already in position): waiting for the sliders to be in position, or a
+    /// correction (`ramp`, from `start_cycle`; [`Ramp::immediate`] while waiting).
+    Fine {
+        fine: Fine,
+        ramp: Ramp,
         start_cycle: u32,
         stopping: bool,
     },
@@ -165,6 +175,17 @@ impl<M: MechanismIo> Controller<M> {
                     *stopping = true;
                 }
             }
+            Motion::Fine {
+                ramp,
+                start_cycle,
+                stopping,
+                ..
+            } => {
+                if !*stopping {
+                    ramp.stop(now.wrapping_sub(*start_cycle));
+                    *stopping = true;
+                }
+            }
         }
     }
 
@@ -257,14 +278,17 @@ impl<M: MechanismIo> Controller<M> {
     pub(super) fn step_motion(&mut self) {
         self.step_planning();
         let now = self.cycle;
-        let (strokes, moving, done, stopping) = match self.motion.now {
+        // Matched by reference: the trajectory (236 bytes) is not copied onto the control
+        // task's stack.
+        let (strokes, moving, done, stopping) = match &self.motion.now {
             Motion::Hold | Motion::Planning(_) => (self.motion.strokes_mm, false, false, false),
             Motion::Path {
                 traj,
                 start_cycle,
                 stopping,
             } => {
-                let sp = traj.setpoint(now.wrapping_sub(start_cycle));
+                let stopping = *stopping;
+                let sp = traj.setpoint(now.wrapping_sub(*start_cycle));
                 match ik(&self.tables.active.geom, &sp.pose) {
                     Ok(s) => {
                         self.motion.pose = sp.pose;
@@ -288,11 +312,31 @@ impl<M: MechanismIo> Controller<M> {
                 start_cycle,
                 stopping,
             } => {
-                let sp = mv.setpoint(now.wrapping_sub(start_cycle));
-                (sp.strokes_mm, sp.moving, sp.done, stopping)
+                let sp = mv.setpoint(now.wrapping_sub(*start_cycle));
+                (sp.strokes_mm, sp.moving, sp.done, *stopping)
+            }
+            Motion::Fine {
+                fine,
+                ramp,
+                start_cycle,
+                stopping,
+            } => {
+                let smp = ramp.sample(now.wrapping_sub(*start_cycle));
+                (
+                    fine.setpoint(smp.progress),
+                    smp.rate_per_cycle > 0.0,
+                    smp.at_rest,
+                    *stopping,
+                )
             }
         };
-        if matches!(self.motion.now, Motion::Hold | Motion::Planning(_)) {
+        // Waiting for the sliders commands nothing, as at rest.
+        let resting = match self.motion.now {
+            Motion::Hold | Motion::Planning(_) => true,
+            Motion::Fine { .. } => done,
+            _ => false,
+        };
+        if resting {
             // Nothing is commanded at rest: poll the drives' health instead. The next
             // motion's end-of-travel clamp starts from its own first cycle's switches,
             // its output stage from where the drives hold, at rest.
@@ -310,6 +354,7 @@ impl<M: MechanismIo> Controller<M> {
             let strokes = self
                 .travel
                 .clamp(limited.strokes_mm, &self.motion.strokes_mm);
+            self.motion.approach.track(&strokes);
             self.motion.strokes_mm = strokes;
             self.motion.last_drive = self.mech.command_strokes_mm(&strokes);
             if !limited.limits_ok {
@@ -325,7 +370,12 @@ impl<M: MechanismIo> Controller<M> {
         }
         self.motion.moving_prev = moving;
         if done {
+            if matches!(self.motion.now, Motion::Fine { .. }) && !stopping {
+                self.step_fine();
+                return;
+            }
             let was_stroke = matches!(self.motion.now, Motion::Stroke { .. });
+            let path_arrived = matches!(self.motion.now, Motion::Path { .. }) && !stopping;
             self.motion.now = Motion::Hold;
             if !self.supervisor.latched().is_empty() {
                 // Came to rest with a fault latched: the drives hold where their sliders
@@ -335,9 +385,93 @@ impl<M: MechanismIo> Controller<M> {
             } else if was_stroke {
                 // The commanded pose of the strokes now held.
                 self.sync_to_drives();
+            } else if path_arrived {
+                // The path has arrived: its completion waits for the sliders.
+                self.begin_fine(strokes);
+                return;
             }
             self.end_pending_move(stopping);
         }
+    }
+
+    /// Begins the fine positioning on the setpoint strokes `target_mm` (module
+    /// [`crate::motion::fine`]); the move's completion waits for it.
+    fn begin_fine(&mut self, target_mm: [f32; LEGS]) {
+        self.motion.setpoint_mm = target_mm;
+        self.motion.now = Motion::Fine {
+            fine: Fine::begin(target_mm, &self.motion.approach, self.cycle),
+            ramp: Ramp::immediate(),
+            start_cycle: self.cycle,
+            stopping: false,
+        };
+    }
+
+    /// A cycle of the fine positioning at rest: completion when in position, a
+    /// correction when due, a completion failure at the timeout.
+    #[inline(never)]
+    fn step_fine(&mut self) {
+        let (tol, dwell) = self.settings.ops.in_position;
+        let now = self.cycle;
+        let enc = self
+            .estimate
+            .encoders_valid
+            .then_some(&self.estimate.encoders_mm);
+        let Motion::Fine {
+            fine,
+            ramp,
+            start_cycle,
+            ..
+        } = &mut self.motion.now
+        else {
+            return;
+        };
+        let end = match fine.at_rest(now, enc, tol, dwell) {
+            FineStep::Wait => return,
+            FineStep::InPosition => Ok(()),
+            FineStep::TimedOut(legs) => Err(CommandError::NotInPosition(legs)),
+            FineStep::Correct => {
+                if let Some(stroke) = &self.tables.active.geom.stroke {
+                    let lim = &self.settings.ops.motion;
+                    if let Ok(r) = fine.correct(
+                        &self.motion.strokes_mm,
+                        tol,
+                        &stroke.min_mm,
+                        &stroke.max_mm,
+                        lim.max_speed_mm_per_s[0],
+                        lim.max_accel_mm_per_s2[0],
+                    ) {
+                        // From the next cycle (its sample 0 commands the held strokes).
+                        *ramp = r;
+                        *start_cycle = now.wrapping_add(1);
+                    }
+                }
+                return;
+            }
+        };
+        self.motion.now = Motion::Hold;
+        if matches!(self.ledger.pending, Some(p) if p.is_motion()) {
+            self.complete_pending(end);
+        }
+    }
+
+    /// The legs whose encoder reads within the in-position tolerance of the setpoint
+    /// (housekeeping `in_position_legs`).
+    pub fn in_position_legs(&self) -> u8 {
+        let target = self.motion.setpoint_mm;
+        self.in_position_mask(&target)
+    }
+
+    /// Every leg's encoder reads within the in-position tolerance of `target_mm`.
+    fn in_position_of(&self, target_mm: &[f32; LEGS]) -> bool {
+        self.in_position_mask(target_mm) == crate::supervision::ALL_LEGS
+    }
+
+    fn in_position_mask(&self, target_mm: &[f32; LEGS]) -> u8 {
+        let enc = self
+            .estimate
+            .encoders_valid
+            .then_some(&self.estimate.encoders_mm);
+        in_position_legs(target_mm, enc, self.settings.ops.in_position.0)
     }
 
     /// The output stage clamped a step of `legs`: latch [`FaultFlags::OUTPUT_LIMITED`]
@@ -412,6 +546,19 @@ impl<M: MechanismIo> Controller<M> {
         // continuous with them. The ends are checked now (a refused target is refused at
         // once with every reason); the path samples are evaluated over the next cycles.
         let start = self.held_pose()?;
+        // Nothing to do: every slider already reads within the in-position tolerance of
+        // the target's strokes. No path: the fine positioning completes the move after
+        // the dwell, without motion.
+        if let Ok(target_mm) = ik(
+            &self.tables.active.geom,
+            &self.settings.ops.frames.to_internal(&target),
+        ) {
+            if self.in_position_of(&target_mm) {
+                self.motion.refusal_bits = 0;
+                self.begin_fine(target_mm);
+                return Ok(Outcome::Started);
+            }
+        }
         let begun = TrajectoryPlanner::begin_in(
             &self.tables.active.geom,
             &self.settings.ops.frames,

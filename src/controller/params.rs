@@ -124,10 +124,30 @@ pub mod index {
     pub const WARNING_DEBOUNCE: usize = 17;
     /// Fault debounce (cycles).
     pub const FAULT_DEBOUNCE: usize = 18;
+    /// In-position tolerance of every slider encoder about its setpoint (nm).
+    pub const IN_POSITION_TOLERANCE: usize = 19;
+    /// In-position dwell (cycles).
+    pub const IN_POSITION_DWELL: usize = 20;
 }
 
 /// Number of parameters.
-pub const N_PARAMETERS: usize = 19;
+pub const N_PARAMETERS: usize = 21;
+
+/// Default in-position tolerance (nm): one encoder count (0.1 um), the accuracy issue
+/// 21 asks of every slider.
+pub const DEFAULT_IN_POSITION_TOLERANCE_NM: i32 = MIN_IN_POSITION_TOLERANCE_NM;
+/// Smallest in-position tolerance (nm): one encoder count
+/// ([`crate::hw::ENCODER_MM_PER_COUNT`]); a reading is a whole count, so a finer
+/// tolerance could not be met by a slider between two counts.
+pub const MIN_IN_POSITION_TOLERANCE_NM: i32 = (crate::hw::ENCODER_MM_PER_COUNT * NM_PER_MM) as i32;
+/// Default in-position dwell (cycles, 20 ms): four settling time constants of the
+/// realistic drive train (`sim::drive_train::DEFAULT_SETTLING_TIME_CONSTANT_S`, 5 ms:
+/// 98 % settled), and the wait before each correction of the fine positioning.
+pub const DEFAULT_IN_POSITION_DWELL_CYCLES: i32 = 20;
+/// Largest in-position dwell (cycles): with `motion::fine::MAX_CORRECTIONS` waits of it
+/// and the corrections themselves the fine positioning stays within its timeout
+/// (`motion::fine::TIMEOUT_CYCLES`).
+pub const MAX_IN_POSITION_DWELL_CYCLES: i32 = 200;
 
 /// Every parameter, in index order (module [`index`]).
 pub const PARAMETERS: [ParamDef; N_PARAMETERS] = [
@@ -262,6 +282,22 @@ pub const PARAMETERS: [ParamDef; N_PARAMETERS] = [
         Default::Table,
     ),
     p(0x0036, "fault_debounce", "cycles", 1, 1_000, Default::Table),
+    p(
+        0x0015,
+        "in_position_tolerance",
+        "nm",
+        MIN_IN_POSITION_TOLERANCE_NM,
+        100_000,
+        Default::Fixed(DEFAULT_IN_POSITION_TOLERANCE_NM),
+    ),
+    p(
+        0x0016,
+        "in_position_dwell",
+        "cycles",
+        1,
+        MAX_IN_POSITION_DWELL_CYCLES,
+        Default::Fixed(DEFAULT_IN_POSITION_DWELL_CYCLES),
+    ),
 ];
 
 /// Why a parameter set or report was refused (family 0x07xx, from 0x0720).
@@ -355,8 +391,8 @@ impl InForce {
         (self.params.check_word() == self.check).then_some(&self.params)
     }
 
-    /// Test hook (host): flips bit `bit` of the RAM word `word` (0: the set mask, 1..=19
-    /// the values, 20: the check word), as a radiation upset would.
+    /// Test hook (host): flips bit `bit` of the RAM word `word` (0: the set mask, 1..=N
+    /// the values, N + 1: the check word; N = [`N_PARAMETERS`]), as a radiation upset would.
     #[cfg(feature = "host")]
     pub fn upset(&mut self, word: usize, bit: u32) {
         let m = 1u32.checked_shl(bit).unwrap_or(0);
@@ -541,6 +577,14 @@ impl Parameters {
             coordinated: (mm(index::MOVE_SPEED), mm(index::MOVE_ACCEL)),
             direct: (mm(index::DIRECT_SPEED), mm(index::DIRECT_ACCEL)),
         }
+    }
+
+    /// The in-position rule: tolerance of every slider encoder about its setpoint (mm)
+    /// and dwell (cycles).
+    pub fn in_position(&self, table: &Table) -> (f32, u16) {
+        let tol = (f64::from(self.value(index::IN_POSITION_TOLERANCE, table)) / NM_PER_MM) as f32;
+        let dwell = u16::try_from(self.value(index::IN_POSITION_DWELL, table)).unwrap_or(1);
+        (tol, dwell)
     }
 
     /// Housekeeping period (cycles).

@@ -190,6 +190,13 @@ pub(super) struct MotionPart {
     /// A move check executed but not yet evaluated (the link service evaluates it
     /// outside the controller's lock: [`MoveCheckJob`]).
     pub check: Option<MoveCheckJob>,
+    /// The strokes the encoders must read to be in position (mm): the last
+    /// coordinated move's setpoint, or where the drives were told to hold (housekeeping
+    /// `in_position_legs`; [`crate::motion::fine`]).
+    pub setpoint_mm: [f32; LEGS],
+    /// Which way each leg's command last moved: the side the next fine positioning
+    /// approaches from.
+    pub approach: crate::motion::fine::Approach,
 }
 
 /// Control-cycle overruns (`Controller::note_overrun`).

@@ -8,6 +8,8 @@
 //!   profile's rate and acceleration are derived from per-slider speed and acceleration
 //!   limits through the strokes sampled along the path.
 //! * [`stroke`]: one slider by a stroke, no kinematics (recovery).
+//! * [`fine`]: closed-loop fine positioning on the slider encoders after a path, and
+//!   the in-position rule that ends a move.
 //! * [`limiter`]: the output stage, every command's per-cycle step bounded by the speed
 //!   and acceleration limits in force, independent of the geometry and the planner.
 //!
@@ -17,6 +19,7 @@
 //!
 //! Error codes (family 0x06xx): [`MotionError`] 0x0601.., [`StrokeMoveError`] 0x0611...
 
+pub mod fine;
 pub mod limiter;
 pub mod ramp;
 pub mod stroke;

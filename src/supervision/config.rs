@@ -29,7 +29,7 @@ use crate::units::ARCSEC_PER_RAD;
 /// Least commanded stroke change over the stuck window for a slider to count as
 /// "commanded to move" (mm): 3 um, three times the table's default least progress, so a
 /// slider that follows cannot fall below the progress threshold.
-pub const DEFAULT_STUCK_MIN_COMMANDED_MM: f32 = 0.003;
+pub const DEFAULT_STUCK_MIN_COMMANDED_MM: f32 = 0.010;
 /// Tolerance beyond the soft stroke limit before [`super::FaultFlags::SOFT_LIMIT`] (mm):
 /// 1 um, ten encoder counts, so encoder noise at a target on the limit is no fault.
 pub const DEFAULT_SOFT_LIMIT_TOLERANCE_MM: f32 = 0.001;
