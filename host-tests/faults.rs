@@ -507,9 +507,13 @@ fn a_fault_latched_at_rest_holds_a_jammed_slider_short_of_its_setpoint() {
         rotation_uas: [0, 0, 0],
     }));
     r.settle(20_000);
+    // The jammed slider never gets in position: the move ends with 0x070F naming it.
     assert_eq!(
         r.st.reports(mv).last(),
-        Some(&Verification::CompletionSuccess)
+        Some(&Verification::CompletionFailure {
+            code: 0x070F,
+            data: 1 << jammed
+        })
     );
     assert_eq!(r.ctl.state(), State::Idle, "faults {:?}", r.ctl.faults());
     let gap_mm = r

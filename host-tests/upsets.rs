@@ -147,7 +147,7 @@ fn every_bit_of_the_parameters_in_force_is_covered_by_their_check() {
             cases += 1;
         }
     }
-    assert_eq!(cases, 21 * 32);
+    assert_eq!(cases, (N_PARAMETERS + 2) * 32);
 }
 
 /// The same through the controller for the bits the issue named: the pivot's bit 0

@@ -9,7 +9,7 @@ use crate::hw::MechanismIo;
 use crate::kinematics::{fk, ik, FkConfig, Frames, Geometry, Pose, LEGS};
 
 use crate::link::tm::EventSeverity;
-use crate::motion::fine::{in_position_legs, Fine, FineStep};
+use crate::motion::fine::{in_position_legs, single_reading_tolerance_mm, Fine, FineStep};
 use crate::motion::{
     DirectStrokeLimits, PlanStart, StrokeMove, Trajectory, TrajectoryPlanner, PATH_SAMPLE_INTERVALS,
 };
@@ -454,8 +454,12 @@ impl<M: MechanismIo> Controller<M> {
         }
     }
 
-    /// The legs whose encoder reads within the in-position tolerance of the setpoint
-    /// (housekeeping `in_position_legs`).
+    /// The legs whose encoder reads within the in-position tolerance (plus half a count:
+    /// [`single_reading_tolerance_mm`]) of the setpoint of the last coordinated move
+    /// (or of where the drives were told to hold): housekeeping `in_position_legs`. At
+    /// rest this is the creep rule: a slider that creeps out is reported here, not
+    /// moved (the controller moves on telecommands only); the next move, even to the
+    /// same target, corrects it.
     pub fn in_position_legs(&self) -> u8 {
         let target = self.motion.setpoint_mm;
         self.in_position_mask(&target)
@@ -471,7 +475,8 @@ impl<M: MechanismIo> Controller<M> {
             .estimate
             .encoders_valid
             .then_some(&self.estimate.encoders_mm);
-        in_position_legs(target_mm, enc, self.settings.ops.in_position.0)
+        let tol = single_reading_tolerance_mm(self.settings.ops.in_position.0);
+        in_position_legs(target_mm, enc, tol)
     }
 
     /// The output stage clamped a step of `legs`: latch [`FaultFlags::OUTPUT_LIMITED`]

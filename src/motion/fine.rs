@@ -17,7 +17,8 @@
 //! * **Corrections.** Whenever the sliders have been at rest for the dwell (they had it
 //!   to settle) and some leg is not in position, every such leg's drive command is
 //!   corrected by its encoder error, at most [`MAX_CORRECTIONS`] times per move, each
-//!   correction at most [`MAX_CORRECTION_MM`] per leg and never beyond the stroke limits.
+//!   correction at most [`MAX_CORRECTION_MM`] per leg, the drive never further than that
+//!   from the setpoint, and never beyond the stroke limits.
 //!   A correction is a ramp within the coordinated-move speed and acceleration limits
 //!   (the output stage checks it like any command).
 //! * **Anti-backlash: final approach from one side.** Each leg's final approach is in
@@ -49,9 +50,12 @@ const HALF_COUNT_MM: f32 = (0.5 * ENCODER_MM_PER_COUNT) as f32;
 
 /// Most corrections per move.
 pub const MAX_CORRECTIONS: u8 = 16;
-/// Largest correction of one leg (mm, 20 um): four times the following-error warning
-/// threshold, beyond what any drive train leaves behind a path (a slider further off
-/// is a fault for the supervision, not a task for the fine positioning).
+/// Largest correction of one leg (mm, 20 um), and the farthest the corrections of a move
+/// may take a leg's drive from its setpoint in all: four times the following-error
+/// warning threshold, beyond what any drive train leaves behind a path (a slider
+/// further off is a fault for the supervision, not a task for the fine positioning). A
+/// jammed slider thus leaves its drive at most this far beyond its setpoint, where the
+/// slider goes should the jam free.
 pub const MAX_CORRECTION_MM: f32 = 0.02;
 /// How far past its setpoint, against its final approach, an overshot slider is moved
 /// back (mm, 5 um): more than the realistic backlash and break-away (3.2 um), so one
@@ -69,15 +73,18 @@ pub const GAIN: f32 = 0.85;
 pub const TIMEOUT_CYCLES: u32 = 5_000;
 
 /// How far a leg's command must turn back from its furthest point before its last
-/// direction counts as reversed (mm, 1 um; [`Fine::track`]): far above the f32 dither
-/// of a leg that hardly moves (nm), below any backlash worth compensating.
+/// direction counts as reversed (mm, 1 um; [`Approach::track`]): far above the f32
+/// dither of a leg that hardly moves (nm). (A smaller reversal may have left the
+/// backlash gap on the old side; the corrections then creep through it, and a move of
+/// about a micrometre may end in 0x070F: docs/decisions.md, "Fine positioning".)
 pub const TURN_MM: f32 = 0.001;
 
 /// Every leg (bits 0..5).
 const ALL_LEGS: u8 = (1u8 << LEGS) - 1;
 
 /// The legs whose encoder (mm) reads within `tolerance_mm` of their setpoint (mm); none
-/// without a reading.
+/// without a reading. (Housekeeping's `in_position_legs` gives each single reading half
+/// a count more: [`single_reading_tolerance_mm`].)
 pub fn in_position_legs(
     target_mm: &[f32; LEGS],
     encoders_mm: Option<&[f32; LEGS]>,
@@ -94,6 +101,14 @@ pub fn in_position_legs(
         }
     }
     legs
+}
+
+/// The tolerance a single reading is held to at rest (housekeeping `in_position_legs`,
+/// a move's nothing-to-do check): the in-position tolerance plus half a count, since a
+/// slider the rule put in position (its mean reading within the tolerance less half a
+/// count) reads a count either side as the encoder's noise has it.
+pub fn single_reading_tolerance_mm(tolerance_mm: f32) -> f32 {
+    tolerance_mm + HALF_COUNT_MM
 }
 
 /// What the fine positioning does after a cycle at rest ([`Fine::at_rest`]).
@@ -303,7 +318,10 @@ impl Fine {
                 err + RETREAT_MM
             };
             let step = step.clamp(-MAX_CORRECTION_MM, MAX_CORRECTION_MM);
-            *d = (*h + step).clamp(*lo, *hi) - *h;
+            *d = (*h + step)
+                .clamp(*t - MAX_CORRECTION_MM, *t + MAX_CORRECTION_MM)
+                .clamp(*lo, *hi)
+                - *h;
             largest = largest.max(d.abs());
         }
         if !(largest > 0.0) {
@@ -381,13 +399,13 @@ mod tests {
     #[test]
     fn the_direction_reverses_only_past_the_turn() {
         let mut f = Approach::new([0.0; LEGS]);
-        let dither = 0.0009f32;
+        let dither = 0.9 * TURN_MM;
         f.track(&[1.0; LEGS]);
         assert_eq!(f.last_up, ALL_LEGS);
         f.track(&[1.0 - dither; LEGS]);
         assert_eq!(f.last_up, ALL_LEGS, "within the turn");
         f.track(&[1.0 + dither; LEGS]);
-        f.track(&[1.0 + dither - 0.0011; LEGS]);
+        f.track(&[1.0 + dither - 1.1 * TURN_MM; LEGS]);
         assert_eq!(f.last_up, 0, "turned back past it from the furthest point");
     }
 

@@ -27,8 +27,15 @@ use crate::table::{SupervisionThresholds, Table};
 use crate::units::ARCSEC_PER_RAD;
 
 /// Least commanded stroke change over the stuck window for a slider to count as
-/// "commanded to move" (mm): 3 um, three times the table's default least progress, so a
-/// slider that follows cannot fall below the progress threshold.
+/// "commanded to move" (mm): 10 um. A reversal through the drive train's backlash
+/// leaves the slider still while its command turns back by the backlash and the
+/// friction's break-away (3.2 um with the realistic defaults, `sim::drive_train`, a
+/// worn nut up to 10 um): with the table's least progress of 1 um, a dead band of up to
+/// 9 um is passed without a stuck fault (it was 3 um, which left 2 um and latched a
+/// false fault on slow reversals: issue 21, host test
+/// `fine_positioning::a_slow_reversal_through_the_backlash_is_no_fault_and_completes`).
+/// A jammed slider is still caught once its command has gone 10 um (and the window),
+/// or earlier by the following-error fault (`a_jam_is_still_caught`).
 pub const DEFAULT_STUCK_MIN_COMMANDED_MM: f32 = 0.010;
 /// Tolerance beyond the soft stroke limit before [`super::FaultFlags::SOFT_LIMIT`] (mm):
 /// 1 um, ten encoder counts, so encoder noise at a target on the limit is no fault.
