@@ -413,6 +413,7 @@ fn sample_hk() -> Housekeeping {
         limit_upper_legs: 0b10_0000,
         reference_legs: 0b00_0100,
         switch_unreadable_legs: 0b01_0000,
+        in_position_legs: 0b01_0110,
     }
 }
 
@@ -1666,12 +1667,14 @@ fn emitters_refuse_oversized_source_data_as_before() {
         Err(EmitError::BufferTooSmall)
     );
     assert!(w.emit_schedule_summary(t, &entries[..16], &mut buf).is_ok());
-    let values = vec![(1u16, -1i32); 39];
+    // The largest source data is the housekeeping report's 235 bytes: a count and 39
+    // entries of 6 bytes fit, 40 do not.
+    let values = vec![(1u16, -1i32); 40];
     assert_eq!(
         w.emit_parameter_report(t, &values, &mut buf),
         Err(EmitError::BufferTooSmall)
     );
-    assert!(w.emit_parameter_report(t, &values[..38], &mut buf).is_ok());
+    assert!(w.emit_parameter_report(t, &values[..39], &mut buf).is_ok());
     assert_eq!(
         w.emit_table_dump_chunk(t, MemoryId::ActiveTable, 0, &[7; 129], &mut buf),
         Err(EmitError::BadChunk)

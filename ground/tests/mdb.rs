@@ -288,6 +288,7 @@ fn distinct_housekeeping() -> Housekeeping {
         limit_upper_legs: 0b10_1000,
         reference_legs: 0b01_0001,
         switch_unreadable_legs: 0b00_0110,
+        in_position_legs: 0b10_1101,
     }
 }
 

@@ -726,6 +726,7 @@ impl<M: MechanismIo> Controller<M> {
             limit_upper_legs: self.travel.switches.upper,
             reference_legs: self.travel.switches.reference,
             switch_unreadable_legs: self.travel.switches.unreadable,
+            in_position_legs: self.in_position_legs(),
         };
         HkSample {
             report,

@@ -2,7 +2,7 @@
 //!
 //! # Layout
 //!
-//! The source data of TM[3,25] is [`HK_REPORT_LEN`] = 234 bytes, big-endian, laid out by
+//! The source data of TM[3,25] is [`HK_REPORT_LEN`] = 235 bytes, big-endian, laid out by
 //! the named field ranges of [`field`] (smoltcp's `mod field`): the one description of
 //! the report's bytes. [`Housekeeping::emit`] writes by them, [`Housekeeping::parse`]
 //! reads by them, the mission database (`ground::mdb::housekeeping_rows`) takes each
@@ -20,7 +20,7 @@ use crate::kinematics::LEGS;
 /// Structure ID of the one housekeeping report.
 pub const HK_STRUCTURE_ID: u8 = 1;
 /// Length of the TM[3,25] source data (bytes).
-pub const HK_REPORT_LEN: usize = 234;
+pub const HK_REPORT_LEN: usize = 235;
 /// `selected_source` when no selection record exists.
 pub const NO_SELECTION: u8 = 0xFF;
 
@@ -122,6 +122,10 @@ pub mod field {
     pub const REFERENCE_LEGS: Field = after(&LIMIT_UPPER_LEGS, 1);
     /// u8: legs with a switch input that cannot be read (leg mask).
     pub const SWITCH_UNREADABLE_LEGS: Field = after(&REFERENCE_LEGS, 1);
+    /// u8: legs whose encoder reads within the in-position tolerance (plus half a count)
+    /// of the setpoint of the last coordinated move, or of where the drives were told to
+    /// hold (leg mask; `motion::fine`).
+    pub const IN_POSITION_LEGS: Field = after(&SWITCH_UNREADABLE_LEGS, 1);
 
     /// Bytes of a wire pose (6 x i32).
     const POSE_LEN: usize = 24;
@@ -134,7 +138,7 @@ pub mod field {
 }
 
 // The fields tile the report exactly.
-const _: () = assert!(field::SWITCH_UNREADABLE_LEGS.end == HK_REPORT_LEN);
+const _: () = assert!(field::IN_POSITION_LEGS.end == HK_REPORT_LEN);
 
 /// One housekeeping sample, filled by the controller.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -217,6 +221,9 @@ pub struct Housekeeping {
     pub reference_legs: u8,
     /// Legs with a switch input that could not be read (bit i = leg i+1).
     pub switch_unreadable_legs: u8,
+    /// Legs whose encoder reads within the in-position tolerance of the setpoint (bit i
+    /// = leg i+1; [`field::IN_POSITION_LEGS`]).
+    pub in_position_legs: u8,
     /// The time-based schedule and the time reports (offsets 217..230).
     pub schedule: ScheduleHk,
 }
@@ -370,6 +377,7 @@ impl Housekeeping {
             (LIMIT_UPPER_LEGS, self.limit_upper_legs),
             (REFERENCE_LEGS, self.reference_legs),
             (SWITCH_UNREADABLE_LEGS, self.switch_unreadable_legs),
+            (IN_POSITION_LEGS, self.in_position_legs),
         ] {
             at(w, f)?;
             w.u8(v)?;
@@ -429,6 +437,7 @@ impl Housekeeping {
             limit_upper_legs: f.u8(field::LIMIT_UPPER_LEGS)?,
             reference_legs: f.u8(field::REFERENCE_LEGS)?,
             switch_unreadable_legs: f.u8(field::SWITCH_UNREADABLE_LEGS)?,
+            in_position_legs: f.u8(field::IN_POSITION_LEGS)?,
         })
     }
 }
@@ -481,6 +490,7 @@ mod tests {
             limit_upper_legs: 0x40,
             reference_legs: 0x41,
             switch_unreadable_legs: 0x42,
+            in_position_legs: 0xA5,
             schedule: ScheduleHk {
                 activities: 0x43,
                 release_enabled: true,

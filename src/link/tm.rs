@@ -800,7 +800,7 @@ pub struct TmPacket<'a> {
 }
 
 /// The content of a TM packet.
-// The housekeeping variant is the whole report (234 bytes): a parse result is matched
+// The housekeeping variant is the whole report (235 bytes): a parse result is matched
 // where it is made and never stored in bulk, and a `no_std` link has no heap to box it.
 #[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -137,6 +137,16 @@ pub fn parameter_description(name: &str) -> Option<String> {
         "stuck_window" => "stuck detection: window".into(),
         "warning_debounce" => "warning debounce".into(),
         "fault_debounce" => "fault debounce".into(),
+        "in_position_tolerance" => {
+            "in-position tolerance: a move completes once every slider's mean encoder reading \
+             at rest is within it (less half a count) of its setpoint"
+                .into()
+        }
+        "in_position_dwell" => {
+            "in-position dwell: the sliders at rest this long before completion, and before \
+             each correction of the fine positioning"
+                .into()
+        }
         _ => return None,
     })
 }

@@ -723,6 +723,16 @@ pub fn failure_codes() -> Vec<FailureCode> {
                 "legs blocked in the move's direction (bit i = leg i+1)",
             ),
         ),
+        (
+            CommandError::NotInPosition(0),
+            d(
+                Compl,
+                "the move's sliders were not in position (every encoder at rest within the \
+                 in-position tolerance of its setpoint for the dwell, parameters 0x0015 and \
+                 0x0016) within the fine positioning's timeout after the path",
+                "legs not in position (bit i = leg i+1)",
+            ),
+        ),
     ] {
         push("CONTROLLER", "controller", e.code(), format!("{e:?}"), doc);
     }

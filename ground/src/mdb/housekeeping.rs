@@ -608,7 +608,7 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
         ),
         |h| i64::from(h.schedule.time_report_rate),
     ));
-    let switches: [(&str, usize, String, HkGetter); 4] = [
+    let switches: [(&str, usize, String, HkGetter); 5] = [
         (
             "limit_lower_legs",
             hk_field::LIMIT_LOWER_LEGS.start,
@@ -635,6 +635,17 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
                  ends active)"
             ),
             |h| i64::from(h.switch_unreadable_legs),
+        ),
+        (
+            "in_position_legs",
+            hk_field::IN_POSITION_LEGS.start,
+            format!(
+                "legs whose encoder reads within the in-position tolerance (plus half a \
+                 count) of the setpoint of the last coordinated move, or of where the drives \
+                 were told to hold ({leg_bits}); at rest a slider that creeps out is \
+                 reported here, not moved"
+            ),
+            |h| i64::from(h.in_position_legs),
         ),
     ];
     for (name, off, what, g) in switches {
