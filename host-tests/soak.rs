@@ -46,7 +46,7 @@ fn soak_holds_the_operator_contract_every_cycle() {
     let f = s.figures();
     let share = |k: usize| 100.0 * f.state_cycles[k] as f64 / f.cycles.max(1) as f64;
     println!(
-        "soak: {:.0} s wall, {} cycles ({:.0} s simulated), {} TCs sent, {} with complete reports in order, {} completed successfully, {} reboots ({} inside flash writes), {} faults injected, {} TM packets, {} violations",
+        "soak: {:.0} s wall, {} cycles ({:.0} s simulated), {} TCs sent, {} with complete reports in order, {} completed successfully, {} reboots ({} inside flash writes), {} faults injected, {} TM packets, {} moves checked in position at completion, {} violations",
         t0.elapsed().as_secs_f64(),
         f.cycles,
         f.cycles as f64 * f64::from(CYCLE_S),
@@ -57,6 +57,7 @@ fn soak_holds_the_operator_contract_every_cycle() {
         f.cuts_in_writes,
         f.faults_injected,
         s.r.st.log.len(),
+        f.moves_in_position,
         f.violations
     );
     println!(

@@ -465,6 +465,12 @@ impl<M: MechanismIo> Controller<M> {
         self.in_position_mask(&target)
     }
 
+    /// The strokes the encoders must read to be in position (mm): the setpoint of the
+    /// last coordinated move, or where the drives were told to hold.
+    pub fn in_position_setpoint_mm(&self) -> [f32; LEGS] {
+        self.motion.setpoint_mm
+    }
+
     /// Every leg's encoder reads within the in-position tolerance of `target_mm`.
     fn in_position_of(&self, target_mm: &[f32; LEGS]) -> bool {
         self.in_position_mask(target_mm) == crate::supervision::ALL_LEGS

@@ -9,7 +9,7 @@
 //!    rounding) from the last command or from what the drives held, whatever the
 //!    sequence;
 //! 3. while a fault is latched nothing moves except a stop ramp and the recovery move's
-//!    own leg;
+//!    own leg (the drives: a slider may still settle on its drive train);
 //! 4. during a recovery move the other legs keep exactly their setpoints;
 //! 5. every telecommand gets its service-1 reports in a valid order (none lost: the
 //!    telemetry queue never drops);
@@ -24,7 +24,13 @@
 //!    operator's telecommands made (checked after every parameter job and reboot);
 //! 10. a detected upset always clears after its repair: from the cycle fault 0x100
 //!     latches, the reload (event 0x0013) comes within [`REPAIR_CYCLES`], whatever job
-//!     was running.
+//!     was running;
+//! 11. a coordinated move's completion success is never reported while a true slider is
+//!     outside the in-position tolerance of its setpoint (`motion::fine`; not checked
+//!     while an encoder is made to lie: stuck, offset or noisier than specified).
+//!
+//! The plant has the realistic drive train (`sim::drive_train`: microsteps, backlash,
+//! lead error, stiction, settling).
 //!
 //! The adversary also upsets RAM, single bits at random moments (during moves, during
 //! table jobs): the parameters in force, their check word, the running table, its
@@ -50,6 +56,7 @@ use crate::link::{Command, MemoryId, RequestId, TableChunk};
 use crate::motion::{CYCLE_S, DEFAULT_MAX_SPEED_MM_PER_S};
 use crate::nominal::PROTOTYPE;
 use crate::sim::bench::UART_115200_BYTES_PER_CYCLE;
+use crate::sim::drive_train::DriveTrainConfig;
 use crate::sim::{Bench, BenchConfig, InjectedFault, Plant, PlantConfig, SwitchEnd};
 use crate::station::Tm;
 use crate::table::mock_flash::{MockFlash, TearMode};
@@ -173,6 +180,8 @@ pub struct SoakFigures {
     pub upsets: u64,
     /// Repairs (reloads) after detected upsets.
     pub repairs: u64,
+    /// Coordinated moves whose completion success invariant 11 checked.
+    pub moves_in_position: u64,
     /// Invariant violations.
     pub violations: u64,
 }
@@ -191,6 +200,10 @@ pub struct Soak<C> {
     selecting: Vec<(RequestId, Option<u32>)>,
     /// Telecommands sent since the last reboot, with the log length when sent.
     in_flight: Vec<(RequestId, usize)>,
+    /// The coordinated moves sent (invariant 11).
+    moves: Vec<RequestId>,
+    /// Moves invariant 11 checked.
+    moves_in_position: u64,
     /// The cycle after a plant repair (a drive re-referenced: its count moves, the
     /// slider does not): the commanded-stroke checks skip it.
     repaired: bool,
@@ -251,6 +264,8 @@ fn fresh_bench(flash: MockFlash) -> Bench {
             ..PlantConfig::default()
         },
     )
+    .unwrap()
+    .with_drive_train(DriveTrainConfig::realistic())
     .unwrap();
     Bench::with(
         plant,
@@ -277,6 +292,8 @@ impl<C: Choices> Soak<C> {
             selected: TableRef::of(&nominal),
             selecting: Vec::new(),
             in_flight: Vec::new(),
+            moves: Vec::new(),
+            moves_in_position: 0,
             repaired: false,
             tcs_done: 0,
             completed: 0,
@@ -473,11 +490,13 @@ impl<C: Choices> Soak<C> {
             24 | 25 => self.upset(),
             0..=4 => {
                 let p = self.pose();
-                self.send(&Command::MoveAbsolute(p));
+                let rid = self.send(&Command::MoveAbsolute(p));
+                self.moves.push(rid);
             }
             5 | 6 => {
                 let d = self.small_delta();
-                self.send(&Command::MoveRelative(d));
+                let rid = self.send(&Command::MoveRelative(d));
+                self.moves.push(rid);
             }
             7 => {
                 self.send(&Command::Stop);
@@ -740,6 +759,7 @@ impl<C: Choices> Soak<C> {
         // Whatever was in flight dies with the controller; only the completed selection
         // (or the one being written) may run after the reboot.
         self.check_reports(true);
+        self.moves.clear();
         let candidates = std::mem::take(&mut self.selecting);
         let in_writes = !self.r.flash_mut().is_powered();
         if in_writes {
@@ -867,6 +887,56 @@ impl<C: Choices> Soak<C> {
         self.in_flight = keep;
     }
 
+    /// Invariant 11, in the cycle the station receives a coordinated move's completion
+    /// success: every true slider within the in-position tolerance in force (and the
+    /// encoder noise's sigma: the rule holds the mean reading) of the controller's
+    /// setpoint, unless an encoder is made to lie or the controller is no longer idle (a
+    /// fault since the completion holds the drives where they are: a new setpoint).
+    fn check_moves_completed(&mut self) {
+        if self.moves.is_empty() {
+            return;
+        }
+        let moves = std::mem::take(&mut self.moves);
+        for rid in moves {
+            if !self.r.st.finished(rid) {
+                self.moves.push(rid);
+            } else if self.r.st.reports(rid).last() == Some(&Verification::CompletionSuccess) {
+                self.check_in_position(rid);
+            }
+        }
+    }
+
+    fn check_in_position(&mut self, rid: RequestId) {
+        let misleading = self.r.plant.with(|p| {
+            p.faults().any(|f| {
+                matches!(
+                    f,
+                    InjectedFault::EncoderStuck { .. }
+                        | InjectedFault::EncoderJump { .. }
+                        | InjectedFault::NoiseBurst { .. }
+                )
+            })
+        });
+        if misleading || self.r.ctl.state() != State::Idle {
+            return;
+        }
+        self.moves_in_position += 1;
+        let table = *self.r.ctl.active_table();
+        let (tol_mm, _) = self.r.ctl.parameters().in_position(&table);
+        let set = self.r.ctl.in_position_setpoint_mm();
+        let truth = self.r.plant.with(|p| p.strokes_mm());
+        for i in 0..LEGS {
+            let e = truth[i] - f64::from(set[i]);
+            if !(e.abs() <= f64::from(tol_mm) + crate::sim::plant::DEFAULT_ENCODER_NOISE_MM) {
+                self.violation(format!(
+                    "move {rid:?} completed with leg {} {:.4} um from its setpoint",
+                    i + 1,
+                    e * UM_PER_MM
+                ));
+            }
+        }
+    }
+
     /// The speed limits in force after a parameter set completed: what flash holds
     /// (invariant 9 checks it is a set the operator made), never the controller's RAM.
     fn read_step_limits_from_model(&mut self) {
@@ -975,13 +1045,15 @@ impl<C: Choices> Soak<C> {
         } else {
             0
         };
+        //    The drives: a slider still settles on its drive train (a first-order tail
+        //    after the last step), which the controller does not command.
         if self.rest_cycles > 2 && !skip {
             for i in 0..LEGS {
-                if (truth[i] - self.prev_truth[i]).abs() > STILL_MM {
+                if (positions[i] - self.prev_positions[i]).abs() > STILL_MM {
                     self.violation(format!(
                         "leg {} moved {:.6} um while faulted at rest",
                         i + 1,
-                        (truth[i] - self.prev_truth[i]) * UM_PER_MM
+                        (positions[i] - self.prev_positions[i]) * UM_PER_MM
                     ));
                 }
             }
@@ -1149,6 +1221,7 @@ impl<C: Choices> Soak<C> {
             blocked_motion_cycles: self.blocked_motion_cycles,
             upsets: self.upsets,
             repairs: self.repairs,
+            moves_in_position: self.moves_in_position,
             violations: self.violations.len() as u64,
         }
     }
@@ -1195,6 +1268,7 @@ impl<C: Choices> Soak<C> {
         self.r.tick();
         self.cycles += 1;
         self.check_cycle();
+        self.check_moves_completed();
         if self.cycles % 64 == 0 {
             self.check_reports(false);
         }
