@@ -33,6 +33,7 @@ use m2ctl::kinematics::{Pose, LEGS};
 use m2ctl::link::tm::Verification;
 use m2ctl::link::{Command, WirePose};
 use m2ctl::motion::CYCLE_S;
+use m2ctl::sim::drive_train::DriveTrainConfig;
 use m2ctl::sim::manufacturing::perturbed;
 use m2ctl::sim::{Bench, Plant, PlantConfig};
 use m2ctl::table::{Provenance, Table, DEFAULT_SUPERVISION};
@@ -41,6 +42,10 @@ use m2ctl::units::NM_PER_MM;
 /// Most cycles one telecommand may take to complete (a move across the workspace at
 /// the default 0.2 mm/s is well under this).
 const MAX_CYCLES_PER_COMMAND: u32 = 200_000;
+/// Times a move that ended not in position is sent again ([`Mission::command`]).
+const MOVE_RETRIES: usize = 2;
+/// How [`Mission::command_once`] names a move that ended not in position (0x070F).
+const NOT_IN_POSITION: &str = "code 0x070f";
 /// Cycles to wait after arrival before a measurement (drives settled, encoders fresh).
 const SETTLE_CYCLES: u32 = 20;
 /// Table ID of the uploaded calibrated table.
@@ -71,6 +76,11 @@ pub struct MissionConfig {
     pub progress: bool,
     /// Write the per-target error plot here (SVG).
     pub plot: Option<PathBuf>,
+    /// Between the drives and the sliders: by default the realistic drive train
+    /// (`m2ctl::sim::drive_train`: microsteps, backlash, lead error, stiction,
+    /// settling), which the controller's fine positioning corrects;
+    /// [`DriveTrainConfig::ideal`] for sliders exactly where their drives are.
+    pub drive_train: DriveTrainConfig,
 }
 
 /// Default number of operator targets.
@@ -101,6 +111,7 @@ impl Default for MissionConfig {
             ),
             progress: true,
             plot: None,
+            drive_train: DriveTrainConfig::realistic(),
         }
     }
 }
@@ -133,7 +144,20 @@ struct Mission {
 
 impl Mission {
     /// Sends a telecommand and runs until its completion report (success or failure).
+    /// A move that ends not in position (0x070F) is sent again, up to
+    /// [`MOVE_RETRIES`] times: the operator's procedure (docs/icd.md section 3: the next
+    /// move to the same target corrects what is left).
     fn command(&mut self, cmd: &Command) -> Result<(), String> {
+        let mut result = self.command_once(cmd);
+        let mut retries = 0;
+        while matches!(&result, Err(e) if e.contains(NOT_IN_POSITION)) && retries < MOVE_RETRIES {
+            retries += 1;
+            result = self.command_once(cmd);
+        }
+        result
+    }
+
+    fn command_once(&mut self, cmd: &Command) -> Result<(), String> {
         let reps = self.bench.command(cmd, MAX_CYCLES_PER_COMMAND);
         for v in &reps {
             match v {
@@ -221,8 +245,10 @@ pub fn run_mission(
     let nominal_params = nominal.geometry_params();
     let truth = perturbed(&nominal_params, cfg.manufacturing_sigma_mm, cfg.seed);
     log(&format!(
-        "1. mechanism: nominal prototype with manufacturing errors (sigma {} mm, seed {}); controller booted on the nominal table",
-        cfg.manufacturing_sigma_mm, cfg.seed
+        "1. mechanism: nominal prototype with manufacturing errors (sigma {} mm, seed {}), {} drive train; controller booted on the nominal table",
+        cfg.manufacturing_sigma_mm,
+        cfg.seed,
+        if cfg.drive_train == DriveTrainConfig::ideal() { "ideal" } else { "realistic" }
     ));
     let plant = Plant::new(
         &truth,
@@ -231,7 +257,9 @@ pub fn run_mission(
             ..PlantConfig::default()
         },
     )
-    .map_err(|e| format!("true geometry: {e:?}"))?;
+    .map_err(|e| format!("true geometry: {e:?}"))?
+    .with_drive_train(cfg.drive_train)
+    .map_err(|e| format!("drive train: {e:?}"))?;
     let mut m = Mission {
         bench: Bench::with_plant(plant),
     };

@@ -66,6 +66,11 @@ pub const RETREAT_MM: f32 = 0.005;
 /// microstep nonlinearity's slope, up to 18 % with the realistic defaults) does not
 /// overshoot, which would cost a retreat and a new approach.
 pub const GAIN: f32 = 0.85;
+/// Corrections after which a leg still not in position is retreated and approached
+/// again once (whatever its error's side): it may be in the backlash gap, where
+/// corrections by its error creep (a reversal smaller than [`TURN_MM`] left the gap on
+/// the old side).
+pub const LATE_CORRECTIONS: u8 = 4;
 /// Cycles after the path's end by which a move must be in position (5 s): more than
 /// [`MAX_CORRECTIONS`] dwells of the longest dwell (`controller::params`, 200 cycles)
 /// plus the corrections themselves (a 20 um correction takes about 0.3 s at the default
@@ -183,6 +188,8 @@ pub struct Fine {
     /// The correction under way: strokes it starts from and its change (mm).
     from_mm: [f32; LEGS],
     delta_mm: [f32; LEGS],
+    /// Legs retreated by the late rule ([`LATE_CORRECTIONS`]).
+    retreated: u8,
 }
 
 impl Fine {
@@ -199,6 +206,7 @@ impl Fine {
             rest_sum_mm: [0.0; LEGS],
             from_mm: target_mm,
             delta_mm: [0.0; LEGS],
+            retreated: 0,
         }
     }
 
@@ -307,10 +315,16 @@ impl Fine {
             if !(err.abs() > band) {
                 continue;
             }
-            let up = self.approach_up & (1 << i) != 0;
+            let bit = 1u8 << i;
+            let up = self.approach_up & bit != 0;
+            // Late, once per leg: as if overshot (it may be in the gap).
+            let late = self.corrections > LATE_CORRECTIONS && self.retreated & bit == 0;
+            if late {
+                self.retreated |= bit;
+            }
             // Toward the approach side: by the error. Against it (an overshoot): back
             // past the setpoint, to approach again.
-            let step = if (err > 0.0) == up {
+            let step = if (err > 0.0) == up && !late {
                 GAIN * err
             } else if up {
                 err - RETREAT_MM

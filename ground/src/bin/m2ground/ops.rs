@@ -89,6 +89,10 @@ pub(crate) struct MissionCli {
     /// No progress bars.
     #[arg(long)]
     quiet: bool,
+    /// Sliders exactly where their drives are (the default is the realistic drive
+    /// train: microsteps, backlash, lead error, stiction, settling).
+    #[arg(long)]
+    ideal_plant: bool,
 }
 
 pub(crate) fn mission_cmd(a: &MissionCli) -> Result<(), String> {
@@ -115,6 +119,11 @@ pub(crate) fn mission_cmd(a: &MissionCli) -> Result<(), String> {
         },
         plot: a.plot.clone(),
         progress: !a.quiet,
+        drive_train: if a.ideal_plant {
+            m2ctl::sim::drive_train::DriveTrainConfig::ideal()
+        } else {
+            m2ctl::sim::drive_train::DriveTrainConfig::realistic()
+        },
         ..MissionConfig::default()
     };
     let report = run_mission(&cfg, &mut |line: &str| println!("{line}"))?;
