@@ -658,7 +658,7 @@ fn open_loop_accuracy_study() {
             leg(|l| l.stiction_um = 0.2),
         ),
         (
-            "microsteps 0.3125 um + nonlinearity 0.14 um",
+            "microsteps of the drive (64: 0.078 um) + nonlinearity 0.14 um",
             leg(|l| {
                 l.microstep_um = drive_microstep_um();
                 l.microstep_error_um = DEFAULT_MICROSTEP_ERROR_UM;
