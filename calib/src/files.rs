@@ -60,20 +60,31 @@ impl fmt::Display for FileError {
 
 impl std::error::Error for FileError {}
 
-fn err(line: usize, message: impl Into<String>) -> FileError {
+/// A [`FileError`] at `line` (1-based, 0 for the whole file); the file readers of the
+/// crate all build their errors with it.
+pub(crate) fn err(line: usize, message: impl Into<String>) -> FileError {
     FileError {
         line,
         message: message.into(),
     }
 }
 
-fn line_of(text: &str, span: &Range<usize>) -> usize {
+/// The 1-based line of `text` where the byte range `span` (a TOML span) starts.
+pub(crate) fn line_of(text: &str, span: &Range<usize>) -> usize {
     let end = span.start.min(text.len());
     text.as_bytes()[..end]
         .iter()
         .filter(|b| **b == b'\n')
         .count()
         + 1
+}
+
+/// Deserialises a TOML file, a syntax or schema error named by its line.
+pub(crate) fn parse_toml<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, FileError> {
+    toml::from_str(text).map_err(|e| {
+        let line = e.span().map(|s| line_of(text, &s)).unwrap_or(0);
+        err(line, e.message().trim().to_string())
+    })
 }
 
 #[derive(Deserialize)]
@@ -150,10 +161,7 @@ fn check_finite(text: &str, span: &Range<usize>, what: &str, v: &[f64]) -> Resul
 
 /// Parses a geometry file's text.
 pub fn parse_geometry(text: &str) -> Result<GeometryFile, FileError> {
-    let raw: RawGeometry = toml::from_str(text).map_err(|e| {
-        let line = e.span().map(|s| line_of(text, &s)).unwrap_or(0);
-        err(line, e.message().trim().to_string())
-    })?;
+    let raw: RawGeometry = parse_toml(text)?;
     check_finite(text, &raw.p0.span(), "p0", raw.p0.get_ref())?;
     let legs_raw = raw.leg.get_ref();
     if legs_raw.len() != LEGS {

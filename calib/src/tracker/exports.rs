@@ -42,14 +42,7 @@ use std::collections::HashMap;
 use super::files::{
     parse_export, push_unique, PointPose, PointRecord, BASE_POSE, MAX_RANGE_MM, MIN_RANGE_MM,
 };
-use crate::files::FileError;
-
-fn err(line: usize, message: impl Into<String>) -> FileError {
-    FileError {
-        line,
-        message: message.into(),
-    }
-}
+use crate::files::{err, FileError};
 
 /// A length unit of an export.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -45,7 +45,7 @@ use std::fmt::Write as _;
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::files::FileError;
+use crate::files::{err, line_of, parse_toml, FileError};
 use m2ctl::kinematics::LEGS;
 use m2ctl::sim::tracker::NamedPoint;
 
@@ -65,13 +65,6 @@ pub const POINT_COLUMNS: [&str; 6] = ["pose", "point", "x_mm", "y_mm", "z_mm", "
 /// Column names of the stroke file.
 pub const STROKE_COLUMNS: [&str; 7] =
     ["pose", "s1_mm", "s2_mm", "s3_mm", "s4_mm", "s5_mm", "s6_mm"];
-
-fn err(line: usize, message: impl Into<String>) -> FileError {
-    FileError {
-        line,
-        message: message.into(),
-    }
-}
 
 // ---------------------------------------------------------------------------------------
 // Target file
@@ -192,15 +185,6 @@ struct RawTargets {
     fiducial: Spanned<Vec<RawFiducial>>,
 }
 
-fn line_of(text: &str, span: &std::ops::Range<usize>) -> usize {
-    let end = span.start.min(text.len());
-    text.as_bytes()[..end]
-        .iter()
-        .filter(|b| **b == b'\n')
-        .count()
-        + 1
-}
-
 /// Whether three or more points span a plane (not collinear).
 fn spans_plane(points: &[[f64; 3]]) -> bool {
     let Some(first) = points.first() else {
@@ -220,10 +204,7 @@ fn spans_plane(points: &[[f64; 3]]) -> bool {
 
 /// Parses a target file.
 pub fn parse_targets(text: &str) -> Result<TargetFile, FileError> {
-    let raw: RawTargets = toml::from_str(text).map_err(|e| {
-        let line = e.span().map(|s| line_of(text, &s)).unwrap_or(0);
-        err(line, e.message().trim().to_string())
-    })?;
+    let raw: RawTargets = parse_toml(text)?;
     let mut names: HashMap<String, usize> = HashMap::new();
     let mut take =
         |name: &Spanned<String>, mm: &Spanned<[f64; 3]>| -> Result<NamedPoint, FileError> {
