@@ -428,6 +428,27 @@ pub(super) fn push_unique(
     Ok(())
 }
 
+/// Refuses a point whose distance from the tracker `y_mm` (tracker frame, mm) is outside
+/// [`MIN_RANGE_MM`]..[`MAX_RANGE_MM`], naming it, its line and what is likely wrong
+/// (`hint`, which differs by reader).
+pub(super) fn check_range(
+    line: usize,
+    name: &str,
+    y_mm: &[f64; 3],
+    hint: &str,
+) -> Result<(), FileError> {
+    let range = (y_mm[0] * y_mm[0] + y_mm[1] * y_mm[1] + y_mm[2] * y_mm[2]).sqrt();
+    if !(MIN_RANGE_MM..=MAX_RANGE_MM).contains(&range) {
+        return Err(err(
+            line,
+            format!(
+                "point {name} is {range:.1} mm from the tracker: outside {MIN_RANGE_MM}..{MAX_RANGE_MM} mm ({hint})"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Parses a tracker point export (see the module docs). Checks that need the target file
 /// (names, counts) are in [`check_export`].
 pub fn parse_export(text: &str) -> Result<Vec<PointRecord>, FileError> {
@@ -463,15 +484,12 @@ pub fn parse_export(text: &str) -> Result<Vec<PointRecord>, FileError> {
         for (k, v) in y.iter_mut().enumerate() {
             *v = number(ln, POINT_COLUMNS[2 + k], f[col(2 + k)])?;
         }
-        let range = (y[0] * y[0] + y[1] * y[1] + y[2] * y[2]).sqrt();
-        if !(MIN_RANGE_MM..=MAX_RANGE_MM).contains(&range) {
-            return Err(err(
-                ln,
-                format!(
-                    "point {name} is {range:.1} mm from the tracker: outside {MIN_RANGE_MM}..{MAX_RANGE_MM} mm (coordinates must be in the tracker's own frame, mm)"
-                ),
-            ));
-        }
+        check_range(
+            ln,
+            &name,
+            &y,
+            "coordinates must be in the tracker's own frame, mm",
+        )?;
         let sigma_mm = match idx[5] {
             Some(p) if !f[p].is_empty() => {
                 let s = number(ln, "sigma_mm", f[p])?;
