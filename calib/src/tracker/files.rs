@@ -634,6 +634,9 @@ pub fn check_export(
     points: &[PointRecord],
     strokes: &[StrokeRecord],
 ) -> Result<Vec<u32>, (Which, FileError)> {
+    // Each refusal names the file it is in and the line.
+    let in_points = |line: usize, message: String| (Which::Points, err(line, message));
+    let in_strokes = |line: usize, message: String| (Which::Strokes, err(line, message));
     let is_ball = |n: &str| targets.balls.iter().any(|b| b.name == n);
     let is_fid = |n: &str| targets.fiducials.iter().any(|f| f.name == n);
     let mut per_pose: BTreeMap<u32, (usize, usize)> = BTreeMap::new();
@@ -642,45 +645,36 @@ pub fn check_export(
         match p.pose {
             PointPose::Base => {
                 if is_ball(&p.name) {
-                    return Err((
-                        Which::Points,
-                        err(
-                            p.line,
-                            format!(
-                                "{} is a ball, not a fiducial: balls belong to a pose",
-                                p.name
-                            ),
+                    return Err(in_points(
+                        p.line,
+                        format!(
+                            "{} is a ball, not a fiducial: balls belong to a pose",
+                            p.name
                         ),
                     ));
                 }
                 if !is_fid(&p.name) {
-                    return Err((
-                        Which::Points,
-                        err(
-                            p.line,
-                            format!("fiducial {} is not in the target file", p.name),
-                        ),
+                    return Err(in_points(
+                        p.line,
+                        format!("fiducial {} is not in the target file", p.name),
                     ));
                 }
                 fiducials += 1;
             }
             PointPose::Pose(k) => {
                 if is_fid(&p.name) {
-                    return Err((
-                        Which::Points,
-                        err(
-                            p.line,
-                            format!(
-                                "{} is a fiducial: fiducials belong to the '{BASE_POSE}' rows",
-                                p.name
-                            ),
+                    return Err(in_points(
+                        p.line,
+                        format!(
+                            "{} is a fiducial: fiducials belong to the '{BASE_POSE}' rows",
+                            p.name
                         ),
                     ));
                 }
                 if !is_ball(&p.name) {
-                    return Err((
-                        Which::Points,
-                        err(p.line, format!("ball {} is not in the target file", p.name)),
+                    return Err(in_points(
+                        p.line,
+                        format!("ball {} is not in the target file", p.name),
                     ));
                 }
                 let e = per_pose.entry(k).or_insert((0, p.line));
@@ -689,36 +683,27 @@ pub fn check_export(
         }
     }
     if fiducials < MIN_FIDUCIALS {
-        return Err((
-            Which::Points,
-            err(0, format!("{fiducials} fiducials measured ('{BASE_POSE}' rows): the registration needs at least {MIN_FIDUCIALS}")),
-        ));
+        return Err(in_points(0, format!("{fiducials} fiducials measured ('{BASE_POSE}' rows): the registration needs at least {MIN_FIDUCIALS}")));
     }
     for (k, (n, line)) in &per_pose {
         if *n < MIN_BALLS_PER_POSE {
-            return Err((
-                Which::Points,
-                err(
-                    *line,
-                    format!("pose {k} has {n} balls: at least {MIN_BALLS_PER_POSE} are needed"),
-                ),
+            return Err(in_points(
+                *line,
+                format!("pose {k} has {n} balls: at least {MIN_BALLS_PER_POSE} are needed"),
             ));
         }
         if !strokes.iter().any(|s| s.pose == *k) {
-            return Err((
-                Which::Points,
-                err(*line, format!("pose {k} has no strokes in the stroke file")),
+            return Err(in_points(
+                *line,
+                format!("pose {k} has no strokes in the stroke file"),
             ));
         }
     }
     for s in strokes {
         if !per_pose.contains_key(&s.pose) {
-            return Err((
-                Which::Strokes,
-                err(
-                    s.line,
-                    format!("pose {} has strokes but no measured balls", s.pose),
-                ),
+            return Err(in_strokes(
+                s.line,
+                format!("pose {} has strokes but no measured balls", s.pose),
             ));
         }
     }
