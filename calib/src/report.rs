@@ -339,25 +339,8 @@ pub fn plot_per_pose_with_floor(
     series: &[(&str, &Accuracy)],
     floor: Option<[f64; 6]>,
 ) -> Result<(), String> {
-    use super::tracker::commands::noise_band;
-    use super::tracker::plots::{per_pose, Panel, Series};
-    let panel = |what: &str, unit: &str, rot: bool| Panel {
-        caption: format!("largest |{what} error| of each pose ({unit}, log scale)"),
-        y_label: unit.to_string(),
-        series: series
-            .iter()
-            .map(|(l, a)| Series {
-                label: l.to_string(),
-                values: a
-                    .per_pose_max()
-                    .iter()
-                    .map(|(t, r)| if rot { *r } else { *t })
-                    .collect(),
-            })
-            .collect(),
-        band: floor.map(|f| noise_band(if rot { &f[3..] } else { &f[..3] })),
-        log: true,
-    };
+    use super::tracker::commands::pose_error_panels;
+    use super::tracker::plots::per_pose;
     let n = series
         .iter()
         .map(|(_, a)| a.errors.len())
@@ -367,10 +350,7 @@ pub fn plot_per_pose_with_floor(
         path,
         &format!("Pose error per pose, {n} poses"),
         "pose",
-        &[
-            panel("translation", "um", false),
-            panel("rotation", "arcsec", true),
-        ],
+        &pose_error_panels(series, floor.as_ref(), true),
         floor.map(|_| "measurement noise floor (90 % of pure-noise poses)"),
     )
 }
