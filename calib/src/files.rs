@@ -500,16 +500,42 @@ pub struct CsvRow {
     pub values: Vec<f64>,
 }
 
+/// The lines of a CSV file that hold data or the header, numbered from 1 and trimmed:
+/// blank lines and `#` comments are skipped.
+pub(crate) fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    text.lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'))
+}
+
+/// The trimmed fields of data line `line` (`text`, split at `delim`); refused unless
+/// there are `expected` of them, as many as the header has.
+pub(crate) fn split_fields(
+    line: usize,
+    text: &str,
+    delim: char,
+    expected: usize,
+) -> Result<Vec<&str>, FileError> {
+    let fields: Vec<&str> = text.split(delim).map(str::trim).collect();
+    if fields.len() != expected {
+        return Err(err(
+            line,
+            format!(
+                "expected {expected} fields as in the header, found {}",
+                fields.len()
+            ),
+        ));
+    }
+    Ok(fields)
+}
+
 /// Parses a pose/stroke CSV and extracts the columns `wanted` (indices into
 /// [`CSV_COLUMNS`]). Lines starting with `#` and blank lines are skipped; the first other
 /// line is the header. Unknown columns are ignored; a duplicated or missing wanted column,
 /// a wrong field count, a non-number or a non-finite number is an error.
 pub fn parse_csv(text: &str, wanted: Range<usize>) -> Result<Vec<CsvRow>, FileError> {
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim()))
-        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
+    let mut lines = data_lines(text);
     let (hline, header) = lines
         .next()
         .ok_or_else(|| err(0, "no header line (file is empty)"))?;
@@ -537,17 +563,7 @@ pub fn parse_csv(text: &str, wanted: Range<usize>) -> Result<Vec<CsvRow>, FileEr
     }
     let mut rows = Vec::new();
     for (ln, l) in lines {
-        let fields: Vec<&str> = l.split(',').map(str::trim).collect();
-        if fields.len() != names.len() {
-            return Err(err(
-                ln,
-                format!(
-                    "expected {} fields as in the header, found {}",
-                    names.len(),
-                    fields.len()
-                ),
-            ));
-        }
+        let fields = split_fields(ln, l, ',', names.len())?;
         let mut values = Vec::with_capacity(index.len());
         for (&p, k) in index.iter().zip(wanted.clone()) {
             let f = fields[p];

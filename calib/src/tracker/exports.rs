@@ -40,7 +40,7 @@
 use std::collections::HashMap;
 
 use super::files::{check_range, parse_export, push_unique, PointPose, PointRecord, BASE_POSE};
-use crate::files::{err, FileError};
+use crate::files::{err, split_fields, FileError};
 
 /// A length unit of an export.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -467,17 +467,7 @@ pub fn read_export(text: &str, opts: &ExportOptions) -> Result<Vec<PointRecord>,
         if skip(l) {
             continue;
         }
-        let f: Vec<&str> = l.split(delim).map(str::trim).collect();
-        if f.len() != names.len() {
-            return Err(err(
-                ln,
-                format!(
-                    "expected {} fields as in the header, found {}",
-                    names.len(),
-                    f.len()
-                ),
-            ));
-        }
+        let f = split_fields(ln, l, delim, names.len())?;
         if let Some(c) = c_coll {
             match &collection {
                 None => collection = Some((f[c].to_string(), ln)),

@@ -45,7 +45,7 @@ use std::fmt::Write as _;
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::files::{err, line_of, parse_toml, FileError};
+use crate::files::{data_lines, err, line_of, parse_toml, split_fields, FileError};
 use m2ctl::kinematics::LEGS;
 use m2ctl::sim::tracker::NamedPoint;
 
@@ -315,14 +315,6 @@ pub fn format_targets(t: &TargetFile, header_comment: &str) -> String {
 // CSV helpers
 // ---------------------------------------------------------------------------------------
 
-/// Non-comment, non-blank lines with their 1-based numbers.
-fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
-    text.lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim()))
-        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'))
-}
-
 /// The header's column positions for `columns` (the last `optional` may be missing).
 fn header_index(
     line: usize,
@@ -461,16 +453,7 @@ pub fn parse_export(text: &str) -> Result<Vec<PointRecord>, FileError> {
     let mut out: Vec<PointRecord> = Vec::new();
     let mut seen: HashMap<(PointPose, String), usize> = HashMap::new();
     for (ln, l) in lines {
-        let f: Vec<&str> = l.split(',').map(str::trim).collect();
-        if f.len() != nfields {
-            return Err(err(
-                ln,
-                format!(
-                    "expected {nfields} fields as in the header, found {}",
-                    f.len()
-                ),
-            ));
-        }
+        let f = split_fields(ln, l, ',', nfields)?;
         let pose = if f[col(0)].eq_ignore_ascii_case(BASE_POSE) {
             PointPose::Base
         } else {
@@ -572,16 +555,7 @@ pub fn parse_strokes(text: &str) -> Result<Vec<StrokeRecord>, FileError> {
     let mut out: Vec<StrokeRecord> = Vec::new();
     let mut seen: HashMap<u32, usize> = HashMap::new();
     for (ln, l) in lines {
-        let f: Vec<&str> = l.split(',').map(str::trim).collect();
-        if f.len() != nfields {
-            return Err(err(
-                ln,
-                format!(
-                    "expected {nfields} fields as in the header, found {}",
-                    f.len()
-                ),
-            ));
-        }
+        let f = split_fields(ln, l, ',', nfields)?;
         let pose = pose_index(ln, f[col(0)])?;
         let mut strokes_mm = [0.0; LEGS];
         for (k, v) in strokes_mm.iter_mut().enumerate() {
