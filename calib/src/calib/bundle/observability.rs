@@ -139,20 +139,26 @@ pub fn observability(
     let nominal = to_vec(&data.nominal);
     let rayleigh =
         |m: &DMatrix<f64>, v: &DVector<f64>| (v.transpose() * m * v)[(0, 0)].max(0.0).sqrt();
+    // Direction `v` (unit, scale units) with its singular value with the nuisance free.
+    let direction = |v: &DVector<f64>, singular_free: f64| Direction {
+        singular_free,
+        singular_known: rayleigh(&att, v),
+        description: describe_direction(v.as_slice(), &nominal),
+        vector: v.as_slice().to_vec(),
+    };
+    // The eigenvector indices of `e`, smallest eigenvalue first.
+    let ascending = |e: &DVector<f64>| {
+        let mut order: Vec<usize> = (0..nt).collect();
+        order.sort_by(|p, q| e[*p].total_cmp(&e[*q]));
+        order
+    };
     let eig = s.clone().symmetric_eigen();
-    let mut order: Vec<usize> = (0..nt).collect();
-    order.sort_by(|p, q| eig.eigenvalues[*p].total_cmp(&eig.eigenvalues[*q]));
-    let weakest = order
+    let weakest = ascending(&eig.eigenvalues)
         .iter()
         .take(n_report)
         .map(|k| {
             let v = eig.eigenvectors.column(*k).into_owned();
-            Direction {
-                singular_free: eig.eigenvalues[*k].max(0.0).sqrt(),
-                singular_known: rayleigh(&att, &v),
-                description: describe_direction(v.as_slice(), &nominal),
-                vector: v.as_slice().to_vec(),
-            }
+            direction(&v, eig.eigenvalues[*k].max(0.0).sqrt())
         })
         .collect();
     // Generalised problem S v = mu A_tt v via A_tt^-1/2 S A_tt^-1/2.
@@ -164,24 +170,14 @@ pub fn observability(
         )
         * ke.eigenvectors.transpose();
     let g = (&k_inv_sqrt * &s * &k_inv_sqrt).symmetric_eigen();
-    let mut gorder: Vec<usize> = (0..nt).collect();
-    gorder.sort_by(|p, q| g.eigenvalues[*p].total_cmp(&g.eigenvalues[*q]));
-    let hidden = gorder
+    let hidden = ascending(&g.eigenvalues)
         .iter()
         .take(n_report)
         .map(|k| {
             let w = g.eigenvectors.column(*k).into_owned();
             let v = &k_inv_sqrt * w;
             let v = &v / v.norm();
-            (
-                g.eigenvalues[*k].max(0.0),
-                Direction {
-                    singular_free: rayleigh(&s, &v),
-                    singular_known: rayleigh(&att, &v),
-                    description: describe_direction(v.as_slice(), &nominal),
-                    vector: v.as_slice().to_vec(),
-                },
-            )
+            (g.eigenvalues[*k].max(0.0), direction(&v, rayleigh(&s, &v)))
         })
         .collect();
     Ok(Observability {
