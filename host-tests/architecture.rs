@@ -75,3 +75,93 @@ const MAX_IDLE_LOCKS_PER_PASS: f64 = 3.0;
 const MAX_LOCKS_PER_ACKED_MOVE: f64 = 3.0;
 /// Controller locks per telemetry record of a table dump (measured: 0.25).
 const MAX_LOCKS_PER_TM_RECORD: f64 = 0.5;
+
+/// The names of the dependencies a manifest's package declares (every `[*dependencies]`
+/// table but the workspace's list of shared versions, which declares nothing by itself).
+fn dependencies_of(manifest: &str) -> Vec<String> {
+    let mut in_deps = false;
+    let mut names = Vec::new();
+    for line in manifest.lines().map(str::trim) {
+        if line.starts_with('[') {
+            in_deps = line.ends_with("dependencies]") && !line.starts_with("[workspace");
+        } else if in_deps && !line.starts_with('#') {
+            if let Some((name, _)) = line.split_once('=') {
+                names.push(name.trim().to_string());
+            }
+        }
+    }
+    names
+}
+
+/// Every `.rs` file under `dir`, recursively.
+fn rust_files(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            out.extend(rust_files(&p));
+        } else if p.extension().is_some_and(|x| x == "rs") {
+            out.push(p);
+        }
+    }
+    out
+}
+
+/// The workspace's dependency direction (README's map): ground -> calib -> m2ctl, and
+/// inside m2ctl the host-only `sim` and `station` build on the flight code, never the
+/// other way. A manifest or a source file that points back fails here.
+#[test]
+fn dependencies_run_one_way() {
+    let root = common::repo_root();
+    let read = |p: &str| std::fs::read_to_string(root.join(p)).unwrap();
+    let core = dependencies_of(&read("Cargo.toml"));
+    let calib = dependencies_of(&read("calib/Cargo.toml"));
+    let ground = dependencies_of(&read("ground/Cargo.toml"));
+    assert!(core.contains(&"nalgebra".to_string()), "parser: {core:?}");
+    assert!(ground.contains(&"m2calib".to_string()) && calib.contains(&"m2ctl".to_string()));
+    for (crate_deps, forbidden) in [
+        (&core, ["m2calib", "m2ground"].as_slice()),
+        (&calib, &["m2ground"]),
+    ] {
+        for f in forbidden {
+            assert!(
+                !crate_deps.iter().any(|d| d == f),
+                "a dependency points back to {f}"
+            );
+        }
+    }
+    // Sources: the flight crate names neither ground crate; m2calib does not name m2ground;
+    // the flight modules (all but sim, station, the board glue and the binaries) never
+    // import the host-only sim or station.
+    let mut checked = 0;
+    for (dir, forbidden) in [
+        ("src", ["m2calib::", "m2ground::"].as_slice()),
+        ("calib/src", &["m2ground::"]),
+    ] {
+        for f in rust_files(&root.join(dir)) {
+            let text = std::fs::read_to_string(&f).unwrap();
+            for word in forbidden {
+                assert!(!text.contains(word), "{} names {word}", f.display());
+            }
+            let rel = f
+                .strip_prefix(root.join("src"))
+                .ok()
+                .map(|r| r.to_string_lossy().into_owned());
+            if let Some(rel) = rel {
+                let host_side = ["sim/", "station/", "board/", "bin/", "main.rs"]
+                    .iter()
+                    .any(|h| rel.starts_with(h));
+                if !host_side {
+                    checked += 1;
+                    for word in ["crate::sim", "crate::station"] {
+                        assert!(
+                            !text.contains(word),
+                            "flight module src/{rel} imports {word}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+    assert!(checked > 40, "only {checked} flight files checked");
+}

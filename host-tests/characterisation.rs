@@ -58,7 +58,7 @@ const FOLLOWING_WARNING: u16 = 0x0030;
 
 /// Sends a raw packet (as the ground built it, possibly altered) and runs `cycles`.
 fn send_raw(r: &mut Bench, packet: &[u8], cycles: u32) {
-    r.uplink_bytes(&m2ctl::ground::tc::frame(packet));
+    r.uplink_bytes(&m2ctl::station::frame(packet));
     r.run(cycles);
 }
 

@@ -8,13 +8,13 @@ mod common;
 
 use common::{activate, all_ok, calibrated_table, install, upload, wire, JOB_CYCLES};
 use m2ctl::controller::{event, State};
-use m2ctl::ground::station::Tm;
 use m2ctl::link::command::WirePose;
 use m2ctl::link::tm::{EventSeverity, Verification};
 use m2ctl::link::Command;
 use m2ctl::motion::{MotionLimits, CYCLE_S, DEFAULT_DIRECT_SPEED_MM_PER_S};
 use m2ctl::nominal::PROTOTYPE;
 use m2ctl::sim::{Bench, InjectedFault, Plant, PlantConfig};
+use m2ctl::station::Tm;
 use m2ctl::supervision::FaultFlags;
 use m2ctl::table::{Table, TABLE_LEN};
 use m2ctl::units::{MM_PER_NM, UM_PER_MM};
@@ -651,12 +651,12 @@ fn each_failure_arrives_in_the_report_the_icd_names() {
 /// received is counted in `tm_dropped`.
 #[test]
 fn telemetry_numbers_are_gapless_and_replies_are_never_dropped_under_a_full_downlink() {
-    use m2ctl::ground::station::TmHeader;
     use m2ctl::link::command::ParameterIds;
     use m2ctl::link::schedule::ScheduleCommand;
     use m2ctl::link::time::TimeReportRate;
     use m2ctl::link::MemoryId;
     use m2ctl::sim::bench::{BenchConfig, SIM_FLASH_BYTES, UART_115200_BYTES_PER_CYCLE};
+    use m2ctl::station::TmHeader;
     use m2ctl::table::mock_flash::MockFlash;
     use m2ctl::table::TABLE_LEN;
 

@@ -10,13 +10,13 @@ use m2ctl::controller::comms::deliver;
 use common::{activate, all_ok, calibrated_table, install, tick_packet, upload, wire, JOB_CYCLES};
 
 use m2ctl::controller::{event, State};
-use m2ctl::ground::station::Tm;
 use m2ctl::kinematics::Pose;
 use m2ctl::link::command::{WirePose, TABLE_CHUNK_MAX_LEN};
 use m2ctl::link::tm::Verification;
 use m2ctl::link::{Command, MemoryId, TableChunk};
 use m2ctl::motion::CYCLE_S;
 use m2ctl::sim::Bench;
+use m2ctl::station::Tm;
 use m2ctl::table::{Table, TABLE_LEN};
 use m2ctl::units::ARCSEC_PER_RAD;
 
@@ -449,7 +449,7 @@ fn fuzzed_packets_never_panic_and_rejected_ones_change_nothing() {
 }
 
 /// The station as an unlimited telemetry sink.
-struct StationSink<'a>(&'a mut m2ctl::ground::station::Station);
+struct StationSink<'a>(&'a mut m2ctl::station::Station);
 
 impl m2ctl::controller::comms::TxBytes for StationSink<'_> {
     fn free(&self) -> usize {

@@ -5,8 +5,6 @@
 mod common;
 
 use common::{wire, TestRng};
-use m2ctl::ground::eval::pose_error;
-use m2ctl::ground::mdb::fault_flags_doc;
 use m2ctl::hw::{SliderDrives, StrokeEncoders};
 use m2ctl::kinematics::{Pose, LEGS};
 use m2ctl::link::tm::Verification;
@@ -18,6 +16,7 @@ use m2ctl::sim::drive_train::{
     drive_full_step_um, drive_microstep_um, drive_screw_lead_mm, DriveTrain, DriveTrainConfig,
     DriveTrainError, DriveTrainParam, LegDriveTrain, DEFAULT_MICROSTEP_ERROR_UM,
 };
+use m2ctl::sim::pose_error;
 use m2ctl::sim::{Bench, InjectedFault, Plant, PlantConfig};
 
 /// One control cycle (s).
@@ -491,10 +490,10 @@ struct Row {
 }
 
 fn flag_names(bits: u32) -> String {
-    fault_flags_doc()
+    m2ctl::supervision::FaultFlags::NAMED
         .into_iter()
-        .filter(|f| bits & (1 << f.bit) != 0)
-        .map(|f| f.label)
+        .filter(|(f, _)| bits & f.bits() != 0)
+        .map(|(_, name)| name)
         .collect::<Vec<_>>()
         .join("+")
 }

@@ -23,7 +23,6 @@ use m2ctl::drivers::stepper::{
 };
 use m2ctl::drivers::switches::{LegSwitches, SwitchPolarity, TravelSwitchInputs};
 use m2ctl::drivers::Mechanism;
-use m2ctl::ground::station::{Station, Tm};
 use m2ctl::hw::{
     EncoderError, EncoderWarnings, IssuedStrokes, StrokeEncoders, TravelSwitches,
     ENCODER_MM_PER_COUNT,
@@ -33,6 +32,7 @@ use m2ctl::link::tm::{EventSeverity, Verification};
 use m2ctl::link::{Command, RequestId};
 use m2ctl::sim::bench::{SIM_FLASH_BYTES, SIM_LAYOUT};
 use m2ctl::sim::{Bench, InjectedFault, SwitchEnd};
+use m2ctl::station::{Station, Tm};
 use m2ctl::supervision::{CycleInputs, FaultFlags, SupervisionConfig, Supervisor};
 use m2ctl::table::mock_flash::MockFlash;
 use m2ctl::table::{TableStore, ValidationConfig};

@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 
 use common::qemu::{elf_at, Link, Qemu};
 use m2ctl::controller::{event, ResetCause};
-use m2ctl::ground::station::{Station, Tm};
+use m2ctl::station::{Station, Tm};
 use m2ctl::supervision::FaultFlags;
 
 /// Where scripts/qemu-fault-test.sh puts the fault-test build of m2fw.

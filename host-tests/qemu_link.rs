@@ -10,10 +10,10 @@ use std::time::{Duration, Instant};
 
 use common::qemu::{Link, Qemu, OK3};
 use m2ctl::controller::{event, State};
-use m2ctl::ground::station::Tm;
 use m2ctl::link::command::WirePose;
 use m2ctl::link::tm::{dump_chunks, Verification};
 use m2ctl::link::{Command, TableChunk};
+use m2ctl::station::Tm;
 use m2ctl::table::Table;
 use m2ctl::units::{NM_PER_UM, UAS_PER_ARCSEC_I32};
 
@@ -327,7 +327,7 @@ fn operations_in_qemu_pivot_check_schedule_parameters() {
             .enumerate()
             .map(|(k, p)| {
                 (
-                    m2ctl::ground::tc::obt_from_seconds(first + 3.0 * k as f64).unwrap(),
+                    m2ctl::station::obt_from_seconds(first + 3.0 * k as f64).unwrap(),
                     Command::MoveAbsolute(WirePose::from_array(*p)),
                 )
             })
@@ -780,10 +780,10 @@ fn burst_telemetry_counters_gapless_and_every_record_accounted() {
 
 /// What a telecommand produced, as the ground sees it, without packet times and
 /// sequence counts (the guest's clock and the bench's differ): its verification reports,
-/// its move-check report, and the records queued with it ([`m2ctl::ground::station::Station::answer`]:
+/// its move-check report, and the records queued with it ([`m2ctl::station::Station::answer`]:
 /// dump chunks, parameter report, schedule summary, a refusal's event), periodic
 /// housekeeping and time reports left out.
-fn reply_of(st: &m2ctl::ground::station::Station, rid: m2ctl::link::RequestId) -> Vec<Tm> {
+fn reply_of(st: &m2ctl::station::Station, rid: m2ctl::link::RequestId) -> Vec<Tm> {
     let mut v: Vec<Tm> = st
         .log
         .iter()
@@ -807,7 +807,7 @@ fn reply_of(st: &m2ctl::ground::station::Station, rid: m2ctl::link::RequestId) -
 /// workspace, refused moves (workspace, range, direct stroke), a commit without an
 /// upload, an upload with commit and activation, a move, the schedule's insert, summary
 /// and reset, a refused switch to an empty bank, a revert.
-fn characterisation_script(st: &mut m2ctl::ground::station::Station) -> Vec<Command> {
+fn characterisation_script(st: &mut m2ctl::station::Station) -> Vec<Command> {
     use m2ctl::link::command::{ParameterIds, ParameterValues};
     use m2ctl::link::schedule::ScheduleCommand;
     use m2ctl::link::tm::TmTime;

@@ -16,10 +16,10 @@ use std::time::Duration;
 
 use common::qemu::{elf_at, Link, Qemu, NETDUINOPLUS2, OK3};
 use m2ctl::controller::{event, ResetCause, State};
-use m2ctl::ground::station::Tm;
 use m2ctl::link::command::WirePose;
 use m2ctl::link::tm::Verification;
 use m2ctl::link::Command;
+use m2ctl::station::Tm;
 use m2ctl::supervision::FaultFlags;
 
 /// The flight image for this board, as the script leaves it.

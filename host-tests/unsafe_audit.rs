@@ -226,11 +226,12 @@ fn unsafe_without_note(src: &str) -> (Vec<usize>, usize) {
     (missing, sites)
 }
 
+/// The workspace's root (this test belongs to the root package m2ctl).
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// Every `.rs` file under `src/`, as paths relative to the package root.
+/// Every `.rs` file under `src/`, `calib/src/` and `ground/src/`, relative to the root.
 fn sources() -> Vec<PathBuf> {
     fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
         let mut entries: Vec<_> = std::fs::read_dir(dir)
@@ -248,7 +249,10 @@ fn sources() -> Vec<PathBuf> {
         }
     }
     let mut out = Vec::new();
-    walk(&root().join("src"), &mut out);
+    // The flight crate and the workspace's ground crates (which may hold no `unsafe`).
+    for dir in ["src", "calib/src", "ground/src"] {
+        walk(&root().join(dir), &mut out);
+    }
     out.into_iter()
         .map(|p| p.strip_prefix(root()).map(Path::to_path_buf).unwrap_or(p))
         .collect()
@@ -331,7 +335,7 @@ fn unsafe_only_in_the_board_layer_and_the_documented_exceptions() {
     }
     let manifest = read(Path::new("Cargo.toml"));
     let rust_lints = manifest
-        .split("[lints.rust]")
+        .split("[workspace.lints.rust]")
         .nth(1)
         .and_then(|s| s.split("\n[").next())
         .unwrap_or("");
@@ -339,8 +343,16 @@ fn unsafe_only_in_the_board_layer_and_the_documented_exceptions() {
         rust_lints
             .lines()
             .any(|l| l.trim() == "unsafe_code = \"deny\""),
-        "Cargo.toml's [lints.rust] must deny unsafe_code for the package"
+        "Cargo.toml's [workspace.lints.rust] must deny unsafe_code for the workspace"
     );
+    // ... and every member takes the workspace's lints.
+    for member in ["Cargo.toml", "calib/Cargo.toml", "ground/Cargo.toml"] {
+        let m = read(Path::new(member));
+        assert!(
+            m.contains("[lints]\nworkspace = true"),
+            "{member} must take the workspace's lints (`[lints] workspace = true`)"
+        );
+    }
 }
 
 #[test]

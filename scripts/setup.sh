@@ -27,7 +27,7 @@ command -v defmt-print >/dev/null || cargo install defmt-print --locked --versio
 # Coverage-guided fuzzing (scripts/fuzz.sh): a nightly toolchain and cargo-fuzz.
 rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
 command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked --version 0.13.2
-# Python spacepackets: the independent PUS encoder of host-tests/link.rs.
+# Python spacepackets: the independent PUS encoder of ground/tests/link.rs.
 python3 -c 'import spacepackets' 2>/dev/null || pip install --quiet spacepackets
 # Ground segment: Yamcs 5.12 server jars (AGPL; installed from PyPI, never vendored),
 # the XTCE writer, the Yamcs client, the XTCE schema validator.

@@ -2,7 +2,10 @@
 //!
 //! A 6-PSS Stewart platform (six vertical sliders, spherical joints, fixed-length rods)
 //! positions the secondary mirror. This crate holds the flight software and, behind the
-//! `host` feature, the simulated plant and the ground tools.
+//! `host` feature, the simulated plant and the ground station's link side. The ground
+//! tools are the workspace's other crates, built on this one (never the other way):
+//! `calib/` (m2calib: geometry files, IK/FK commands, calibration, the paper study) and
+//! `ground/` (m2ground: telecommand encoder, mission database, ICD, gateway, the CLI).
 //!
 //! Layers (hardware-independent unless noted):
 //! * [`kinematics`]: geometry, IK, FK, workspace check, generic over `f32`/`f64`.
@@ -14,10 +17,10 @@
 //! * [`drivers`]: BiSS-C encoders, step/direction drives, limit switches on
 //!   embedded-hal 1.0 traits (no board imports).
 //! * `sim` (host): the simulated plant (true geometry, sliders, encoders).
-//! * `ground` (host): files, CLI support, calibration.
+//! * `station` (host): the ground station's side of the link (framing, numbering).
 #![cfg_attr(not(feature = "host"), no_std)]
 // The flight code's panic-free rules, once for the whole library (Cargo.toml's [lints]
-// says why here): the host-only folders `ground` and `sim` allow them, and the few
+// says why here): the host-only folders `sim` and `station` allow them, and the few
 // places that index provably in range say so where they do. `unsafe_code` (denied) and
 // `missing_docs` come from Cargo.toml. Unit tests (`cfg(test)`) may unwrap.
 #![cfg_attr(
@@ -52,8 +55,6 @@ pub mod worker;
 
 #[cfg(feature = "firmware")]
 pub mod board;
-#[cfg(feature = "host")]
-pub mod ground;
 #[cfg(feature = "host")]
 pub mod sim;
 #[cfg(feature = "host")]

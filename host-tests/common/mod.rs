@@ -73,23 +73,41 @@ pub fn pose_f32_exact(v: [f64; 6]) -> Pose<f64> {
     .cast()
 }
 
-/// The golden CSV rows (pose mm/arcsec, strokes mm) of the reference, via the crate's
-/// file parser.
+/// The repository's root (the workspace's). These helpers serve the tests of every
+/// workspace member (host-tests/ and the ground crates' tests/), whose
+/// `CARGO_MANIFEST_DIR` is their own package folder: the root is the nearest folder
+/// above it that holds the workspace's one `Cargo.lock`.
+pub fn repo_root() -> std::path::PathBuf {
+    let mut p = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    while !p.join("Cargo.lock").exists() {
+        assert!(
+            p.pop(),
+            "no Cargo.lock above {}",
+            env!("CARGO_MANIFEST_DIR")
+        );
+    }
+    p
+}
+
+/// The golden CSV rows (pose mm/arcsec, strokes mm) of the reference. Read here without
+/// the ground tools' file parser (m2calib builds on this crate, not the other way):
+/// comment lines `#`, one header naming the twelve columns in the reference's order
+/// (`x_mm .. rz_arcsec, s1_mm .. s6_mm`), then rows of twelve numbers.
 pub fn golden() -> Vec<([f64; 6], [f64; 6])> {
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/testdata/ik_golden.csv"
-    ))
-    .unwrap();
-    m2ctl::ground::files::parse_csv(&text, 0..12)
-        .unwrap()
-        .into_iter()
-        .map(|r| {
-            let p: [f64; 6] = r.values[..6].try_into().unwrap();
-            let s: [f64; 6] = r.values[6..].try_into().unwrap();
-            (p, s)
-        })
-        .collect()
+    let text = std::fs::read_to_string(repo_root().join("testdata/ik_golden.csv")).unwrap();
+    let mut rows = text
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with('#'));
+    let header: Vec<&str> = rows.next().unwrap().split(',').map(str::trim).collect();
+    assert_eq!(header.len(), 12, "golden header: {header:?}");
+    assert!(header[0] == "x_mm" && header[5] == "rz_arcsec" && header[6] == "s1_mm");
+    rows.map(|l| {
+        let v: Vec<f64> = l.split(',').map(|x| x.trim().parse().unwrap()).collect();
+        assert_eq!(v.len(), 12, "golden row: {l}");
+        (v[..6].try_into().unwrap(), v[6..].try_into().unwrap())
+    })
+    .collect()
 }
 
 // ---------------------------------------------------------------------------------
@@ -111,7 +129,7 @@ pub fn wire(x_um: f64, y_um: f64, z_um: f64, a_as: f64, b_as: f64, c_as: f64) ->
 
 /// Frames a raw packet onto the uplink and runs one cycle.
 pub fn tick_packet(r: &mut Bench, pkt: &[u8]) {
-    r.uplink_bytes(&m2ctl::ground::tc::frame(pkt));
+    r.uplink_bytes(&m2ctl::station::frame(pkt));
     r.tick();
 }
 

@@ -10,10 +10,10 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use m2ctl::controller::event;
-use m2ctl::ground::station::Station;
 use m2ctl::link::hk::Housekeeping;
 use m2ctl::link::tm::{TmTime, Verification};
 use m2ctl::link::{Command as Tc, RequestId};
+use m2ctl::station::Station;
 
 /// The flight image built by `cargo build --profile flight --target thumbv7em-none-eabihf
 /// --features firmware --bin m2fw` (scripts/qemu-link-test.sh builds it).
@@ -23,7 +23,7 @@ pub fn firmware_elf() -> PathBuf {
 
 /// An image under the crate directory; panics with a hint if it was not built.
 pub fn elf_at(relative: &str) -> PathBuf {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(relative);
+    let p = super::repo_root().join(relative);
     assert!(
         p.exists(),
         "{} missing: build the firmware first (scripts/qemu-link-test.sh, scripts/qemu-fault-test.sh)",
@@ -249,7 +249,7 @@ impl Drop for Stopped {
 /// The STACK region `[origin, origin + length)` of the mps2-an386 memory map
 /// (`memory/mps2-an386.x`, the one definition).
 pub fn stack_region() -> (u32, u32) {
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/memory/mps2-an386.x"))
+    let text = std::fs::read_to_string(super::repo_root().join("memory/mps2-an386.x"))
         .expect("memory/mps2-an386.x");
     let line = text
         .lines()

@@ -3,7 +3,7 @@
 
 Builds the TCs of docs/icd.md from the ICD alone (struct.pack for the application data,
 spacepackets.ecss.PusTc for the PUS-C packet and its CRC-16) and prints one line per TC:
-`name hex`. host-tests/link.rs compares them byte for byte with the Rust encoder.
+`name hex`. ground/tests/link.rs compares them byte for byte with the Rust encoder.
 """
 import struct
 import sys

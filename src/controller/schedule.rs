@@ -8,7 +8,7 @@
 //! equal release times keep their insertion order (TC order within one TC[11,4]).
 //! Bounded (`heapless`), no heap.
 //!
-//! # Rules (each has a test in `host-tests/schedule.rs`)
+//! # Rules (each has a test in `ground/tests/schedule.rs`)
 //! * **Insert** (TC[11,4]) is all-or-nothing: refused with a start failure, changing
 //!   nothing, if the activities do not all fit (0x0B01), a release time is earlier than
 //!   now (0x0B02) or beyond the on-board clock's range (0x0B06), or a request ID is

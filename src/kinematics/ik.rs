@@ -62,7 +62,7 @@ impl IkError {
 
 /// One leg evaluated at a pose: the stroke and what the Jacobian needs.
 #[derive(Clone, Copy, Debug, Default)]
-pub(crate) struct LegState<T: Real> {
+pub struct LegState<T: Real> {
     /// Slider stroke (mm).
     pub stroke_mm: T,
     /// Horizontal rod components `b'_x - a_x`, `b'_y - a_y` at the pose (mm).
@@ -75,11 +75,7 @@ pub(crate) struct LegState<T: Real> {
 
 /// Evaluates one leg; `None` when the radicand is not positive (leg cannot reach).
 #[inline(always)]
-pub(crate) fn leg_state<T: Real>(
-    leg: &Leg<T>,
-    rot: &RotationDelta<T>,
-    t: &[T; 3],
-) -> Option<LegState<T>> {
+pub fn leg_state<T: Real>(leg: &Leg<T>, rot: &RotationDelta<T>, t: &[T; 3]) -> Option<LegState<T>> {
     let b = &leg.b_mm.data.0[0];
     let wb = mat_vec3(&rot.w, b);
     let u = add3(&wb, t);

@@ -7,7 +7,7 @@
 //! the report's bytes. [`Housekeeping::emit`] writes by them, [`Housekeeping::parse`]
 //! reads by them, the mission database (`ground::mdb::housekeeping_rows`) takes each
 //! field's offset from them, and docs/icd.md section 6's table is generated from the
-//! mission database (`m2ground icd-tables`; `host-tests/icd.rs` fails on drift). The
+//! mission database (`m2ground icd-tables`; `ground/tests/icd.rs` fails on drift). The
 //! fields tile the report end to end (checked at compile time below).
 //!
 //! The four switch bytes are the last cycle's read (`hw::TravelSwitches`), unfiltered.

@@ -32,3 +32,19 @@ pub mod tracker;
 
 pub use bench::{Bench, BenchConfig};
 pub use plant::{InjectedFault, Plant, PlantConfig, SharedPlant, SwitchEnd};
+
+/// `reached - target` per axis: `[x, y, z]` in um and `[alpha, beta, gamma]` in arcsec
+/// (base frame; rotations as the poses give them). The accuracy figures of the plant's
+/// tests, the mission and the calibration tools all measure with it.
+pub fn pose_error(
+    reached: &crate::kinematics::Pose<f64>,
+    target: &crate::kinematics::Pose<f64>,
+) -> [f64; 6] {
+    use crate::units::{ARCSEC_PER_RAD, UM_PER_MM};
+    let mut e = [0.0; 6];
+    for a in 0..3 {
+        e[a] = (reached.translation_mm[a] - target.translation_mm[a]) * UM_PER_MM;
+        e[a + 3] = (reached.rotation_rad[a] - target.rotation_rad[a]) * ARCSEC_PER_RAD;
+    }
+    e
+}

@@ -327,3 +327,13 @@ impl Station {
             .collect()
     }
 }
+
+/// An on-board time from seconds (nearest 1/65536 s); refused if negative, not finite
+/// or beyond CUC 4+2.
+pub fn obt_from_seconds(s: f64) -> Result<TmTime, String> {
+    let ticks = (s * crate::link::tm::TIME_FRACTIONS_PER_SECOND as f64).round();
+    if !(ticks.is_finite() && ticks >= 0.0 && ticks < 2f64.powi(48)) {
+        return Err(format!("{s} s: not an on-board time (0 .. 2^32 s)"));
+    }
+    TmTime::from_ticks(ticks as u64).ok_or_else(|| format!("{s} s: beyond CUC 4+2"))
+}

@@ -66,6 +66,34 @@ impl FaultFlags {
     pub const ALL_FAULTS: Self = Self(0x0000_0FFF);
     /// Every warning bit in use (bits 16, 17).
     pub const ALL_WARNINGS: Self = Self(0x0003_0000);
+
+    /// Every single flag with its name: the one list of names the mission database, the
+    /// ICD's tables and the tools print (host only in use; the flight image links none).
+    pub const NAMED: [(Self, &'static str); 14] = [
+        (Self::FOLLOWING_ERROR, "FOLLOWING_ERROR"),
+        (Self::ENCODER_STUCK, "ENCODER_STUCK"),
+        (Self::ENCODER_JUMP, "ENCODER_JUMP"),
+        (Self::ENCODER_READ_FAILURE, "ENCODER_READ_FAILURE"),
+        (Self::SOFT_LIMIT, "SOFT_LIMIT"),
+        (Self::FK_NOT_CONVERGED, "FK_NOT_CONVERGED"),
+        (Self::POSE_OUTSIDE_WORKSPACE, "POSE_OUTSIDE_WORKSPACE"),
+        (Self::DRIVE_FAULT, "DRIVE_FAULT"),
+        (Self::TABLE_CORRUPT, "TABLE_CORRUPT"),
+        (Self::DEADLINE_MISSED, "DEADLINE_MISSED"),
+        (Self::LIMIT_SWITCH, "LIMIT_SWITCH"),
+        (Self::OUTPUT_LIMITED, "OUTPUT_LIMITED"),
+        (Self::FOLLOWING_WARNING, "FOLLOWING_WARNING"),
+        (Self::ENCODER_WARNING, "ENCODER_WARNING"),
+    ];
+
+    /// The name of a single flag (`None` for a set of several flags or for no flag).
+    pub fn name(self) -> Option<&'static str> {
+        Self::NAMED
+            .iter()
+            .find(|(f, _)| *f == self)
+            .map(|(_, n)| *n)
+    }
+
     /// Bit positions of the faults, in bit order (index = bit).
     pub const FAULT_BITS: usize = 12;
 

@@ -8,7 +8,7 @@ writes OUT_DIR/mdb/m2.xml (XTCE 1.2, yamcs-pymdb) and OUT_DIR/etc/events.yaml (t
 event templates of Yamcs' PusEventDecoder). The JSON is the only input: this script
 knows the PUS packet structure and how Yamcs verifies a PUS command, never the
 controller's vocabulary (every telecommand, field, unit, calibration, enumeration, bit
-and event comes from `src/ground/mdb/`). See docs/ground-segment.md.
+and event comes from `ground/src/mdb/`). See docs/ground-segment.md.
 """
 
 from __future__ import annotations

@@ -1,0 +1,252 @@
+//! Service-5 events: IDs, severities and the meaning of their auxiliary words.
+
+use super::housekeeping::source_codes;
+use super::{Event, SeverityUse};
+use m2ctl::link::tm::{event_id, EventSeverity};
+use m2ctl::link::{service, subtype};
+use m2ctl::table::BootSource;
+
+/// The events (IDs from [`event_id`], severities as the controller sends them).
+pub fn events() -> Vec<Event> {
+    use EventSeverity::{High, Info, Low, Medium};
+    let sev = |s: &[(EventSeverity, &'static str)]| {
+        s.iter()
+            .map(|(s, when)| SeverityUse {
+                severity: severity_name(*s),
+                subtype: s.subtype(),
+                when,
+            })
+            .collect()
+    };
+    let ev = |id: u16,
+              name: &'static str,
+              description: &str,
+              severities: Vec<SeverityUse>,
+              (aux0, aux1): (&str, &str),
+              message: &'static str| Event {
+        id,
+        name,
+        description: description.into(),
+        severities,
+        aux0: aux0.into(),
+        aux1: aux1.into(),
+        message,
+    };
+    let sources = format!("source ({})", source_codes("nominal", ""));
+    let request_id_word = "request ID of the released TC (packet ID << 16, sequence control)";
+    vec![
+        ev(
+            event_id::STATE_CHANGED,
+            "STATE_CHANGED",
+            "controller state changed",
+            sev(&[(Info, "")]),
+            ("old state", "new state"),
+            "controller state {aux0} -> {aux1}",
+        ),
+        ev(
+            event_id::FAULT_LATCHED,
+            "FAULT_LATCHED",
+            "fault latched",
+            sev(&[(High, "")]),
+            (
+                "all latched fault flags",
+                "newly latched flags (bits 0..23), legs they name (bits 24..29)",
+            ),
+            "fault latched: flags {aux0}, new {aux1}",
+        ),
+        ev(
+            event_id::FAULTS_CLEARED,
+            "FAULTS_CLEARED",
+            "faults cleared",
+            sev(&[(Info, "")]),
+            ("flags cleared", "0"),
+            "faults cleared: flags {aux0}",
+        ),
+        ev(
+            event_id::WARNING_CHANGED,
+            "WARNING_CHANGED",
+            "warning flags changed",
+            sev(&[(Low, "")]),
+            ("warning flags", "legs of the warnings"),
+            "warning flags now {aux0}",
+        ),
+        ev(
+            event_id::MOVE_REFUSED,
+            "MOVE_REFUSED",
+            "move refused",
+            sev(&[(Low, "")]),
+            ("refusal bits", "failure code"),
+            "move refused: refusal bits {aux0}, failure code {aux1}",
+        ),
+        ev(
+            event_id::SETPOINT_REFUSED,
+            "SETPOINT_REFUSED",
+            "a setpoint on a planned path failed IK (defect guard; the motion holds)",
+            sev(&[(High, "")]),
+            ("refusal bits", "control cycle"),
+            "setpoint on a planned path failed IK (motion holds): refusal bits {aux0}, cycle {aux1}",
+        ),
+        ev(
+            event_id::END_OF_TRAVEL,
+            "END_OF_TRAVEL",
+            "end of travel: the set of active end-of-travel switches changed to a non-empty one",
+            sev(&[(High, "")]),
+            (
+                "legs at the lower switch (bits 0..5), at the upper switch (bits 8..13), with an \
+                 unreadable input (bits 16..21)",
+                "control cycle",
+            ),
+            "end of travel: switches {aux0} at cycle {aux1} (legs stopped toward them)",
+        ),
+        ev(
+            event_id::TABLE_ACTIVATED,
+            "TABLE_ACTIVATED",
+            "table activated (now running)",
+            sev(&[(Info, "")]),
+            ("table ID", "CRC-32"),
+            "table {aux0} activated, CRC-32 {aux1}",
+        ),
+        ev(
+            event_id::TABLE_REJECTED,
+            "TABLE_REJECTED",
+            "table command refused or failed (commit, activate, switch bank, revert)",
+            sev(&[(Medium, "")]),
+            (
+                "failure code",
+                "for a commit: the uploaded table's ID when every byte was loaded since the last \
+                 commit and the image decodes (magic, version, length, CRC-32, reserved), else 0 \
+                 (so 0 with 0x0705); 0 for the others",
+            ),
+            "table rejected: failure code {aux0}, table {aux1}",
+        ),
+        ev(
+            event_id::TABLE_COMMITTED,
+            "TABLE_COMMITTED",
+            "table committed to flash (now pending)",
+            sev(&[(Info, "")]),
+            (
+                "table ID",
+                &format!(
+                    "bank ({} A, {} B)",
+                    BootSource::BankA.code(),
+                    BootSource::BankB.code()
+                ),
+            ),
+            "table {aux0} committed to bank {aux1}",
+        ),
+        ev(
+            event_id::TABLE_RELOADED,
+            "TABLE_RELOADED",
+            "running table reloaded from its source after a RAM upset",
+            sev(&[(Medium, "")]),
+            ("table ID", &sources),
+            "table {aux0} reloaded from {aux1} after a RAM upset",
+        ),
+        ev(
+            event_id::BANK_HEALTH,
+            "BANK_HEALTH",
+            "flash bank health changed",
+            sev(&[(Info, "when healthy"), (Medium, "when corrupt")]),
+            ("bit 0 bank A, bit 1 bank B corrupt", "0"),
+            "flash bank health {aux0}",
+        ),
+        ev(
+            event_id::BOOT,
+            "BOOT",
+            "boot finished",
+            sev(&[(Info, ""), (Low, "if the boot fell back")]),
+            (
+                &format!("boot {sources}"),
+                "running table ID",
+            ),
+            "boot finished: source {aux0}, table {aux1}",
+        ),
+        ev(
+            event_id::BOOT_DETAIL,
+            "BOOT_DETAIL",
+            "boot detail",
+            sev(&[(Info, "")]),
+            (
+                "boot flags (below)",
+                "reset cause (bits 0..7), boot count (bits 16..31)",
+            ),
+            "boot detail: flags {aux0}, reset cause and count {aux1}",
+        ),
+        ev(
+            event_id::DEADLINE_MISSED,
+            "DEADLINE_MISSED",
+            &format!(
+                "control cycles overran {} times in a row: motion stopped",
+                m2ctl::controller::OVERRUN_HOLD_LIMIT
+            ),
+            sev(&[(High, "")]),
+            ("consecutive overruns", "overruns since boot"),
+            "control cycles overran {aux0} times in a row (total {aux1}): motion stopped",
+        ),
+        ev(
+            event_id::PARAMETERS_CHANGED,
+            "PARAMETERS_CHANGED",
+            "on-board parameters changed (persisted and applied)",
+            sev(&[(Info, "")]),
+            (
+                "the parameters this TC[20,3] set (bit i = parameter index i)",
+                "every parameter set now (the set mask: `parameters_set`, offset 213)",
+            ),
+            "on-board parameters changed: {aux0} set (all set: {aux1})",
+        ),
+        ev(
+            event_id::PARAMETERS_IGNORED,
+            "PARAMETERS_IGNORED",
+            "persisted on-board parameters not applied (at boot, or when the repair of an upset \
+             re-reads them): out of range, or following-error overrides that would leave the \
+             warning not below the running table's fault threshold",
+            sev(&[(Low, "")]),
+            ("the parameters not applied (bit i = parameter index i)", "0"),
+            "persisted parameters {aux0} not applied: the defaults or the table's thresholds run",
+        ),
+        ev(
+            event_id::ACTIVITY_RELEASED,
+            "ACTIVITY_RELEASED",
+            "time-tagged activity released: its telecommand runs now",
+            sev(&[(Info, "")]),
+            (request_id_word, "release time (OBT, whole seconds)"),
+            "scheduled activity {aux0} released (release time {aux1} s)",
+        ),
+        ev(
+            event_id::ACTIVITY_FAILED,
+            "ACTIVITY_FAILED",
+            &format!(
+                "a released activity's telecommand failed (its TM[{v},{}]/[{v},{}]/[{v},{}] has \
+                 the details)",
+                subtype::ACCEPTANCE_FAILURE,
+                subtype::START_FAILURE,
+                subtype::COMPLETION_FAILURE,
+                v = service::VERIFICATION
+            ),
+            sev(&[(Medium, "")]),
+            (
+                "request ID of the released TC",
+                "report subtype << 16, failure code",
+            ),
+            "released activity {aux0} failed: subtype and code {aux1}",
+        ),
+        ev(
+            event_id::ACTIVITY_EXPIRED,
+            "ACTIVITY_EXPIRED",
+            "activity deleted unrun: its release time passed while release was disabled",
+            sev(&[(Low, "")]),
+            ("request ID of the TC", "release time (OBT, whole seconds)"),
+            "activity {aux0} deleted unrun: release time {aux1} s passed while release was disabled",
+        ),
+    ]
+}
+
+/// Label of a severity (Yamcs: INFO, WATCH, DISTRESS, CRITICAL for subtypes 1..4).
+pub fn severity_name(s: EventSeverity) -> &'static str {
+    match s {
+        EventSeverity::Info => "INFO",
+        EventSeverity::Low => "LOW",
+        EventSeverity::Medium => "MEDIUM",
+        EventSeverity::High => "HIGH",
+    }
+}

@@ -1,0 +1,398 @@
+//! The ground-segment gateway (`m2ground gateway`, `m2ground::gateway`): COBS
+//! frames from the controller to whole packets for Yamcs and back, resynchronisation
+//! after garbage, the time correlation, and the whole gateway on real sockets with a
+//! fake controller, a fake Yamcs link and a fake Yamcs HTTP server.
+
+#![cfg(feature = "host")]
+
+use std::io::{Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::os::unix::net::UnixListener;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use m2ctl::link::framing::Deframer;
+use m2ctl::link::tm::{parse_tm, EventSeverity, TmReport, TmTime, TmWriter};
+use m2ctl::link::{decode_telecommand, Command, Housekeeping, WirePose, MAX_TM_FRAME_LEN};
+use m2ground::gateway::{
+    ccsds_packet_len, coefficients_json, rfc3339, run, tm_obt_s, Correlator, Options, Stats,
+    TcPath, TimeFit, TmPath, Uart,
+};
+use m2ground::tc::{frame, TcSequencer};
+
+/// The packet of one frame.
+fn deframe_one(f: &[u8]) -> Vec<u8> {
+    let mut d: Deframer<300> = Deframer::new();
+    for b in f {
+        if let Some(r) = d.push_byte(*b) {
+            return r.unwrap().to_vec();
+        }
+    }
+    panic!("no frame")
+}
+
+/// Framed TM packets as the controller sends them, and the bare packets.
+fn controller_tm(n: usize) -> (Vec<u8>, Vec<Vec<u8>>) {
+    let mut w = TmWriter::new();
+    let mut stream = Vec::new();
+    let mut packets = Vec::new();
+    for i in 0..n {
+        let mut out = [0u8; MAX_TM_FRAME_LEN];
+        let t = TmTime::from_millis(1000 * i as u64 + 250);
+        let len = match i % 3 {
+            0 => w.emit_ping_reply(t, &mut out),
+            1 => w.emit_event(t, EventSeverity::Medium, 0x0011, [i as u32, 0], &mut out),
+            _ => {
+                let hk = Housekeeping {
+                    cycle_counter: i as u32,
+                    pose_fk: WirePose::from_array([0, -1, 0x100, 0, 0, 7]),
+                    ..Housekeeping::default()
+                };
+                w.emit_housekeeping(t, &hk, &mut out)
+            }
+        }
+        .unwrap();
+        let f = &out[..len];
+        stream.extend_from_slice(f);
+        packets.push(deframe_one(f));
+    }
+    (stream, packets)
+}
+
+#[test]
+fn tm_frames_become_whole_packets_for_any_split() {
+    let (stream, packets) = controller_tm(9);
+    for chunk in [1, 2, 3, 7, 64, stream.len()] {
+        let mut path = TmPath::new();
+        let mut out = Vec::new();
+        for c in stream.chunks(chunk) {
+            path.push(c, &mut out);
+        }
+        assert_eq!(out, packets, "chunks of {chunk}");
+        assert_eq!(path.bad_frames, 0);
+        for p in &out {
+            parse_tm(p).expect("a valid PUS packet");
+        }
+    }
+}
+
+#[test]
+fn tm_resynchronises_after_garbage_and_drops_bad_frames() {
+    let (stream, packets) = controller_tm(6);
+    let mut path = TmPath::new();
+    let mut out = Vec::new();
+    // Garbage without a delimiter, then the stream: the leading 0x00 of the first frame
+    // ends the garbage as one bad frame; every packet arrives.
+    path.push(&[0x17, 0x42, 0xff, 0x03, 0x99], &mut out);
+    path.push(&stream, &mut out);
+    assert_eq!(out, packets);
+    assert_eq!(path.bad_frames, 1, "the garbage is one dropped frame");
+    // A lost byte inside a frame: that frame is dropped, the next ones arrive.
+    let mut damaged = stream.clone();
+    let second_frame_start = damaged[1..].iter().position(|&b| b == 0).unwrap() + 2;
+    damaged.remove(second_frame_start + 5);
+    let mut path = TmPath::new();
+    let mut out = Vec::new();
+    path.push(&damaged, &mut out);
+    assert!(
+        out.len() >= packets.len() - 1,
+        "{} of {}",
+        out.len(),
+        packets.len()
+    );
+    assert!(
+        !out.contains(&packets[1]),
+        "the damaged packet is not forwarded"
+    );
+    assert_eq!(&out[1..], &packets[2..]);
+    // An overlong frame (noise with no delimiter for 1000 bytes) is dropped too.
+    let mut path = TmPath::new();
+    let mut out = Vec::new();
+    path.push(&[0x00], &mut out);
+    path.push(&[0x55; 1000], &mut out);
+    path.push(&stream, &mut out);
+    assert_eq!(out, packets);
+    assert_eq!(path.bad_frames, 1);
+    // A valid COBS frame whose CCSDS length field disagrees with its size.
+    let mut short = packets[0].clone();
+    short.push(0xaa);
+    let mut path = TmPath::new();
+    let mut out = Vec::new();
+    path.push(&frame(&short), &mut out);
+    path.push(&stream, &mut out);
+    assert_eq!(out, packets);
+    assert_eq!(path.bad_frames, 1);
+}
+
+fn tc_packets() -> Vec<Vec<u8>> {
+    let mut seq = TcSequencer::new(5);
+    [
+        Command::Ping,
+        Command::MoveAbsolute(WirePose::from_array([1_500, 0, 0, -2_000_000, 0, 0])),
+        Command::Stop,
+        Command::CommitTable { crc32: 0xdead_beef },
+    ]
+    .iter()
+    .map(|c| seq.packet(c).unwrap())
+    .collect()
+}
+
+#[test]
+fn tc_packets_become_frames_the_controller_decodes_for_any_split() {
+    let packets = tc_packets();
+    let stream = packets.concat();
+    for chunk in [1, 2, 5, 6, 7, 13, stream.len()] {
+        let mut path = TcPath::new();
+        let mut frames = Vec::new();
+        for c in stream.chunks(chunk) {
+            path.push(c, &mut frames);
+        }
+        assert_eq!(frames.len(), packets.len(), "chunks of {chunk}");
+        for (f, p) in frames.iter().zip(&packets) {
+            assert_eq!(f, &frame(p), "framed exactly as m2ground tc frames it");
+            let got = deframe_one(f);
+            assert_eq!(&got, p);
+            decode_telecommand(&got).expect("the controller accepts it");
+        }
+    }
+}
+
+#[test]
+fn an_oversized_tc_is_skipped_and_the_stream_continues() {
+    let packets = tc_packets();
+    // A CCSDS header declaring 1000 bytes, and its 1000 bytes.
+    let mut big = vec![0x18, 0xb2, 0xc0, 0x00];
+    big.extend(((1000 - 7) as u16).to_be_bytes());
+    big.resize(1000, 0x11);
+    let mut stream = packets[0].clone();
+    stream.extend(&big);
+    stream.extend(&packets[1]);
+    let mut path = TcPath::new();
+    let mut frames = Vec::new();
+    for c in stream.chunks(100) {
+        path.push(c, &mut frames);
+    }
+    assert_eq!(path.refused, 1);
+    assert_eq!(frames, vec![frame(&packets[0]), frame(&packets[1])]);
+    assert_eq!(ccsds_packet_len(&big), Some(1000));
+}
+
+/// Arrivals of packets generated every `step_s` of on-board time on a clock running at
+/// `obt_rate` on-board seconds per UTC second, delayed 2..40 ms (pseudo-random).
+fn arrivals(boot: f64, obt_rate: f64, step_s: f64, n: usize) -> Vec<(f64, f64)> {
+    let mut x: u64 = 7;
+    (0..n)
+        .map(|i| {
+            x = x.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            let delay = 0.002 + (x >> 40) as f64 / (1u64 << 24) as f64 * 0.038;
+            let obt = step_s * i as f64;
+            (obt, boot + obt / obt_rate + delay)
+        })
+        .collect()
+}
+
+#[test]
+fn time_correlation_fits_the_clock_and_follows_a_reboot() {
+    let boot = 1_764_583_200.25; // 2025-12-01T10:00:00.25Z
+                                 // A controller clock at the nominal rate, and one running 20 % slow (QEMU when the
+                                 // emulation cannot keep the 1 kHz cycle), packets every 0.25 s for 5 minutes.
+    for obt_rate in [1.0, 0.8] {
+        let mut c = Correlator::new();
+        let mut updates = 0;
+        let mut worst: f64 = 0.0;
+        for (i, (obt, arrival)) in arrivals(boot, obt_rate, 0.25, 1200).into_iter().enumerate() {
+            if c.sample(obt, arrival).is_some() {
+                updates += 1;
+            }
+            // After the first 40 s, Yamcs' UTC of every packet is within 25 ms of when it
+            // was generated (delays 2..40 ms: the least delay, the envelope's noise and the
+            // update tolerance add up to about 20 ms).
+            let fit = c.published().unwrap();
+            if i > 160 {
+                worst = worst.max((fit.utc(obt) - (boot + obt / obt_rate)).abs());
+            }
+        }
+        let fit = c.published().unwrap();
+        println!(
+            "clock rate {obt_rate}: fitted {:.6} UTC s per OBT s, worst error {:.1} ms, {updates} updates",
+            fit.rate,
+            worst * 1e3
+        );
+        assert!((fit.rate - 1.0 / obt_rate).abs() < 1e-3, "{fit:?}");
+        assert!(worst < 0.025, "worst error {worst} s");
+        assert!(updates < 100, "{updates} updates");
+    }
+    // A reboot: OBT restarts at 0, the correlation is redone at once.
+    let mut c = Correlator::new();
+    for (obt, arrival) in arrivals(boot, 1.0, 0.25, 400) {
+        c.sample(obt, arrival);
+    }
+    let reboot = boot + 200.0;
+    let fit = c
+        .sample(0.0, reboot + 0.004)
+        .expect("a reboot changes the correlation");
+    assert!((fit.utc(0.0) - reboot).abs() < 0.005);
+    // The JSON Yamcs' SetCoefficients takes.
+    assert_eq!(rfc3339(0.0), "1970-01-01T00:00:00.000000Z");
+    assert_eq!(rfc3339(boot), "2025-12-01T10:00:00.250000Z");
+    assert_eq!(rfc3339(951_782_400.5), "2000-02-29T00:00:00.500000Z");
+    let j: serde_json::Value = serde_json::from_str(&coefficients_json(&TimeFit {
+        boot_unix_s: boot,
+        rate: 1.25,
+    }))
+    .unwrap();
+    assert_eq!(j["utc"], "2025-12-01T10:00:00.250000Z");
+    assert_eq!(j["obt"], "0");
+    assert_eq!(j["gradient"].as_f64().unwrap(), 1.25 / 65536.0);
+    // The OBT of a TM packet: 1.25 s.
+    let (_, packets) = controller_tm(2);
+    assert_eq!(tm_obt_s(&packets[1]), Some(1.25));
+}
+
+/// Reads from `s` until `n` bytes arrived or 10 s passed.
+fn read_n(s: &mut impl Read, n: usize) -> Vec<u8> {
+    let t0 = Instant::now();
+    let mut out = Vec::new();
+    let mut buf = [0u8; 4096];
+    while out.len() < n && t0.elapsed() < Duration::from_secs(10) {
+        match s.read(&mut buf) {
+            Ok(0) => break,
+            Ok(k) => out.extend_from_slice(&buf[..k]),
+            Err(_) => {}
+        }
+    }
+    out
+}
+
+#[test]
+fn the_gateway_on_sockets_forwards_both_ways_and_sets_the_time_correlation() {
+    let dir = std::env::temp_dir().join(format!("m2-gw-test-{}", std::process::id()));
+    let _ = std::fs::create_dir_all(&dir);
+    let sock = dir.join("uart.sock");
+    let _ = std::fs::remove_file(&sock);
+    // The fake controller: a Unix socket server, as QEMU's chardev.
+    let controller = UnixListener::bind(&sock).unwrap();
+    // The fake Yamcs HTTP server (time correlation).
+    let http = TcpListener::bind("127.0.0.1:0").unwrap();
+    let tco_url = format!(
+        "http://{}/api/tco/m2/tco0/coefficients",
+        http.local_addr().unwrap()
+    );
+    let http_thread = std::thread::spawn(move || {
+        let (mut s, _) = http.accept().unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+        let mut req = Vec::new();
+        let mut buf = [0u8; 1024];
+        while !String::from_utf8_lossy(&req).contains("\"offset\"") {
+            let n = s.read(&mut buf).unwrap();
+            if n == 0 {
+                break;
+            }
+            req.extend_from_slice(&buf[..n]);
+        }
+        s.write_all(b"HTTP/1.1 200 OK\r\nContent-Length: 2\r\n\r\n{}")
+            .unwrap();
+        String::from_utf8(req).unwrap()
+    });
+
+    let yamcs_side = TcpListener::bind("127.0.0.1:0").unwrap();
+    let link_addr = yamcs_side.local_addr().unwrap();
+    let (rx, tx) = Uart::Unix(sock.clone())
+        .open(Duration::from_secs(5))
+        .unwrap();
+    let (mut qemu, _) = controller.accept().unwrap();
+    let stats = Arc::new(Stats::default());
+    let stop = Arc::new(AtomicBool::new(false));
+    let options = Options {
+        tco_url: Some(tco_url),
+        backlog: 100,
+        stats_every: None,
+    };
+    let gw = {
+        let (stats, stop) = (stats.clone(), stop.clone());
+        std::thread::spawn(move || run(yamcs_side, rx, tx, &options, stats, stop))
+    };
+
+    // TM before Yamcs connects is kept; garbage in between is dropped.
+    let (stream, packets) = controller_tm(6);
+    let (a, b) = stream.split_at(stream.len() / 2);
+    qemu.write_all(a).unwrap();
+    qemu.write_all(&[0x42, 0x42, 0x42]).unwrap();
+    qemu.write_all(b).unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    let mut yamcs = TcpStream::connect(link_addr).unwrap();
+    yamcs
+        .set_read_timeout(Some(Duration::from_millis(200)))
+        .unwrap();
+    let want: usize = packets.iter().map(|p| p.len()).sum();
+    let got = read_n(&mut yamcs, want);
+    // The garbage landed inside one frame: that packet is lost, the others arrive whole.
+    let mut arrived = Vec::new();
+    let mut rest = &got[..];
+    while let Some(len) = ccsds_packet_len(rest) {
+        arrived.push(rest[..len].to_vec());
+        rest = &rest[len..];
+    }
+    assert!(rest.is_empty());
+    assert!(arrived.len() >= packets.len() - 1);
+    for p in &arrived {
+        assert!(packets.contains(p));
+        assert!(matches!(
+            parse_tm(p).unwrap().report,
+            TmReport::PingReply | TmReport::Event { .. } | TmReport::Housekeeping(_)
+        ));
+    }
+
+    // Live TM after the connection.
+    let (more, more_packets) = controller_tm(3);
+    qemu.write_all(&more).unwrap();
+    let want: usize = more_packets.iter().map(|p| p.len()).sum();
+    assert_eq!(read_n(&mut yamcs, want), more_packets.concat());
+
+    // TC from Yamcs, raw packets back to back, split arbitrarily.
+    let tcs = tc_packets();
+    let all = tcs.concat();
+    for c in all.chunks(3) {
+        yamcs.write_all(c).unwrap();
+    }
+    qemu.set_read_timeout(Some(Duration::from_millis(200)))
+        .unwrap();
+    let want_frames: Vec<u8> = tcs.iter().flat_map(|p| frame(p)).collect();
+    assert_eq!(read_n(&mut qemu, want_frames.len()), want_frames);
+
+    // The time correlation reached "Yamcs".
+    let req = http_thread.join().unwrap();
+    assert!(
+        req.starts_with("POST /api/tco/m2/tco0/coefficients HTTP/1.1\r\n"),
+        "{req}"
+    );
+    let body = req.split("\r\n\r\n").nth(1).unwrap();
+    let j: serde_json::Value = serde_json::from_str(body).unwrap();
+    assert_eq!(j["obt"], "0");
+
+    // The TC thread counts a packet after its write returns, and the correlation after
+    // Yamcs' answer is read, which on a busy machine can be after the other side has
+    // seen them: wait for the counts, do not assume them.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while (stats.tc_packets.load(Ordering::Relaxed) < tcs.len() as u64
+        || stats.tco_updates.load(Ordering::Relaxed) < 1)
+        && Instant::now() < deadline
+    {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+
+    // The controller's stream ends: the gateway stops.
+    drop(qemu);
+    let r = gw.join().unwrap();
+    assert!(r.is_ok(), "{r:?}");
+    assert!(stop.load(Ordering::Relaxed));
+    let line = stats.line();
+    println!("gateway on sockets: {line}");
+    assert!(
+        line.contains(&format!("TC {} packets (0 refused)", tcs.len())),
+        "{line}"
+    );
+    assert!(line.contains("1 time correlations"), "{line}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,356 @@
+//! `docs/icd.md` against the code. Its tables that restate the code (codes, IDs,
+//! offsets, lengths, units, ranges, severities) are generated from the mission
+//! database (`m2ground::icd`, `m2ground icd-tables`): the checked-in document must
+//! be what the generator writes, so a code or a description that changes without the
+//! document, or a hand edit inside a generated block, fails here with the diff and the
+//! command that regenerates it. The description itself is checked against the flight
+//! code in `ground/tests/mdb.rs`; here also what a run of the controller sends.
+
+#![cfg(feature = "host")]
+
+#[path = "../../host-tests/common/mod.rs"]
+mod common;
+
+use std::collections::BTreeSet;
+use std::process::Command as Process;
+
+use common::{all_ok, calibrated_table, install, wire, JOB_CYCLES};
+use m2ctl::controller::event;
+use m2ctl::link::Command;
+use m2ctl::sim::{Bench, InjectedFault, SwitchEnd};
+use m2ctl::station::Tm;
+use m2ground::icd;
+
+const ICD: &str = "docs/icd.md";
+
+fn icd() -> String {
+    std::fs::read_to_string(concat!(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/.."),
+        "/docs/icd.md"
+    ))
+    .unwrap()
+}
+
+/// docs/icd.md as the generator writes it (the checked-in one unless it drifted).
+fn generated_icd() -> String {
+    icd::regenerate(&icd()).unwrap_or_else(|e| panic!("{ICD}: {e}"))
+}
+
+#[test]
+fn the_icd_tables_are_the_ones_generated_from_the_code() {
+    let drift = icd::drift(&icd()).unwrap_or_else(|e| panic!("{ICD}: {e}"));
+    assert!(drift.is_empty(), "{}", icd::drift_report(ICD, &drift));
+    let names: Vec<&str> = icd::blocks().unwrap().iter().map(|b| b.name).collect();
+    println!(
+        "{} generated blocks up to date: {}",
+        names.len(),
+        names.join(", ")
+    );
+}
+
+/// The document with the first line of block `name` that contains `from` changed to
+/// contain `to`.
+fn edit_in_block(doc: &str, name: &str, from: &str, to: &str) -> String {
+    let begin = icd::begin_marker(name);
+    let start = doc.find(&begin).unwrap() + begin.len();
+    let end = start + doc[start..].find(&icd::end_marker(name)).unwrap();
+    let at = start + doc[start..end].find(from).unwrap();
+    format!("{}{to}{}", &doc[..at], &doc[at + from.len()..])
+}
+
+#[test]
+fn a_hand_edit_of_a_generated_cell_is_drift_and_regenerating_undoes_only_it() {
+    // From the generated document, so that only the test above fails on drift.
+    let doc = generated_icd();
+    // A wrong failure code, a wrong housekeeping offset, and prose added outside any
+    // block (the generator leaves prose alone).
+    let edited = edit_in_block(&doc, "failure-codes", "| 0x0604 |", "| 0x0640 |");
+    let edited = edit_in_block(&edited, "housekeeping", "| 143 | 2 |", "| 144 | 2 |");
+    let prose = "\nA paragraph added after the last block.\n";
+    let edited = format!("{edited}{prose}");
+    assert_ne!(edited, doc);
+    let drift = icd::drift(&edited).unwrap();
+    let names: Vec<&str> = drift.iter().map(|d| d.name).collect();
+    assert_eq!(names, ["housekeeping", "failure-codes"]);
+    let report = icd::drift_report(ICD, &drift);
+    assert!(
+        report.contains("housekeeping, failure-codes")
+            && report.contains("icd-tables --write docs/icd.md"),
+        "{report}"
+    );
+    assert!(
+        report.contains("- | 0x0640 |") && report.contains("+ | 0x0604 |"),
+        "{report}"
+    );
+    assert!(
+        report.contains("- | 144 | 2 |") && report.contains("+ | 143 | 2 |"),
+        "{report}"
+    );
+    let fixed = icd::regenerate(&edited).unwrap();
+    assert_eq!(
+        fixed,
+        format!("{doc}{prose}"),
+        "the blocks restored, the prose kept"
+    );
+    assert_eq!(
+        icd::regenerate(&fixed).unwrap(),
+        fixed,
+        "regenerating is idempotent"
+    );
+}
+
+#[test]
+fn a_missing_or_unknown_block_is_refused() {
+    let doc = generated_icd();
+    let gone = doc.replace(&icd::begin_marker("events"), "");
+    let e = icd::drift(&gone).unwrap_err();
+    assert!(e.contains("events"), "{e}");
+    let unknown = doc.replacen(
+        &icd::begin_marker("events"),
+        &format!(
+            "{}\n{}\n{}",
+            icd::begin_marker("no-such-table"),
+            icd::end_marker("no-such-table"),
+            icd::begin_marker("events")
+        ),
+        1,
+    );
+    let e = icd::drift(&unknown).unwrap_err();
+    assert!(e.contains("no-such-table"), "{e}");
+}
+
+#[test]
+fn m2ground_icd_tables_checks_and_writes() {
+    let exe = env!("CARGO_BIN_EXE_m2ground");
+    let dir = std::env::temp_dir().join(format!("m2-icd-tables-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("icd.md");
+    let run = |args: &[&str]| {
+        Process::new(exe)
+            .arg("icd-tables")
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let doc = generated_icd();
+    std::fs::write(&path, &doc).unwrap();
+    let p = path.to_str().unwrap();
+    assert!(
+        run(&["--check", p]).status.success(),
+        "the generated text passes"
+    );
+    std::fs::write(
+        &path,
+        edit_in_block(&doc, "events", "| 0x0021 |", "| 0x0022 |"),
+    )
+    .unwrap();
+    let out = run(&["--check", p]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "drift must fail --check");
+    assert!(
+        err.contains("events") && err.contains("+ | 0x0021 |"),
+        "{err}"
+    );
+    assert!(run(&["--write", p]).status.success());
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), doc);
+    assert!(run(&["--check", p]).status.success());
+    let printed = run(&[]);
+    assert!(String::from_utf8_lossy(&printed.stdout).contains(&icd::end_marker("failure-codes")));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn every_event_arrives_with_a_severity_the_description_names() {
+    // A scenario that raises most events: boot, moves, a refusal, a fault and its
+    // clear, a warning, table commit/activation/rejection.
+    let mut r = Bench::new();
+    r.run(2);
+    let mv = r.send(&Command::MoveAbsolute(wire(600.0, 0.0, 0.0, 0.0, 0.0, 0.0)));
+    r.run(1500);
+    r.plant.with(|p| {
+        p.inject(InjectedFault::EncoderJump {
+            leg: 1,
+            jump_mm: 0.3,
+        })
+    });
+    r.settle(5_000);
+    assert!(!r.st.reports(mv).is_empty());
+    r.plant.with(|p| p.clear_faults());
+    r.run(3);
+    assert!(all_ok(&r.command(&Command::ClearFault, 10)));
+    r.send(&Command::MoveAbsolute(wire(
+        9_000.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+    )));
+    let t = calibrated_table(3);
+    assert!(all_ok(&install(&mut r, &t, true)));
+    let mut bad = t;
+    bad.legs[0].a_mm[0] += 5.0;
+    install(&mut r, &bad, false);
+    r.command(&Command::SwitchBank, JOB_CYCLES);
+    // A following warning: missed steps between the warning and the fault threshold.
+    r.plant.with(|p| {
+        p.inject(InjectedFault::MissedSteps {
+            leg: 2,
+            lost_mm: 0.01,
+        })
+    });
+    r.run(20);
+    // A parameter set (persisted, then event 0x0040).
+    r.plant.with(|p| p.clear_faults());
+    r.settle(5_000);
+    r.command(&Command::ClearFault, 10);
+    let set = Command::SetParameters(
+        m2ctl::link::command::ParameterValues::new(&[(0x0003, 25_000_000)]).unwrap(),
+    );
+    assert!(all_ok(&r.command(&set, JOB_CYCLES)));
+    // An end-of-travel switch (stuck active): event 0x0007, then repaired.
+    r.plant.with(|p| {
+        p.inject(InjectedFault::SwitchStuckActive {
+            leg: 3,
+            end: SwitchEnd::Upper,
+        })
+    });
+    r.run(3);
+    r.plant.with(|p| p.clear_faults());
+    r.run(3);
+    // The description's severities (the ICD's event table is generated from them;
+    // ground/tests/mdb.rs checks them against the emitting statements, this against what
+    // the controller sends in a run).
+    let described = m2ground::mdb::events();
+    let mut seen = BTreeSet::new();
+    for tm in &r.st.log {
+        if let Tm::Event(sev, id, _) = tm {
+            let e = described
+                .iter()
+                .find(|e| e.id == *id)
+                .unwrap_or_else(|| panic!("event {id:#06x} not described"));
+            assert!(
+                e.severities
+                    .iter()
+                    .any(|s| s.severity == m2ground::mdb::severity_name(*sev)),
+                "event {id:#06x} came as {sev:?}, the description says {:?}",
+                e.severities
+            );
+            seen.insert(*id);
+        }
+    }
+    for id in [
+        event::STATE_CHANGED,
+        event::FAULT_LATCHED,
+        event::FAULTS_CLEARED,
+        event::WARNING_CHANGED,
+        event::MOVE_REFUSED,
+        event::TABLE_ACTIVATED,
+        event::TABLE_REJECTED,
+        event::TABLE_COMMITTED,
+        event::BOOT,
+        event::BOOT_DETAIL,
+        event::PARAMETERS_CHANGED,
+        event::END_OF_TRAVEL,
+    ] {
+        assert!(seen.contains(&id), "the scenario did not raise {id:#06x}");
+    }
+}
+
+#[test]
+fn activate_of_a_pending_table_reports_each_stage_and_the_boot_follows() {
+    // The ICD's verification table for a table job: start at once, completion later.
+    let mut r = Bench::new();
+    r.run(1);
+    let t = calibrated_table(4);
+    let reps = install(&mut r, &t, false);
+    assert!(all_ok(&reps));
+    let rid = r.send(&Command::ActivateTable {
+        table_id: 4,
+        crc32: t.crc32(),
+    });
+    let reps = r.st.reports(rid);
+    assert_eq!(
+        reps,
+        [
+            m2ctl::link::tm::Verification::AcceptanceSuccess,
+            m2ctl::link::tm::Verification::StartSuccess
+        ],
+        "completion only when the selection is written"
+    );
+    r.run(JOB_CYCLES);
+    assert!(all_ok(&r.st.reports(rid)));
+}
+
+/// Section 1's telemetry-queue figures are the code's constants (prose, not a generated
+/// table: each number is found in its sentence).
+#[test]
+fn the_telemetry_queue_figures_in_section_1_are_the_codes() {
+    use m2ctl::controller::comms::MAX_TC_PER_PASS;
+    use m2ctl::controller::telemetry::{
+        ADMISSION_FREE_SLOTS, MAX_BULK_PER_TC, MAX_DEFERRED_REPLIES, MAX_REPLIES_PER_TC,
+        REPLY_RESERVE, TM_QUEUE_LEN, TM_RESERVED_SLOTS,
+    };
+    let text = std::fs::read_to_string(concat!(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/.."),
+        "/docs/icd.md"
+    ))
+    .unwrap()
+    .replace('\n', " ")
+    .split_whitespace()
+    .collect::<Vec<_>>()
+    .join(" ");
+    for phrase in [
+        format!("At most **{MAX_TC_PER_PASS} telecommands are executed per control cycle**"),
+        format!("has **{ADMISSION_FREE_SLOTS} free places**"),
+        format!("queues up to {TM_QUEUE_LEN} telemetry records"),
+        format!("one telecommand queues at most {MAX_REPLIES_PER_TC} replies at once"),
+        format!("still owes at most {MAX_DEFERRED_REPLIES} (a move's start and completion)"),
+        format!("events never take the last {REPLY_RESERVE} places"),
+        format!("telecommands are taken only with {ADMISSION_FREE_SLOTS} free"),
+        format!("queued while more than {REPLY_RESERVE} places are free"),
+        format!("queued while more than {TM_RESERVED_SLOTS} places are free"),
+        format!("taken with {ADMISSION_FREE_SLOTS} free places gets all {MAX_BULK_PER_TC} chunks"),
+    ] {
+        assert!(
+            text.contains(&phrase),
+            "docs/icd.md section 1 lacks: {phrase}"
+        );
+    }
+}
+
+/// Every housekeeping offset the ICD names is where the code puts it: written
+/// "`name`, offset N" (prose and generated texts alike), field `name` is at N. (Section
+/// 10 named "HK offset 157", pivot y, for the failed-activity count at 221.)
+#[test]
+fn housekeeping_offsets_in_the_prose_are_the_codes() {
+    use m2ground::mdb::housekeeping_rows;
+    let fields: Vec<(String, usize)> = housekeeping_rows()
+        .into_iter()
+        .flat_map(|r| r.fields.into_iter().map(|(f, _)| f))
+        .map(|f| (f.name, f.offset))
+        .collect();
+    let text = std::fs::read_to_string(concat!(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/.."),
+        "/docs/icd.md"
+    ))
+    .unwrap()
+    .split_whitespace()
+    .collect::<Vec<_>>()
+    .join(" ");
+    let number = |s: &str| -> Option<usize> {
+        let d: String = s.chars().take_while(|c| c.is_ascii_digit()).collect();
+        d.parse().ok()
+    };
+    let mut checked = 0;
+    // "`name`, offset N"
+    for (at, _) in text.match_indices("`, offset ") {
+        let name_start = text[..at].rfind('`').unwrap() + 1;
+        let name = &text[name_start..at];
+        let n = number(&text[at + "`, offset ".len()..]).unwrap();
+        let f = fields.iter().find(|f| f.0 == name);
+        assert_eq!(f.map(|f| f.1), Some(n), "docs/icd.md: `{name}`, offset {n}");
+        checked += 1;
+    }
+    // A bare "HK offset" cannot be checked against a name: the prose names its field.
+    assert!(
+        !text.contains("HK offset"),
+        "docs/icd.md: write housekeeping offsets as \"`name`, offset N\""
+    );
+    assert!(checked >= 14, "{checked} offsets checked");
+}

@@ -1,0 +1,756 @@
+//! The mission database (`m2ground::mdb`) against the flight code: a telecommand,
+//! housekeeping field, event, failure code or flag bit that the code has and the
+//! description lacks (or describes differently) fails here. The XTCE generated from the
+//! description is checked against the XTCE schema and against Yamcs in
+//! `scripts/yamcs-e2e.sh`.
+
+#![cfg(feature = "host")]
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
+
+use m2ctl::kinematics::Refusals;
+use m2ctl::link::command::WirePose;
+use m2ctl::link::hk::{ScheduleHk, HK_REPORT_LEN};
+use m2ctl::link::tc::TcHeader;
+use m2ctl::link::tm::{parse_tm, EventSeverity, TmTime, TmWriter, Verification};
+use m2ctl::link::{
+    AckFlags, Command, Deframer, Housekeeping, LinkError, MemoryId, RequestId, M2_APID,
+};
+use m2ctl::table::{Table, TABLE_LEN};
+use m2ground::mdb::{self, mdb, telecommand_name, ArgValue, Field, Meaning, Telecommand, Wire};
+
+fn src(path: &str) -> String {
+    let p = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/..")).join(path);
+    std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+/// Raw argument samples for one field: both range ends, zero/one inside, a middle value.
+fn samples(f: &Field) -> Vec<ArgValue> {
+    match f.wire {
+        Wire::Bytes { min_len, max_len } => [min_len, (min_len + max_len) / 2, max_len]
+            .iter()
+            .map(|&n| ArgValue::Bytes((0..n).map(|i| (i * 37 + 11) as u8).collect()))
+            .collect(),
+        // An embedded telecommand (TC[11,4]): real packets of this controller, the
+        // shortest (ping), a move and one with other header fields.
+        Wire::Packet { .. } => [
+            (Command::Ping, TcHeader::new(3)),
+            (
+                Command::MoveAbsolute(WirePose::from_array([1_500, 0, -20, 0, 0, 7])),
+                TcHeader::new(0x3fff),
+            ),
+            (
+                Command::Stop,
+                TcHeader {
+                    seq_count: 9,
+                    source_id: 0xbeef,
+                    ack: AckFlags::NONE,
+                },
+            ),
+        ]
+        .iter()
+        .map(|(c, h)| {
+            let mut buf = [0u8; 256];
+            let n = m2ctl::link::encode_telecommand(c, *h, &mut buf).unwrap();
+            ArgValue::Bytes(buf[..n].to_vec())
+        })
+        .collect(),
+        // An enumeration's samples are its values (it may have gaps).
+        _ if matches!(f.meaning, Meaning::Enum { .. }) => {
+            let Meaning::Enum { enumeration } = f.meaning else {
+                unreachable!()
+            };
+            let e = mdb()
+                .enums
+                .into_iter()
+                .find(|e| e.name == enumeration)
+                .unwrap();
+            e.values.iter().map(|v| ArgValue::Int(v.0)).collect()
+        }
+        w => {
+            let (lo, hi) = match f.meaning {
+                Meaning::Number {
+                    range: Some((lo, hi)),
+                    ..
+                } => (f.to_raw(lo).unwrap(), f.to_raw(hi).unwrap()),
+                _ => w.raw_range().unwrap(),
+            };
+            let mut v = vec![lo, hi, lo + (hi - lo) / 3];
+            if lo <= 1 && hi >= 1 {
+                v.push(1);
+            }
+            v.into_iter().map(ArgValue::Int).collect()
+        }
+    }
+}
+
+/// Argument vectors covering every sample of every argument (others at their first
+/// sample), for a table-chunk TC with offsets that keep the chunk inside the table.
+fn arg_sets(tc: &Telecommand) -> Vec<Vec<ArgValue>> {
+    let args: Vec<&Field> = tc.arguments().collect();
+    let per: Vec<Vec<ArgValue>> = args.iter().map(|f| samples(f)).collect();
+    let mut sets = vec![per.iter().map(|s| s[0].clone()).collect::<Vec<_>>()];
+    for (i, s) in per.iter().enumerate() {
+        for v in s {
+            let mut set: Vec<ArgValue> = per.iter().map(|s| s[0].clone()).collect();
+            set[i] = v.clone();
+            sets.push(set);
+        }
+    }
+    if tc.name == "LOAD_TABLE_CHUNK" {
+        // Offset + length must stay inside the table: pair them.
+        sets = vec![
+            vec![ArgValue::Int(0), ArgValue::Bytes(vec![7; 128])],
+            vec![ArgValue::Int(384), ArgValue::Bytes(vec![0x5a; 128])],
+            vec![ArgValue::Int(512), ArgValue::Bytes(vec![1, 2, 3, 4])],
+            vec![ArgValue::Int(515), ArgValue::Bytes(vec![0xff])],
+        ];
+    }
+    sets
+}
+
+#[test]
+fn every_telecommand_the_parser_knows_is_described_and_no_other() {
+    let m = mdb();
+    let described: BTreeSet<(u8, u8)> = m
+        .telecommands
+        .iter()
+        .map(|t| (t.service, t.subtype))
+        .collect();
+    let mut known = BTreeSet::new();
+    for svc in 0..=255u8 {
+        for sub in 0..=255u8 {
+            match Command::parse(svc, sub, &[]) {
+                Err(LinkError::UnknownService { .. }) | Err(LinkError::UnknownSubtype { .. }) => {}
+                _ => {
+                    known.insert((svc, sub));
+                }
+            }
+        }
+    }
+    assert_eq!(known, described, "PUS (service, subtype) pairs");
+
+    let (fsvc, fsub) = Command::Stop.message_type();
+    let described_fns: BTreeSet<u16> = m
+        .telecommands
+        .iter()
+        .filter_map(|t| t.function_id)
+        .collect();
+    let mut known_fns = BTreeSet::new();
+    for id in 0..=u16::MAX {
+        let mut ad = id.to_be_bytes().to_vec();
+        ad.extend([0u8; 32]);
+        if !matches!(
+            Command::parse(fsvc, fsub, &ad),
+            Err(LinkError::UnknownFunction { .. })
+        ) {
+            known_fns.insert(id);
+        }
+    }
+    assert_eq!(known_fns, described_fns, "TC[8,1] function IDs");
+    println!(
+        "{} telecommands described: {} PUS types, {} functions",
+        m.telecommands.len(),
+        known.len(),
+        known_fns.len()
+    );
+}
+
+#[test]
+fn every_described_telecommand_encodes_as_the_link_does() {
+    let m = mdb();
+    let headers = [
+        TcHeader::new(0),
+        TcHeader {
+            seq_count: 0x3fff,
+            source_id: 0xbeef,
+            ack: AckFlags(0b1001),
+        },
+        TcHeader {
+            seq_count: 77,
+            source_id: 1,
+            ack: AckFlags::NONE,
+        },
+    ];
+    let mut checked = 0;
+    for tc in &m.telecommands {
+        let names: BTreeSet<&str> = tc.fields.iter().map(|f| f.name.as_str()).collect();
+        assert_eq!(
+            names.len(),
+            tc.fields.len(),
+            "{}: duplicate field names",
+            tc.name
+        );
+        for args in arg_sets(tc) {
+            let cmd = (tc.build)(&args).unwrap_or_else(|e| panic!("{}: {e}", tc.name));
+            assert_eq!(telecommand_name(&cmd), tc.name);
+            assert_eq!(cmd.message_type(), (tc.service, tc.subtype), "{}", tc.name);
+            assert_eq!(cmd.function_id().map(|f| f.code()), tc.function_id);
+            let app = tc.encode_app_data(&args).unwrap();
+            let mut link_app = [0u8; 256];
+            let n = cmd.emit_app_data(&mut link_app).unwrap();
+            assert_eq!(app, link_app[..n], "{} {args:?}", tc.name);
+            assert_eq!(
+                Command::parse(tc.service, tc.subtype, &app),
+                Ok(cmd),
+                "{}: the flight parser reads the description's bytes back",
+                tc.name
+            );
+            for h in headers {
+                assert_eq!(
+                    tc.encode_packet(&args, h).unwrap(),
+                    tc.encode_by_link(&args, h).unwrap(),
+                    "{} {args:?} {h:?}",
+                    tc.name
+                );
+                checked += 1;
+            }
+        }
+    }
+    println!("{checked} telecommand packets encoded by the description == by the link");
+}
+
+#[test]
+fn out_of_range_arguments_are_refused_by_the_description() {
+    let m = mdb();
+    let stroke = m.telecommand("DIRECT_STROKE").unwrap();
+    let leg = stroke.arguments().next().unwrap();
+    assert!(leg.to_raw(0.0).is_err() && leg.to_raw(7.0).is_err());
+    assert_eq!(leg.to_raw(6.0), Ok(6));
+    let mv = m.telecommand("MOVE_ABSOLUTE").unwrap();
+    let x = mv.arguments().next().unwrap();
+    assert_eq!(x.to_raw(12.5), Ok(12_500), "um -> nm");
+    assert!(x.to_raw(2_147_484.0).is_err(), "beyond the i32 nm range");
+    let rx = mv.arguments().nth(3).unwrap();
+    assert_eq!(rx.to_raw(-3.25), Ok(-3_250_000), "arcsec -> micro-arcsec");
+    // The flight parser refuses what the description refuses.
+    let bad_leg = stroke
+        .encode_app_data(&[ArgValue::Int(7), ArgValue::Int(0)])
+        .unwrap();
+    assert_eq!(
+        Command::parse(stroke.service, stroke.subtype, &bad_leg),
+        Err(LinkError::InvalidArgument { index: 0 })
+    );
+}
+
+/// Every member distinct, none zero: a field read at the wrong offset shows.
+fn distinct_housekeeping() -> Housekeeping {
+    // No `..Default::default()`: a new member does not compile until it is set here.
+    Housekeeping {
+        state: 3,
+        boot_source: 2,
+        active_bank: 1,
+        fk_iterations: 9,
+        fk_valid: true,
+        cycle_counter: 0x0102_0304,
+        fault_flags: 0x0000_0081,
+        warning_flags: 0x0001_0000,
+        refusal_bits: 0x0102_0408,
+        active_table_id: 0x1122_3344,
+        active_table_crc32: 0xdead_beef,
+        pose_fk: WirePose::from_array([-1_500, 2_500, -3_500, 4_000_000, -5_000_000, 6_000_000]),
+        pose_commanded: WirePose::from_array([11, -22, 33, -44, 55, -66]),
+        strokes_commanded_nm: [-101, 202, -303, 404, -505, 606],
+        encoders_nm: [1_100, -2_200, 3_300, -4_400, 5_500, -6_600],
+        tc_accepted: 0xabcd,
+        tc_rejected: 0x1234,
+        last_failure_code: 0x0604,
+        moving_legs: 0b10_1101,
+        fault_legs: 0b01_0010,
+        pending_bank: 2,
+        pending_table_id: 0x5566_7788,
+        job: 3,
+        selected_source: 1,
+        tm_dropped: 0x0a0b,
+        tc_frames_dropped: 0x0c0d,
+        uart_overruns: 0x0e0f,
+        cycle_overruns: 0x1011,
+        reset_cause: 4,
+        boot_count: 0x1213,
+        bank_health: 2,
+        pivot_nm: [-7_070_707, 8_080_808, -9_090_909],
+        pose_fk_operator: WirePose::from_array([71, -72, 73, -74_000, 75_000, -76_000]),
+        pose_commanded_operator: WirePose::from_array([-81, 82, -83, 84_000, -85_000, 86_000]),
+        parameters_set: 0x0004_0021,
+        schedule: ScheduleHk {
+            activities: 14,
+            release_enabled: true,
+            released: 0x1415,
+            failed: 0x1617,
+            next_release: TmTime {
+                seconds: 0x1819_1a1b,
+                fraction: 0x1c1d,
+            },
+            time_report_rate: 5,
+        },
+        limit_lower_legs: 0b00_0101,
+        limit_upper_legs: 0b10_1000,
+        reference_legs: 0b01_0001,
+        switch_unreadable_legs: 0b00_0110,
+    }
+}
+
+#[test]
+fn housekeeping_fields_are_read_back_by_the_description() {
+    let hk = distinct_housekeeping();
+    let mut bytes = [0u8; HK_REPORT_LEN];
+    hk.emit(&mut bytes);
+    let fields = mdb::housekeeping_fields();
+    let mut covered = vec![0u8; HK_REPORT_LEN];
+    for (f, get) in &fields {
+        let n = f
+            .wire
+            .fixed_len()
+            .expect("housekeeping fields are fixed-size");
+        for c in covered.iter_mut().skip(f.offset).take(n) {
+            *c += 1;
+        }
+        let raw = f.read_raw(&bytes).unwrap_or_else(|| panic!("{}", f.name));
+        match (get, &f.meaning) {
+            (Some(get), _) => assert_eq!(raw, get(&hk), "{} at offset {}", f.name, f.offset),
+            (None, Meaning::Fixed { value }) => assert_eq!(raw, *value, "{}", f.name),
+            (None, m) => panic!("{}: no accessor and not a constant ({m:?})", f.name),
+        }
+    }
+    assert!(
+        covered.iter().all(|&c| c == 1),
+        "fields must tile the {HK_REPORT_LEN} bytes exactly once: {covered:?}"
+    );
+    assert_eq!(
+        Housekeeping::parse(&bytes),
+        Some(hk),
+        "the link reads its own report back"
+    );
+    // Units and calibrations of the poses: the FK pose x is -1.5 um, rx is 4 arcsec.
+    let by_name: BTreeMap<&str, &Field> =
+        fields.iter().map(|(f, _)| (f.name.as_str(), f)).collect();
+    let x = by_name["pose_fk_x"];
+    assert_eq!(x.to_eng(x.read_raw(&bytes).unwrap()), -1.5);
+    let rx = by_name["pose_fk_rx"];
+    assert_eq!(rx.to_eng(rx.read_raw(&bytes).unwrap()), 4.0);
+    assert!(matches!(
+        x.meaning,
+        Meaning::Number {
+            unit: Some("um"),
+            ..
+        }
+    ));
+    assert!(matches!(
+        rx.meaning,
+        Meaning::Number {
+            unit: Some("arcsec"),
+            ..
+        }
+    ));
+    println!(
+        "{} housekeeping fields tile {HK_REPORT_LEN} bytes",
+        fields.len()
+    );
+}
+
+/// Source data of a TM packet the link's writer emits.
+fn emitted(f: impl FnOnce(&mut TmWriter, &mut [u8]) -> usize) -> (Vec<u8>, u8, u8) {
+    let mut w = TmWriter::new();
+    let mut frame = [0u8; 300];
+    let n = f(&mut w, &mut frame);
+    let mut d: Deframer<300> = Deframer::new();
+    let pkt = frame[..n]
+        .iter()
+        .find_map(|b| d.push_byte(*b).map(|r| r.unwrap().to_vec()))
+        .unwrap();
+    let tm = parse_tm(&pkt).unwrap();
+    assert_eq!(tm.apid, M2_APID);
+    (
+        pkt[mdb::TM_SOURCE_DATA_OFFSET..pkt.len() - 2].to_vec(),
+        tm.service,
+        tm.subtype,
+    )
+}
+
+fn field_values(p: &m2ground::mdb::TmPacket, data: &[u8]) -> BTreeMap<String, i64> {
+    p.fields
+        .iter()
+        .filter_map(|f| f.read_raw(data).map(|v| (f.name.clone(), v)))
+        .collect()
+}
+
+#[test]
+fn other_tm_packets_are_read_back_by_the_description() {
+    let m = mdb();
+    let rid = RequestId {
+        packet_id: 0x18b2,
+        sequence_control: 0xc000 | 1234,
+    };
+    let t = TmTime::from_millis(1500);
+    for (report, name) in [
+        (Verification::AcceptanceSuccess, "verification_success"),
+        (Verification::CompletionSuccess, "verification_success"),
+        (
+            Verification::StartFailure {
+                code: 0x0604,
+                data: 0x0000_0100,
+            },
+            "verification_failure",
+        ),
+        (
+            Verification::CompletionFailure {
+                code: 0x0708,
+                data: 7,
+            },
+            "verification_failure",
+        ),
+    ] {
+        let (data, svc, sub) = emitted(|w, out| w.emit_verification(t, rid, report, out).unwrap());
+        let p = m.tm_packet(name).unwrap();
+        assert_eq!((p.service, p.fixed_len), (svc, Some(data.len())));
+        assert!(p.subtypes.contains(&sub), "{name}: subtype {sub}");
+        let v = field_values(p, &data);
+        assert_eq!(v["tc_packet_id"], i64::from(rid.packet_id));
+        assert_eq!(v["tc_sequence_control"], i64::from(rid.sequence_control));
+        if let Some((code, datum)) = report.failure() {
+            assert_eq!(
+                (v["failure_code"], v["failure_data"]),
+                (i64::from(code), i64::from(datum))
+            );
+        }
+    }
+    for sev in [
+        EventSeverity::Info,
+        EventSeverity::Low,
+        EventSeverity::Medium,
+        EventSeverity::High,
+    ] {
+        let (data, svc, sub) = emitted(|w, out| {
+            w.emit_event(t, sev, 0x0011, [0x0706, 0xfeed_f00d], out)
+                .unwrap()
+        });
+        let p = m.tm_packet("event").unwrap();
+        assert_eq!((p.service, p.fixed_len), (svc, Some(data.len())));
+        assert!(p.subtypes.contains(&sub));
+        let v = field_values(p, &data);
+        assert_eq!(
+            (v["event_id"], v["event_aux0"], v["event_aux1"]),
+            (0x0011, 0x0706, 0xfeed_f00d)
+        );
+    }
+    let chunk: Vec<u8> = (0..77u8).collect();
+    let (data, svc, sub) = emitted(|w, out| {
+        w.emit_table_dump_chunk(t, MemoryId::ActiveTable, 256, &chunk, out)
+            .unwrap()
+    });
+    let p = m.tm_packet("table_dump").unwrap();
+    assert_eq!((p.service, p.subtypes.as_slice()), (svc, [sub].as_slice()));
+    let v = field_values(p, &data);
+    assert_eq!((v["dump_memory_id"], v["dump_offset"]), (2, 256));
+    let bytes_field = p
+        .fields
+        .iter()
+        .find(|f| matches!(f.wire, Wire::Bytes { .. }))
+        .unwrap();
+    let len = u16::from_be_bytes([data[bytes_field.offset], data[bytes_field.offset + 1]]);
+    assert_eq!(&data[bytes_field.offset + 2..], &chunk[..]);
+    assert_eq!(usize::from(len), chunk.len());
+    let (data, svc, sub) = emitted(|w, out| w.emit_ping_reply(t, out).unwrap());
+    let p = m.tm_packet("ping_reply").unwrap();
+    assert_eq!(
+        (p.service, p.subtypes.as_slice(), data.len()),
+        (svc, [sub].as_slice(), 0)
+    );
+    let (data, _, _) = emitted(|w, out| {
+        w.emit_housekeeping(t, &distinct_housekeeping(), out)
+            .unwrap()
+    });
+    assert_eq!(
+        m.tm_packet("housekeeping").unwrap().fixed_len,
+        Some(data.len())
+    );
+}
+
+/// `NAME: u16 = 0x....;` constants inside `pub mod <module> { ... }` of a source file.
+fn consts_in_module(text: &str, module: &str) -> BTreeMap<String, u16> {
+    let start = text.find(&format!("pub mod {module}")).expect("module");
+    let body = &text[start..];
+    let end = body.find("\n}").expect("module end");
+    body[..end]
+        .lines()
+        .filter_map(|l| {
+            let l = l.trim();
+            let rest = l.strip_prefix("pub const ")?;
+            let (name, value) = rest.split_once(": u16 = ")?;
+            let value = value.trim_end_matches(';');
+            let v = u16::from_str_radix(value.trim_start_matches("0x"), 16).ok()?;
+            Some((name.to_string(), v))
+        })
+        .collect()
+}
+
+#[test]
+fn every_event_is_described_with_its_id_and_severities() {
+    let code_events = consts_in_module(&src("src/link/tm.rs"), "event_id");
+    assert!(code_events.len() >= 10, "{code_events:?}");
+    let described: BTreeMap<String, u16> = mdb::events()
+        .iter()
+        .map(|e| (e.name.to_string(), e.id))
+        .collect();
+    assert_eq!(code_events, described, "event IDs");
+
+    // Severities at every place the controller sends the event: the EventSeverity
+    // variants named in the statement that emits it.
+    let ctl: String = [
+        "mod",
+        "commands",
+        "motion",
+        "jobs",
+        "verification",
+        "telemetry",
+        "schedule",
+        "time",
+    ]
+    .iter()
+    .map(|f| src(&format!("src/controller/{f}.rs")))
+    .collect();
+    let mut seen: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    let mut prev_end = 0;
+    for (at, _) in ctl.match_indices("event::") {
+        let name: String = ctl[at + 7..]
+            .chars()
+            .take_while(|c| c.is_ascii_uppercase() || *c == '_')
+            .collect();
+        if !described.contains_key(&name) {
+            continue;
+        }
+        // From the previous event's name (or 400 bytes back) to this one.
+        let window = &ctl[prev_end.max(at.saturating_sub(400))..at];
+        prev_end = at;
+        for (sev, label) in [
+            (EventSeverity::Info, "Info"),
+            (EventSeverity::Low, "Low"),
+            (EventSeverity::Medium, "Medium"),
+            (EventSeverity::High, "High"),
+        ] {
+            if window.contains(&format!("EventSeverity::{label}")) {
+                seen.entry(name.clone())
+                    .or_default()
+                    .insert(mdb::severity_name(sev).to_string());
+            }
+        }
+    }
+    for e in mdb::events() {
+        let want: BTreeSet<String> = e
+            .severities
+            .iter()
+            .map(|s| s.severity.to_string())
+            .collect();
+        assert_eq!(seen.get(e.name), Some(&want), "severities of {}", e.name);
+    }
+}
+
+#[test]
+fn every_failure_code_in_the_code_is_enumerated() {
+    let m = mdb();
+    let codes = &m
+        .enums
+        .iter()
+        .find(|e| e.name == "failure_code")
+        .unwrap()
+        .values;
+    let by_code: BTreeMap<i64, &str> = codes.iter().map(|(v, l, _)| (*v, l.as_str())).collect();
+    assert_eq!(by_code.len(), codes.len(), "failure codes unique");
+    let labels: BTreeSet<&str> = codes.iter().map(|(_, l, _)| l.as_str()).collect();
+    assert_eq!(labels.len(), codes.len(), "labels unique");
+    // Every `=> 0x0NNN` arm of a `code()` in the flight sources.
+    let mut found = BTreeSet::new();
+    for file in [
+        "src/link/error.rs",
+        "src/kinematics/geometry.rs",
+        "src/kinematics/ik.rs",
+        "src/kinematics/fk.rs",
+        "src/table/layout.rs",
+        "src/table/validate.rs",
+        "src/table/store/mod.rs",
+        "src/motion/trajectory.rs",
+        "src/motion/stroke.rs",
+        "src/controller/error.rs",
+        "src/controller/params.rs",
+        "src/controller/schedule.rs",
+    ] {
+        for line in src(file).lines() {
+            if let Some((_, rest)) = line.split_once("=> 0x0") {
+                let hex: String = rest.chars().take_while(|c| c.is_ascii_hexdigit()).collect();
+                if hex.len() == 3 {
+                    found.insert(i64::from_str_radix(&hex, 16).unwrap());
+                }
+            }
+        }
+    }
+    let missing: Vec<String> = found
+        .iter()
+        .filter(|c| !by_code.contains_key(c))
+        .map(|c| format!("{c:#06x}"))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "codes in the sources but not enumerated: {missing:?}"
+    );
+    assert!(found.len() >= 60, "{} codes found", found.len());
+    println!(
+        "{} failure codes enumerated, {} found in the sources",
+        codes.len(),
+        found.len()
+    );
+}
+
+#[test]
+fn every_fault_flag_and_refusal_bit_is_named() {
+    // Flags: every `pub const NAME: Self = Self(1 << n);` of supervision/flags.rs.
+    let mut code_flags = BTreeMap::new();
+    for line in src("src/supervision/flags.rs").lines() {
+        let l = line.trim();
+        if let Some(rest) = l.strip_prefix("pub const ") {
+            if let Some((name, v)) = rest
+                .split_once(": Self = Self(1 << ")
+                .filter(|(n, _)| !n.starts_with("ALL_"))
+            {
+                let bit: u32 = v.trim_end_matches(");").parse().unwrap();
+                code_flags.insert(name.to_string(), bit);
+            }
+        }
+    }
+    let described: BTreeMap<String, u32> = mdb::fault_flag_bits()
+        .into_iter()
+        .map(|(b, n, _)| (n, b))
+        .collect();
+    assert_eq!(code_flags, described, "fault/warning flags");
+
+    let bits = mdb::refusal_bits();
+    let positions: BTreeSet<u32> = bits.iter().map(|b| b.0).collect();
+    assert_eq!(positions.len(), bits.len(), "refusal bits distinct");
+    let all = Refusals {
+        non_finite: true,
+        axes_outside: 0x3f,
+        legs_unreachable: 0x3f,
+        legs_below_min: 0x3f,
+        legs_above_max: 0x3f,
+    }
+    .to_bits();
+    let union = positions.iter().fold(0u32, |a, b| a | (1 << b));
+    assert_eq!(
+        union, all,
+        "the named refusal bits are exactly the word's bits"
+    );
+}
+
+#[test]
+fn the_json_export_holds_the_whole_description() {
+    let m = mdb();
+    let v: serde_json::Value = serde_json::from_str(&m.to_json()).unwrap();
+    assert_eq!(v["link"]["apid"], M2_APID);
+    assert_eq!(
+        v["telecommands"].as_array().unwrap().len(),
+        m.telecommands.len()
+    );
+    assert_eq!(v["telemetry"].as_array().unwrap().len(), m.telemetry.len());
+    // Every enum/bit-field reference resolves.
+    let enums: BTreeSet<&str> = m.enums.iter().map(|e| e.name).collect();
+    let bitf: BTreeSet<&str> = m.bit_fields.iter().map(|b| b.name).collect();
+    let fields = m
+        .telecommands
+        .iter()
+        .flat_map(|t| t.fields.iter())
+        .chain(m.telemetry.iter().flat_map(|t| t.fields.iter()));
+    for f in fields {
+        match &f.meaning {
+            Meaning::Enum { enumeration } => assert!(enums.contains(enumeration), "{}", f.name),
+            Meaning::Bits { bit_field } => assert!(bitf.contains(bit_field), "{}", f.name),
+            _ => {}
+        }
+    }
+    // Parameter names are unique across TM packets (one Yamcs namespace).
+    let mut names = BTreeSet::new();
+    for p in &m.telemetry {
+        for f in &p.fields {
+            if p.name == "verification_failure" && f.name.starts_with("tc_") {
+                continue; // the request ID is shared by both verification layouts
+            }
+            assert!(
+                names.insert(f.name.clone()) || p.name == "verification_success",
+                "{}",
+                f.name
+            );
+        }
+    }
+}
+
+#[test]
+fn every_parameter_is_described_with_its_unit_range_and_default() {
+    use m2ctl::controller::params::PARAMETERS;
+    let m = mdb();
+    let ids = &m
+        .enums
+        .iter()
+        .find(|e| e.name == "parameter_id")
+        .unwrap()
+        .values;
+    assert_eq!(ids.len(), PARAMETERS.len());
+    for (d, (id, label, meaning)) in PARAMETERS.iter().zip(ids) {
+        let text = mdb::parameter_description(d.name)
+            .unwrap_or_else(|| panic!("parameter {} ({:#06x}) has no description", d.name, d.id));
+        assert_eq!(
+            (*id, label.as_str()),
+            (i64::from(d.id), d.name.to_ascii_uppercase().as_str())
+        );
+        assert!(
+            meaning.starts_with(&text) && meaning.contains(d.unit),
+            "{meaning}"
+        );
+    }
+}
+
+/// A table whose every field differs from the nominal one's and from its neighbours'.
+fn distinct_table() -> Table {
+    let mut t = Table::nominal();
+    t.table_id = 0xA1A2_A3A4;
+    t.provenance.calibration_id = 0xB1B2_B3B4;
+    t.provenance.tag = *b"ICD-LAYOUT-CHECK";
+    for (i, leg) in t.legs.iter_mut().enumerate() {
+        leg.a_mm[0] += 0.001 * (i + 1) as f64;
+        leg.b_mm[2] -= 0.002 * (i + 1) as f64;
+    }
+    t.p0_mm = [1.25, -2.5, 3.75];
+    t.stroke_limits.min_mm[2] = -4.5;
+    t.stroke_limits.max_mm[4] = 4.25;
+    t.workspace.translation_mm[1] = 1.5;
+    t.workspace.rotation_rad[2] = 1e-3;
+    t.supervision.following_error_warning_mm = 0.125;
+    t.supervision.following_error_fault_mm = 0.25;
+    t.supervision.encoder_jump_mm_per_cycle = 0.0625;
+    t.supervision.stuck_min_progress_mm = 0.003;
+    t.supervision.stuck_detection_cycles = 0x1234;
+    t.supervision.warning_debounce_cycles = 7;
+    t.supervision.fault_debounce_cycles = 9;
+    t
+}
+
+#[test]
+fn table_image_rows_are_where_the_encoder_puts_them() {
+    let rows = mdb::table_image();
+    for t in [Table::nominal(), distinct_table()] {
+        let bytes = t.to_bytes();
+        let mut at = 0;
+        for r in &rows {
+            assert_eq!(r.offset, at, "{}", r.field);
+            assert_eq!(
+                &bytes[r.offset..r.offset + r.size],
+                (r.bytes_of)(&t).as_slice(),
+                "{} at {}+{}",
+                r.field,
+                r.offset,
+                r.size
+            );
+            at += r.size;
+        }
+        assert_eq!(at, TABLE_LEN, "the rows tile the image");
+        assert_eq!(Table::decode(&bytes), Ok(t), "the image decodes back");
+    }
+}
