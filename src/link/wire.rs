@@ -112,6 +112,21 @@ impl<'a> Reader<'a> {
         self.pos
     }
 
+    /// Checks, on the host, that the next byte is the first of `f`, a field of a layout
+    /// that starts at `base` in this buffer (read in the order of its named fields):
+    /// `None` if it is not, so a read out of place fails every host test. The flight build
+    /// pays nothing (as [`Writer::at`]).
+    #[inline]
+    pub fn at(&self, base: usize, f: &Field) -> Option<()> {
+        #[cfg(any(test, feature = "host"))]
+        if base.checked_add(f.start)? != self.pos {
+            return None;
+        }
+        #[cfg(not(any(test, feature = "host")))]
+        let _ = (base, f);
+        Some(())
+    }
+
     /// Bytes left.
     pub fn remaining(&self) -> &'a [u8] {
         self.buf.get(self.pos..).unwrap_or(&[])
@@ -530,6 +545,21 @@ mod tests {
         assert_eq!(w.at(1, &B), Some(()));
         assert_eq!(w.at(1, &A), None);
         assert_eq!(w.at(usize::MAX, &B), None);
+    }
+
+    #[test]
+    fn a_layout_read_out_of_place_fails_on_the_host() {
+        const A: Field = field(0, 2);
+        const B: Field = after(&A, 4);
+        let buf = [0u8; 9];
+        let mut r = Reader::new(&buf, Order::Big);
+        r.u8().unwrap();
+        assert_eq!(r.at(1, &A), Some(()));
+        assert_eq!(r.at(1, &B), None);
+        r.u16().unwrap();
+        assert_eq!(r.at(1, &B), Some(()));
+        assert_eq!(r.at(1, &A), None);
+        assert_eq!(r.at(usize::MAX, &B), None);
     }
 
     #[test]

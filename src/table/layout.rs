@@ -7,36 +7,19 @@
 //!
 //! # Layout, format version 1 ([`TABLE_FORMAT_VERSION`]), [`TABLE_LEN`] = 516 bytes
 //!
-//! | offset | size | type       | field                                                        |
-//! |-------:|-----:|------------|--------------------------------------------------------------|
-//! |      0 |    4 | bytes      | magic `"M2TB"` ([`TABLE_MAGIC`])                             |
-//! |      4 |    2 | u16 LE     | format version (1)                                           |
-//! |      6 |    2 | u16 LE     | total length in bytes, CRC included (516)                    |
-//! |      8 |    4 | u32 LE     | table ID ([`Table::table_id`])                               |
-//! |     12 |    4 | u32 LE     | calibration ID ([`Provenance::calibration_id`])              |
-//! |     16 |   16 | ASCII      | provenance tag ([`Provenance::tag`]), NUL/space padded       |
-//! |     32 |  288 | 36 x f64 LE| joint centres, leg 1..6: `a.x a.y a.z` (mm, frame B at zero stroke) then `b.x b.y b.z` (mm, frame M) |
-//! |    320 |   24 | 3 x f64 LE | p0 (mm, frame B)                                             |
-//! |    344 |   48 | 6 x f64 LE | slider stroke lower limits, leg 1..6 (mm)                    |
-//! |    392 |   48 | 6 x f64 LE | slider stroke upper limits, leg 1..6 (mm)                    |
-//! |    440 |   24 | 3 x f64 LE | workspace half-range x, y, z (mm, base axes)                 |
-//! |    464 |   24 | 3 x f64 LE | workspace half-range alpha, beta, gamma (rad)                |
-//! |    488 |    4 | f32 LE     | following-error warning threshold (mm)                       |
-//! |    492 |    4 | f32 LE     | following-error fault threshold (mm)                         |
-//! |    496 |    4 | f32 LE     | encoder jump threshold (mm per control cycle)                |
-//! |    500 |    4 | f32 LE     | stuck detection: least progress counted as motion (mm)       |
-//! |    504 |    2 | u16 LE     | stuck detection window (control cycles)                      |
-//! |    506 |    2 | u16 LE     | warning debounce (consecutive control cycles)                |
-//! |    508 |    2 | u16 LE     | fault debounce (consecutive control cycles)                  |
-//! |    510 |    2 | u16 LE     | reserved, must be 0                                          |
-//! |    512 |    4 | u32 LE     | CRC-32 ([`crc::CRC_32_ISO_HDLC`]) of bytes 0..512            |
+//! Written once, as the named byte ranges of [`field`] (smoltcp's `mod field`),
+//! little-endian: the encoder and the decoder step through them in order (on the host
+//! the position is checked at every field the encoder writes and at every group of
+//! consecutive fields the decoder reads, `Writer::at` / `Reader::at`), and the mission
+//! database's table-image rows and the ICD's generated table (docs/icd.md section 5) take
+//! their offsets and sizes from them.
 //!
 //! A new format version gets a new number; a decoder of version 1 rejects every other.
 
 use crc::CRC_32_ISO_HDLC;
 
 use crate::link::error::sat_u16;
-use crate::link::wire::{Order, Reader, Writer};
+use crate::link::wire::{Field, Order, Reader, Writer};
 
 use crate::kinematics::{GeometryParams, LegParams, StrokeLimits, WorkspaceLimits, LEGS};
 use crate::nominal;
@@ -50,23 +33,75 @@ pub const PROVENANCE_TAG_LEN: usize = 16;
 /// Number of joint coordinates in the table: 6 legs x (a, b) x (x, y, z).
 pub const JOINT_COORDS: usize = LEGS * 6;
 
-/// Bytes of the header: magic, version, length, table ID, calibration ID, tag.
-const HEADER_LEN: usize = 4 + 2 + 2 + 4 + 4 + PROVENANCE_TAG_LEN;
-/// Size of one `f64` field (bytes).
-const F64_LEN: usize = 8;
-/// Bytes of the geometry block: joints, p0, stroke limits, workspace limits.
-const GEOMETRY_LEN: usize = F64_LEN * (JOINT_COORDS + 3 + 2 * LEGS + 3 + 3);
-/// Bytes of the supervision block: four f32, three u16, one reserved u16.
-const SUPERVISION_LEN: usize = 4 * 4 + 4 * 2;
+/// The table's layout as named byte ranges, end to end from offset 0 (little-endian;
+/// lengths in mm, angles in rad, frames as [`GeometryParams`] gives them; leg arrays are
+/// legs 1..6).
+pub mod field {
+    use super::{JOINT_COORDS, PROVENANCE_TAG_LEN};
+    use crate::kinematics::LEGS;
+    use crate::link::wire::{after, field, Field};
+
+    /// Bytes of one `f64`.
+    const F64: usize = 8;
+    /// Bytes of one `f32`.
+    const F32: usize = 4;
+
+    /// 4 bytes: magic `"M2TB"` ([`super::TABLE_MAGIC`]).
+    pub const MAGIC: Field = field(0, 4);
+    /// u16: format version ([`super::TABLE_FORMAT_VERSION`]).
+    pub const FORMAT_VERSION: Field = after(&MAGIC, 2);
+    /// u16: total length in bytes, CRC included ([`super::TABLE_LEN`]).
+    pub const LENGTH: Field = after(&FORMAT_VERSION, 2);
+    /// u32: table ID.
+    pub const TABLE_ID: Field = after(&LENGTH, 4);
+    /// u32: calibration ID.
+    pub const CALIBRATION_ID: Field = after(&TABLE_ID, 4);
+    /// ASCII: provenance tag, NUL/space padded.
+    pub const PROVENANCE_TAG: Field = after(&CALIBRATION_ID, PROVENANCE_TAG_LEN);
+    /// 36 x f64: joint centres, leg-major: `a.x a.y a.z` (mm, frame B at zero stroke)
+    /// then `b.x b.y b.z` (mm, frame M).
+    pub const JOINTS: Field = after(&PROVENANCE_TAG, JOINT_COORDS * F64);
+    /// 3 x f64: p0, home position of M's origin (mm, frame B).
+    pub const P0: Field = after(&JOINTS, 3 * F64);
+    /// 6 x f64: slider stroke lower limits (mm).
+    pub const STROKE_MIN: Field = after(&P0, LEGS * F64);
+    /// 6 x f64: slider stroke upper limits (mm).
+    pub const STROKE_MAX: Field = after(&STROKE_MIN, LEGS * F64);
+    /// 3 x f64: workspace half-range x, y, z (mm, base axes).
+    pub const WORKSPACE_TRANSLATION: Field = after(&STROKE_MAX, 3 * F64);
+    /// 3 x f64: workspace half-range alpha, beta, gamma (rad).
+    pub const WORKSPACE_ROTATION: Field = after(&WORKSPACE_TRANSLATION, 3 * F64);
+    /// f32: following-error warning threshold (mm).
+    pub const FOLLOWING_ERROR_WARNING: Field = after(&WORKSPACE_ROTATION, F32);
+    /// f32: following-error fault threshold (mm).
+    pub const FOLLOWING_ERROR_FAULT: Field = after(&FOLLOWING_ERROR_WARNING, F32);
+    /// f32: encoder jump threshold (mm per control cycle).
+    pub const ENCODER_JUMP: Field = after(&FOLLOWING_ERROR_FAULT, F32);
+    /// f32: stuck detection, least progress counted as motion (mm).
+    pub const STUCK_MIN_PROGRESS: Field = after(&ENCODER_JUMP, F32);
+    /// u16: stuck detection window (control cycles).
+    pub const STUCK_DETECTION_CYCLES: Field = after(&STUCK_MIN_PROGRESS, 2);
+    /// u16: warning debounce (consecutive control cycles).
+    pub const WARNING_DEBOUNCE: Field = after(&STUCK_DETECTION_CYCLES, 2);
+    /// u16: fault debounce (consecutive control cycles).
+    pub const FAULT_DEBOUNCE: Field = after(&WARNING_DEBOUNCE, 2);
+    /// u16: reserved, must be 0.
+    pub const RESERVED: Field = after(&FAULT_DEBOUNCE, 2);
+    /// u32: CRC-32/ISO-HDLC of every byte before it.
+    pub const CRC: Field = after(&RESERVED, 4);
+}
+
 /// Bytes of the trailing CRC-32.
-pub const TABLE_CRC_LEN: usize = 4;
+pub const TABLE_CRC_LEN: usize = field::CRC.end - field::CRC.start;
 /// Length of an encoded table (bytes, CRC included).
-pub const TABLE_LEN: usize = HEADER_LEN + GEOMETRY_LEN + SUPERVISION_LEN + TABLE_CRC_LEN;
+pub const TABLE_LEN: usize = field::CRC.end;
 /// Offset of the CRC-32 (it covers `0..TABLE_CRC_OFFSET`).
 pub const TABLE_CRC_OFFSET: usize = TABLE_LEN - TABLE_CRC_LEN;
 
 // The length field is a u16 and the documented layout is 516 bytes.
 const _: () = assert!(TABLE_LEN == 516 && TABLE_LEN <= u16::MAX as usize);
+// The CRC is the last field, as the store and the upload path assume.
+const _: () = assert!(TABLE_CRC_OFFSET == field::CRC.start);
 
 /// The CRC-32 used for the table and the flash record header (ISO-HDLC, as zlib/Ethernet).
 pub const CRC32: NibbleCrc32 = NibbleCrc32::new(&CRC_32_ISO_HDLC);
@@ -348,30 +383,52 @@ impl Table {
     }
 
     fn write(&self, w: &mut Writer<'_>) -> Option<()> {
+        let at = |w: &mut Writer<'_>, f: Field| w.at(0, &f);
+        at(w, field::MAGIC)?;
         w.put(&TABLE_MAGIC)?;
+        at(w, field::FORMAT_VERSION)?;
         w.u16(TABLE_FORMAT_VERSION)?;
+        at(w, field::LENGTH)?;
         w.u16(TABLE_LEN as u16)?;
+        at(w, field::TABLE_ID)?;
         w.u32(self.table_id)?;
+        at(w, field::CALIBRATION_ID)?;
         w.u32(self.provenance.calibration_id)?;
+        at(w, field::PROVENANCE_TAG)?;
         w.put(&self.provenance.tag)?;
+        at(w, field::JOINTS)?;
         for leg in &self.legs {
             w.f64s(&leg.a_mm)?;
             w.f64s(&leg.b_mm)?;
         }
+        at(w, field::P0)?;
         w.f64s(&self.p0_mm)?;
+        at(w, field::STROKE_MIN)?;
         w.f64s(&self.stroke_limits.min_mm)?;
+        at(w, field::STROKE_MAX)?;
         w.f64s(&self.stroke_limits.max_mm)?;
+        at(w, field::WORKSPACE_TRANSLATION)?;
         w.f64s(&self.workspace.translation_mm)?;
+        at(w, field::WORKSPACE_ROTATION)?;
         w.f64s(&self.workspace.rotation_rad)?;
         let s = &self.supervision;
+        at(w, field::FOLLOWING_ERROR_WARNING)?;
         w.f32(s.following_error_warning_mm)?;
+        at(w, field::FOLLOWING_ERROR_FAULT)?;
         w.f32(s.following_error_fault_mm)?;
+        at(w, field::ENCODER_JUMP)?;
         w.f32(s.encoder_jump_mm_per_cycle)?;
+        at(w, field::STUCK_MIN_PROGRESS)?;
         w.f32(s.stuck_min_progress_mm)?;
+        at(w, field::STUCK_DETECTION_CYCLES)?;
         w.u16(s.stuck_detection_cycles)?;
+        at(w, field::WARNING_DEBOUNCE)?;
         w.u16(s.warning_debounce_cycles)?;
+        at(w, field::FAULT_DEBOUNCE)?;
         w.u16(s.fault_debounce_cycles)?;
-        w.u16(0)
+        at(w, field::RESERVED)?;
+        w.u16(0)?;
+        at(w, field::CRC)
     }
 
     /// The encoded table (convenience for callers with no buffer at hand).
@@ -400,13 +457,18 @@ impl Table {
         let short = TableError::WrongLength {
             got: sat_u16(bytes.len()),
         };
+        // Each field read where `field` puts it (checked on the host; see `Reader::at`).
+        let at = |r: &Reader<'_>, f: Field| r.at(0, &f).ok_or(short);
+        at(&r, field::MAGIC)?;
         if r.take::<4>() != Some(TABLE_MAGIC) {
             return Err(TableError::BadMagic);
         }
+        at(&r, field::FORMAT_VERSION)?;
         let version = r.u16().ok_or(short)?;
         if version != TABLE_FORMAT_VERSION {
             return Err(TableError::UnsupportedVersion { version });
         }
+        at(&r, field::LENGTH)?;
         let length = r.u16().ok_or(short)?;
         if usize::from(length) != TABLE_LEN {
             return Err(TableError::BadLengthField { length });
@@ -418,14 +480,20 @@ impl Table {
         // Decoded field by field into the one table value that is returned (no array
         // or struct temporaries: this runs on the worker's and the link's stack).
         let mut t = ZEROED_TABLE;
+        at(&r, field::TABLE_ID)?;
         t.table_id = r.u32().ok_or(short)?;
+        at(&r, field::CALIBRATION_ID)?;
         t.provenance.calibration_id = r.u32().ok_or(short)?;
+        at(&r, field::PROVENANCE_TAG)?;
         t.provenance.tag = r.take::<PROVENANCE_TAG_LEN>().ok_or(short)?;
+        at(&r, field::JOINTS)?;
         for leg in t.legs.iter_mut() {
             for x in leg.a_mm.iter_mut().chain(leg.b_mm.iter_mut()) {
                 *x = r.f64().ok_or(short)?;
             }
         }
+        // p0, the stroke limits and the workspace: consecutive f64 fields, in order.
+        at(&r, field::P0)?;
         let f64_fields = t
             .p0_mm
             .iter_mut()
@@ -437,16 +505,20 @@ impl Table {
             *x = r.f64().ok_or(short)?;
         }
         let s = &mut t.supervision;
+        at(&r, field::FOLLOWING_ERROR_WARNING)?;
         s.following_error_warning_mm = r.f32().ok_or(short)?;
         s.following_error_fault_mm = r.f32().ok_or(short)?;
         s.encoder_jump_mm_per_cycle = r.f32().ok_or(short)?;
         s.stuck_min_progress_mm = r.f32().ok_or(short)?;
+        at(&r, field::STUCK_DETECTION_CYCLES)?;
         s.stuck_detection_cycles = r.u16().ok_or(short)?;
         s.warning_debounce_cycles = r.u16().ok_or(short)?;
         s.fault_debounce_cycles = r.u16().ok_or(short)?;
+        at(&r, field::RESERVED)?;
         if r.u16().ok_or(short)? != 0 {
             return Err(TableError::ReservedNotZero);
         }
+        at(&r, field::CRC)?;
         Ok(t)
     }
 }

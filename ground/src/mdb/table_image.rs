@@ -31,11 +31,12 @@ fn f64s_le(v: &[f64]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
 }
 
-/// The table image's rows, in offset order (they tile [`TABLE_LEN`] bytes).
+/// The table image's rows, in offset order (they tile [`TABLE_LEN`] bytes): offsets and
+/// sizes are the flight code's named fields (`m2ctl::table::layout::field`).
 pub fn table_image() -> Vec<TableImageRow> {
+    use m2ctl::link::wire::Field;
     use m2ctl::table::layout::{
-        JOINT_COORDS, PROVENANCE_TAG_LEN, TABLE_CRC_LEN, TABLE_CRC_OFFSET, TABLE_FORMAT_VERSION,
-        TABLE_MAGIC,
+        field, JOINT_COORDS, TABLE_CRC_OFFSET, TABLE_FORMAT_VERSION, TABLE_MAGIC,
     };
     #[derive(Clone, Copy)]
     enum Ty {
@@ -62,7 +63,7 @@ pub fn table_image() -> Vec<TableImageRow> {
     let legs = format!("legs 1..{LEGS}");
     type Row = (
         Ty,
-        usize,
+        Field,
         String,
         &'static str,
         String,
@@ -71,7 +72,7 @@ pub fn table_image() -> Vec<TableImageRow> {
     let rows: Vec<Row> = vec![
         (
             Ty::Bytes,
-            TABLE_MAGIC.len(),
+            field::MAGIC,
             format!("magic `\"{}\"`", String::from_utf8_lossy(&TABLE_MAGIC)),
             "",
             "exact".into(),
@@ -79,7 +80,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::U16,
-            1,
+            field::FORMAT_VERSION,
             "format version".into(),
             "",
             format!("{TABLE_FORMAT_VERSION}"),
@@ -87,7 +88,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::U16,
-            1,
+            field::LENGTH,
             "total length, CRC included".into(),
             "bytes",
             format!("{TABLE_LEN}"),
@@ -95,18 +96,23 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::U32,
-            1,
+            field::TABLE_ID,
             "table ID (reported in HK)".into(),
             "",
             "any".into(),
             |t| t.table_id.to_le_bytes().to_vec(),
         ),
-        (Ty::U32, 1, "calibration ID".into(), "", "any".into(), |t| {
-            t.provenance.calibration_id.to_le_bytes().to_vec()
-        }),
+        (
+            Ty::U32,
+            field::CALIBRATION_ID,
+            "calibration ID".into(),
+            "",
+            "any".into(),
+            |t| t.provenance.calibration_id.to_le_bytes().to_vec(),
+        ),
         (
             Ty::Ascii,
-            PROVENANCE_TAG_LEN,
+            field::PROVENANCE_TAG,
             "provenance tag, NUL/space padded".into(),
             "",
             format!(
@@ -117,7 +123,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::F64,
-            JOINT_COORDS,
+            field::JOINTS,
             format!(
                 "joint centres, leg-major: leg i (1..{LEGS}) at this offset + {} (i - 1): `a.x \
                  a.y a.z` (frame B, zero stroke), then `b.x b.y b.z` (frame M)",
@@ -142,7 +148,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::F64,
-            3,
+            field::P0,
             "p0: home position of M's origin in B".into(),
             "mm",
             format!("finite, within {dev} mm of nominal"),
@@ -150,7 +156,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::F64,
-            LEGS,
+            field::STROKE_MIN,
             format!("slider stroke lower limits, {legs}"),
             "mm",
             format!("finite; >= -{cap} mm ({stroke_cap}); contains 0"),
@@ -158,7 +164,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::F64,
-            LEGS,
+            field::STROKE_MAX,
             format!("slider stroke upper limits, {legs}"),
             "mm",
             format!("finite; <= {cap} mm ({stroke_cap}); contains 0"),
@@ -166,7 +172,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::F64,
-            3,
+            field::WORKSPACE_TRANSLATION,
             "workspace half-range x, y, z (base axes)".into(),
             "mm",
             format!(
@@ -177,7 +183,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::F64,
-            3,
+            field::WORKSPACE_ROTATION,
             "workspace half-range alpha, beta, gamma".into(),
             "rad",
             format!("finite, >= 0, <= {} arcsec ({ws_cap})", uniform(&ws_arcsec)),
@@ -185,7 +191,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::F32,
-            1,
+            field::FOLLOWING_ERROR_WARNING,
             "following-error warning threshold".into(),
             "mm",
             format!(
@@ -201,7 +207,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::F32,
-            1,
+            field::FOLLOWING_ERROR_FAULT,
             "following-error fault threshold".into(),
             "mm",
             "> 0".into(),
@@ -214,7 +220,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::F32,
-            1,
+            field::ENCODER_JUMP,
             "encoder jump threshold".into(),
             "mm per control cycle",
             "> 0".into(),
@@ -227,7 +233,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::F32,
-            1,
+            field::STUCK_MIN_PROGRESS,
             "stuck detection: least progress counted as motion".into(),
             "mm",
             "> 0".into(),
@@ -235,7 +241,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::U16,
-            1,
+            field::STUCK_DETECTION_CYCLES,
             "stuck detection window".into(),
             "control cycles",
             "> 0".into(),
@@ -243,7 +249,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::U16,
-            1,
+            field::WARNING_DEBOUNCE,
             "warning debounce".into(),
             "control cycles",
             "> 0".into(),
@@ -251,7 +257,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::U16,
-            1,
+            field::FAULT_DEBOUNCE,
             "fault debounce".into(),
             "control cycles",
             "> 0".into(),
@@ -259,7 +265,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::U16,
-            1,
+            field::RESERVED,
             "reserved".into(),
             "",
             format!("0 ({})", hex4(TableError::ReservedNotZero.code())),
@@ -267,16 +273,15 @@ pub fn table_image() -> Vec<TableImageRow> {
         ),
         (
             Ty::U32,
-            TABLE_CRC_LEN / 4,
+            field::CRC,
             format!("CRC-32/ISO-HDLC (zlib) of bytes 0..{TABLE_CRC_OFFSET}"),
             "",
             format!("must match ({})", hex4(TableError::BadCrc.code())),
             |t| t.crc32().to_le_bytes().to_vec(),
         ),
     ];
-    let mut offset = 0;
     rows.into_iter()
-        .map(|(ty, n, field, unit, validation, bytes_of)| {
+        .map(|(ty, range, field, unit, validation, bytes_of)| {
             let (elem, name) = match ty {
                 Ty::Bytes => (1, "bytes"),
                 Ty::Ascii => (1, "ASCII"),
@@ -284,22 +289,21 @@ pub fn table_image() -> Vec<TableImageRow> {
                 Ty::U32 | Ty::F32 => (4, if matches!(ty, Ty::U32) { "u32" } else { "f32" }),
                 Ty::F64 => (8, "f64"),
             };
+            let n = range.len() / elem;
             let ty = match ty {
                 Ty::Bytes | Ty::Ascii => name.to_string(),
                 _ if n == 1 => name.to_string(),
                 _ => format!("{n} × {name}"),
             };
-            let row = TableImageRow {
-                offset,
-                size: elem * n,
+            TableImageRow {
+                offset: range.start,
+                size: range.len(),
                 ty,
                 field,
                 unit,
                 validation,
                 bytes_of,
-            };
-            offset += row.size;
-            row
+            }
         })
         .collect()
 }
