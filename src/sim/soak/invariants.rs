@@ -7,11 +7,11 @@
 
 use crate::controller::{event, State};
 use crate::kinematics::LEGS;
-use crate::motion::{CYCLE_S, DEFAULT_MAX_SPEED_MM_PER_S};
-use crate::station::Tm;
 use crate::link::tm::Verification;
 use crate::link::RequestId;
+use crate::motion::{CYCLE_S, DEFAULT_MAX_SPEED_MM_PER_S};
 use crate::sim::InjectedFault;
+use crate::station::Tm;
 use crate::units::UM_PER_MM;
 
 use super::{Choices, Soak, TableRef};
