@@ -331,10 +331,13 @@ impl Fine {
             } else {
                 err + RETREAT_MM
             };
-            let step = step.clamp(-MAX_CORRECTION_MM, MAX_CORRECTION_MM);
+            // `max` then `min`, not `clamp` (which panics on bounds out of order or NaN).
+            let step = step.max(-MAX_CORRECTION_MM).min(MAX_CORRECTION_MM);
             *d = (*h + step)
-                .clamp(*t - MAX_CORRECTION_MM, *t + MAX_CORRECTION_MM)
-                .clamp(*lo, *hi)
+                .max(*t - MAX_CORRECTION_MM)
+                .min(*t + MAX_CORRECTION_MM)
+                .max(*lo)
+                .min(*hi)
                 - *h;
             largest = largest.max(d.abs());
         }
