@@ -10,6 +10,13 @@
 # Needs scripts/setup.sh. About 1-2 minutes once built.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# The ground segment finds cargo's target directory wherever CARGO_TARGET_DIR puts it.
+want=/tmp/m2-target-dir-check
+got=$(CARGO_TARGET_DIR=$want scripts/ground-segment.sh --where)
+if [ "$got" != "$want/ground-segment" ]; then
+  echo "yamcs-e2e: FAIL ground-segment.sh with CARGO_TARGET_DIR=$want works in $got" >&2; exit 1
+fi
+echo "yamcs-e2e: ok ground-segment.sh with CARGO_TARGET_DIR=$want works in $got"
 exec scripts/ground-segment.sh -- bash -c '
 set -euo pipefail
 python3 yamcs/tools/e2e.py
@@ -17,4 +24,9 @@ id=$(cat "$M2_GROUND_DIR/plist_id")
 python3 yamcs/tools/screenshot.py \
   "http://$M2_YAMCS_URL/telemetry/parameter-lists/$id/realtime?c=m2__realtime" \
   "$M2_GROUND_DIR/yamcs-housekeeping.png" --wait-s 12
+# The Events page of the web UI (Yamcs sorts events by source; an event without one
+# broke the table): rows of the boot, no error banner.
+python3 yamcs/tools/screenshot.py "http://$M2_YAMCS_URL/events?c=m2__realtime" \
+  "$M2_GROUND_DIR/yamcs-events.png" --wait-s 10 \
+  --expect BOOT_DETAIL --expect STATE_CHANGED --forbid localeCompare --forbid "Cannot read properties"
 '

@@ -367,8 +367,10 @@ def main() -> int:
     # 6. Events with severities: listed once Yamcs has archived the ones this run made
     # (the wall clock only bounds the wait).
     print("6. events")
-    names = {e["name"] for e in json.loads(subprocess.run(
-        [M2GROUND, "mdb-json"], check=True, capture_output=True, text=True).stdout)["events"]}
+    mdb_json = json.loads(subprocess.run(
+        [M2GROUND, "mdb-json"], check=True, capture_output=True, text=True).stdout)
+    names = {e["name"] for e in mdb_json["events"]}
+    states = {label for _, label, _ in next(e for e in mdb_json["enums"] if e["name"] == "controller_state")["values"]}
     expected = {"BOOT", "BOOT_DETAIL", "STATE_CHANGED", "MOVE_REFUSED", "PARAMETERS_CHANGED",
                 "ACTIVITY_RELEASED", "TABLE_COMMITTED", "TABLE_ACTIVATED"}
 
@@ -392,7 +394,50 @@ def main() -> int:
     check(seen.get("PARAMETERS_CHANGED") == {"INFO"}, f"PARAMETERS_CHANGED INFO: {seen.get('PARAMETERS_CHANGED')}")
     check(seen.get("ACTIVITY_RELEASED") == {"INFO"}, f"ACTIVITY_RELEASED INFO: {seen.get('ACTIVITY_RELEASED')}")
     check("TABLE_COMMITTED" in seen and "TABLE_ACTIVATED" in seen, "table committed and activated events")
+    # Every event has a source (the web UI's event table sorts by it), and the texts name
+    # states, refusal bits and failure codes (the gateway posts them, named by the MDB).
+    every = list(op.client.get_archive(INSTANCE).list_events())
+    sourceless = [e.event_type for e in every if not e.source]
+    check(bool(every) and not sourceless,
+          f"every event has a source ({len(every)} events, sources {sorted({e.source for e in every})}; "
+          f"without: {sourceless})")
+    changes = [e.message for e in events if e.event_type == "STATE_CHANGED"]
+    named = [m for m in changes if m.startswith("controller state ")
+             and {x.strip() for x in m[len("controller state "):].split("->")} <= states]
+    check(bool(changes) and named == changes, f"STATE_CHANGED texts name the states: {changes[:3]}")
+    refused = [e.message for e in events if e.event_type == "MOVE_REFUSED"]
+    check(bool(refused) and all("X_OUTSIDE_WORKSPACE" in m and "MOTION_TARGET_REFUSED" in m for m in refused),
+          f"MOVE_REFUSED text names the refusal bit and the failure code: {refused}")
     figures["events (type: severities)"] = {k: sorted(v) for k, v in sorted(seen.items())}
+
+    # 6b. The MDB as Yamcs serves it: number formats and critical commands.
+    print("6b. number formats, significance")
+
+    def api(path):
+        return json.load(urllib.request.urlopen(f"http://{URL}/api/mdb/{INSTANCE}/{path}", timeout=10))
+    formats, wrong = 0, []
+    for pkt in mdb_json["telemetry"]:
+        for f in pkt["fields"]:
+            if f.get("fraction_digits") is None:
+                continue
+            nf = api("parameters/M2/" + f["name"]).get("type", {}).get("numberFormat", {})
+            formats += 1
+            if (nf.get("minimumFractionDigits"), nf.get("maximumFractionDigits")) != (f["fraction_digits"],) * 2:
+                wrong.append((f["name"], f["fraction_digits"], nf))
+    check(formats > 20 and not wrong,
+          f"{formats} calibrated parameters carry their number format in Yamcs "
+          f"(pose_fk_x: {api('parameters/M2/pose_fk_x')['type'].get('numberFormat')}); wrong: {wrong[:3]}")
+    sig, wrong = {}, []
+    for tc in mdb_json["telecommands"]:
+        got = api("commands/M2/" + tc["name"]).get("significance", {})
+        level = got.get("consequenceLevel", "NONE")
+        if tc.get("critical"):
+            sig[tc["name"]] = level
+            if level != "CRITICAL" or got.get("reasonForWarning") != tc["critical"]:
+                wrong.append((tc["name"], got))
+        elif level not in ("NONE", "NORMAL"):
+            wrong.append((tc["name"], got))
+    check(len(sig) >= 6 and not wrong, f"critical commands in Yamcs: {sig}; wrong: {wrong[:3]}")
 
     # 7. Time: CUC 4+2 decoded and correlated to UTC (checked last, when the QEMU
     # controller's clock has settled).

@@ -54,7 +54,7 @@ use enumerations::{
 pub use enumerations::{
     controller_state_doc, parameter_default, parameter_description, reset_causes,
 };
-pub use events::{events, severity_name};
+pub use events::{events, severity_name, yamcs_severity, EVENT_SOURCE};
 use failure_codes::failure_code_values;
 pub use failure_codes::{failure_codes, FailureCode, ReportedIn};
 pub use fields::{POSE_AXES, S_PER_CUC_FRACTION};
@@ -197,6 +197,26 @@ pub struct Field {
     pub meaning: Meaning,
     /// What it is (frame and unit included).
     pub description: String,
+    /// Decimals its engineering value is shown with ([`Meaning::fraction_digits`]):
+    /// Yamcs' number format, so that 4,991 nm shows as `4.991 um`, not
+    /// `4.9910000000000005 um`.
+    pub fraction_digits: Option<u32>,
+}
+
+impl Meaning {
+    /// The fewest decimals that show one raw count of a calibrated number
+    /// (`ceil(-log10(scale))`: 3 for 0.001 um per nm, 6 for 1e-6 arcsec per
+    /// micro-arcsecond, 5 for 1/65536 s); `None` for anything shown as an integer.
+    pub fn fraction_digits(&self) -> Option<u32> {
+        /// Below this, `-log10(scale)` is taken as the integer it is meant to be.
+        const LOG_ROUNDING: f64 = 1e-9;
+        match *self {
+            Meaning::Number { scale, .. } if scale != 1.0 && scale > 0.0 => {
+                Some((-scale.log10() - LOG_ROUNDING).ceil().max(0.0) as u32)
+            }
+            _ => None,
+        }
+    }
 }
 
 /// A raw argument value of a telecommand.
@@ -237,6 +257,9 @@ pub struct Telecommand {
     pub app_data_layout: String,
     /// Seconds within which the completion report must come.
     pub completion_timeout_s: f64,
+    /// Why it is critical (Yamcs significance CRITICAL: the operator confirms it);
+    /// `None`: a normal telecommand.
+    pub critical: Option<&'static str>,
     /// Raw arguments -> flight command.
     #[serde(skip)]
     pub build: BuildFn,
@@ -335,6 +358,37 @@ pub struct Event {
     pub aux1: String,
     /// One-line text for the operator (`{aux0}`, `{aux1}` are replaced).
     pub message: &'static str,
+    /// How aux0 is shown by name ([`Mdb::event_text`]); empty: as a number.
+    pub aux0_decode: Vec<AuxPart>,
+    /// How aux1 is shown by name; empty: as a number.
+    pub aux1_decode: Vec<AuxPart>,
+}
+
+/// Bits `shift..shift + width` of an event's auxiliary word, shown by name.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct AuxPart {
+    /// Lowest bit of the part.
+    pub shift: u32,
+    /// Bits of the part.
+    pub width: u32,
+    /// How its value is named.
+    pub decode: AuxDecode,
+}
+
+/// How a part of an auxiliary word is named.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum AuxDecode {
+    /// The label of one value of an enumeration ([`Mdb::enums`]).
+    Enum {
+        /// Enumeration name.
+        enumeration: &'static str,
+    },
+    /// The names of the set bits of a bit field ([`Mdb::bit_fields`]).
+    Bits {
+        /// Bit field name.
+        bit_field: &'static str,
+    },
 }
 
 /// One severity an event is sent with.
