@@ -17,7 +17,9 @@ if [ "$got" != "$want/ground-segment" ]; then
   echo "yamcs-e2e: FAIL ground-segment.sh with CARGO_TARGET_DIR=$want works in $got" >&2; exit 1
 fi
 echo "yamcs-e2e: ok ground-segment.sh with CARGO_TARGET_DIR=$want works in $got"
-exec scripts/ground-segment.sh -- bash -c '
+# A fresh archive for the test; afterwards two more starts: the archive is kept
+# (the test's events are still there), and --clean empties it.
+scripts/ground-segment.sh --clean -- bash -c '
 set -euo pipefail
 python3 yamcs/tools/e2e.py
 id=$(cat "$M2_GROUND_DIR/plist_id")
@@ -30,3 +32,7 @@ python3 yamcs/tools/screenshot.py "http://$M2_YAMCS_URL/events?c=m2__realtime" \
   "$M2_GROUND_DIR/yamcs-events.png" --wait-s 10 \
   --expect BOOT_DETAIL --expect STATE_CHANGED --forbid localeCompare --forbid "Cannot read properties"
 '
+echo "yamcs-e2e: restart: the archive is kept"
+scripts/ground-segment.sh -- python3 yamcs/tools/archive_check.py kept
+echo "yamcs-e2e: restart with --clean"
+scripts/ground-segment.sh --clean -- python3 yamcs/tools/archive_check.py clean
