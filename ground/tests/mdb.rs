@@ -947,3 +947,57 @@ fn dangerous_telecommands_are_critical_and_no_other() {
     }
     assert_eq!(critical.len(), 6, "{critical:?}");
 }
+
+#[test]
+fn health_parameters_have_their_alarms() {
+    let m = mdb();
+    let hk = &m
+        .telemetry
+        .iter()
+        .find(|p| p.name == "housekeeping")
+        .unwrap()
+        .fields;
+    for a in &m.alarms {
+        let f = hk
+            .iter()
+            .find(|f| f.name == a.parameter)
+            .unwrap_or_else(|| panic!("alarm on {}: no housekeeping field", a.parameter));
+        assert!(a.min_violations >= 1);
+        match (&a.rule, &f.meaning) {
+            (mdb::AlarmRule::States { levels }, Meaning::Enum { enumeration }) => {
+                let e = m.enums.iter().find(|e| e.name == *enumeration).unwrap();
+                for (label, _) in levels {
+                    assert!(
+                        e.values.iter().any(|v| &v.1 == label),
+                        "{}: no state {label}",
+                        a.parameter
+                    );
+                }
+            }
+            (mdb::AlarmRule::Above { .. }, Meaning::Number { .. } | Meaning::Bits { .. }) => {}
+            (r, mm) => panic!("{}: rule {r:?} on {mm:?}", a.parameter),
+        }
+    }
+    // FAULTED, and only FAULTED, is a critical state (the controller's own name).
+    let state = m.alarms.iter().find(|a| a.parameter == "state").unwrap();
+    let mdb::AlarmRule::States { levels } = &state.rule else {
+        panic!("state: {:?}", state.rule)
+    };
+    let faulted = mdb::upper_snake(&format!("{:?}", m2ctl::controller::State::Faulted));
+    assert_eq!(levels, &vec![(faulted, "CRITICAL")]);
+    // Any latched fault flag and any count of lost data raise an alarm.
+    for p in [
+        "fault_flags",
+        "warning_flags",
+        "tm_dropped",
+        "cycle_overruns",
+        "uart_overruns",
+        "tc_rejected",
+    ] {
+        let a = m.alarms.iter().find(|a| a.parameter == p);
+        assert!(
+            matches!(a.map(|a| &a.rule), Some(mdb::AlarmRule::Above { limit, .. }) if *limit == 0.0),
+            "{p}: {a:?}"
+        );
+    }
+}

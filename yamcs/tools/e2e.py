@@ -439,6 +439,42 @@ def main() -> int:
             wrong.append((tc["name"], got))
     check(len(sig) >= 6 and not wrong, f"critical commands in Yamcs: {sig}; wrong: {wrong[:3]}")
 
+    # 6c. Alarms: the description's alarms as Yamcs serves them; none on the state while
+    # IDLE; a telecommand the link refuses raises tc_rejected's alarm.
+    print("6c. alarms")
+    defined, wrong = [], []
+    for a in mdb_json["alarms"]:
+        got = api("parameters/M2/" + a["parameter"]).get("type", {}).get("defaultAlarm", {})
+        rule = a["rule"]
+        if rule["kind"] == "states":
+            have = {(e.get("label"), e.get("level")) for e in got.get("enumerationAlarms", [])}
+            ok = {tuple(x) for x in rule["levels"]} <= have
+        else:
+            have = [(r.get("level"), r.get("maxInclusive")) for r in got.get("staticAlarmRanges", [])]
+            ok = (rule["level"], rule["limit"]) in have
+        (defined if ok else wrong).append((a["parameter"], have))
+    check(len(defined) == len(mdb_json["alarms"]) >= 7 and not wrong,
+          f"{len(defined)} alarms defined in Yamcs (state: {dict(defined).get('state')}); wrong: {wrong}")
+
+    def active_alarms():
+        body = json.load(urllib.request.urlopen(
+            f"http://{URL}/api/processors/{INSTANCE}/{PROCESSOR}/alarms", timeout=10))
+        return {a["id"]["name"].rsplit("/", 1)[-1]: a for a in body.get("alarms", [])}
+    hk = op.hk_after(op.newest_obt())
+    check(hk.value("state").eng_value == "IDLE" and "state" not in active_alarms(),
+          f"no alarm on the state while IDLE (active: {sorted(active_alarms())})")
+    # A chunk that would end past the table: the link refuses it (acceptance fails).
+    cmd = op.command("LOAD_TABLE_CHUNK", {"offset": 515, "data": bytes(4)})
+    check(op.stages(cmd)["Acceptance"] == "NOK", f"chunk past the table refused at acceptance ({cmd.error})")
+    rejected = op.hk_after(op.done(cmd, subtype=2).obt).value("tc_rejected").eng_value
+    try:
+        alarm = op.wait("tc_rejected's alarm", lambda: active_alarms().get("tc_rejected"), 15.0)
+    except TimeoutError:
+        alarm = None
+    check(rejected > 0 and alarm is not None and alarm.get("severity") == "WATCH",
+          f"tc_rejected = {rejected} raises a WATCH alarm: {alarm and {k: alarm.get(k) for k in ('severity', 'type', 'violations')}}")
+    figures["active alarms"] = {k: v.get("severity") for k, v in active_alarms().items()}
+
     # 7. Time: CUC 4+2 decoded and correlated to UTC (checked last, when the QEMU
     # controller's clock has settled).
     print("7. time")

@@ -34,6 +34,7 @@
 //! * `fields`, `names`: field constructors, labels and number formats;
 //! * `codec`: encoding and decoding by the description (what Yamcs does with the XTCE).
 
+mod alarms;
 mod bit_fields;
 mod codec;
 mod enumerations;
@@ -46,6 +47,7 @@ mod table_image;
 mod telecommands;
 mod telemetry;
 
+pub use alarms::alarms;
 use bit_fields::leg_mask_bits;
 pub use bit_fields::{bank_status_flags, fault_flag_bits, fault_flags_doc, refusal_bits, FlagDoc};
 use enumerations::{
@@ -464,6 +466,39 @@ pub struct Mdb {
     pub failure_codes: Vec<FailureCode>,
     /// The parameter table image's layout (what TC[6,2] loads, TM[6,6] dumps).
     pub table_image: Vec<TableImageRow>,
+    /// Alarms of housekeeping parameters.
+    pub alarms: Vec<ParameterAlarm>,
+}
+
+/// When Yamcs raises an alarm on a parameter.
+#[derive(Clone, Debug, Serialize)]
+pub struct ParameterAlarm {
+    /// The parameter (a TM field's name).
+    pub parameter: &'static str,
+    /// The rule.
+    pub rule: AlarmRule,
+    /// Consecutive values in alarm before it is raised (debounce).
+    pub min_violations: u32,
+    /// Why it matters to the operator.
+    pub why: &'static str,
+}
+
+/// An alarm rule (levels are Yamcs': WATCH, WARNING, DISTRESS, CRITICAL, SEVERE).
+#[derive(Clone, Debug, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum AlarmRule {
+    /// An enumerated parameter: the level of each label in alarm.
+    States {
+        /// `(label, level)`.
+        levels: Vec<(String, &'static str)>,
+    },
+    /// A number: in alarm at `level` when above `limit` (engineering units).
+    Above {
+        /// Highest value not in alarm.
+        limit: f64,
+        /// Level.
+        level: &'static str,
+    },
 }
 
 /// The mission database.
@@ -555,5 +590,6 @@ pub fn mdb() -> Mdb {
         ],
         failure_codes: failure_codes(),
         table_image: table_image(),
+        alarms: alarms(),
     }
 }
