@@ -38,12 +38,6 @@ use m2ctl::pass::Period;
 use m2ctl::table::{Table, TableStore, ValidationConfig};
 use m2ctl::timing::{cycle_to_us, HK_PERIOD_CYCLES};
 
-/// Exit code: every scenario ran as intended.
-const EXIT_PASS: i32 = 0;
-/// Exit code: a scenario did not do what it should (the figures would not be what
-/// they claim).
-const EXIT_FAIL: i32 = 1;
-
 /// A panic is a defect: end the run with the board's panic exit code.
 #[panic_handler]
 fn panic(_info: &core::panic::PanicInfo) -> ! {
@@ -318,7 +312,7 @@ fn main() -> ! {
     hw::bench_start();
     hw::bench_end();
     let ok = run(TM_QUEUE);
-    hw::exit(if ok { EXIT_PASS } else { EXIT_FAIL })
+    hw::exit(if ok { hw::EXIT_PASS } else { hw::EXIT_FAIL })
 }
 
 fn run(tm_queue: &'static mut m2ctl::controller::TmQueue) -> bool {

@@ -18,11 +18,6 @@ use m2ctl::board::active as hw;
 use m2ctl::kinematics::{fk, ik, FkConfig, Geometry, Pose};
 use m2ctl::{nominal, selftest};
 
-/// Exit code: every self-test row passed.
-const EXIT_PASS: i32 = 0;
-/// Exit code: a self-test check failed.
-const EXIT_FAIL: i32 = 1;
-
 /// A panic is a defect: end the run with the board's panic exit code.
 #[panic_handler]
 fn panic(_info: &core::panic::PanicInfo) -> ! {
@@ -41,7 +36,7 @@ fn main() -> ! {
     defmt::info!("m2fw: M2 mechanism controller, kinematics self-test");
     let Ok(geom) = Geometry::<f32>::new(&nominal::prototype_with_flight_limits()) else {
         defmt::error!("nominal geometry invalid");
-        hw::exit(EXIT_FAIL)
+        hw::exit(hw::EXIT_FAIL)
     };
     let summary = selftest::run_all(&geom, |i, o| {
         defmt::info!(
@@ -74,10 +69,10 @@ fn main() -> ! {
     );
     if summary.failures == 0 {
         defmt::info!("SELFTEST PASS");
-        hw::exit(EXIT_PASS)
+        hw::exit(hw::EXIT_PASS)
     } else {
         defmt::error!("SELFTEST FAIL");
-        hw::exit(EXIT_FAIL)
+        hw::exit(hw::EXIT_FAIL)
     }
 }
 

@@ -35,11 +35,6 @@ use m2ctl::table::validate::{
 };
 use m2ctl::table::{Table, ValidationConfig, ValidationError};
 
-/// Exit code: every validation gave what it should.
-const EXIT_PASS: i32 = 0;
-/// Exit code: a validation did not.
-const EXIT_FAIL: i32 = 1;
-
 /// Grid points per axis of the validations of the nominal table: the flight
 /// configuration's first, then every other the configuration allows.
 const GRIDS: [u8; 4] = [
@@ -100,10 +95,10 @@ fn main() -> ! {
     }
     if ok {
         defmt::info!("VALIDBENCH PASS");
-        hw::exit(EXIT_PASS)
+        hw::exit(hw::EXIT_PASS)
     } else {
         defmt::error!("VALIDBENCH FAIL");
-        hw::exit(EXIT_FAIL)
+        hw::exit(hw::EXIT_FAIL)
     }
 }
 

@@ -289,6 +289,11 @@ pub fn exit(code: i32) -> ! {
     semihosting::process::exit(code)
 }
 
+/// Exit code of a test image whose every check passed.
+pub const EXIT_PASS: i32 = 0;
+/// Exit code of a test image in which a check failed (its figures would not be what
+/// they claim).
+pub const EXIT_FAIL: i32 = 1;
 /// Exit code of a panic in a test image.
 pub const EXIT_PANIC: i32 = 101;
 

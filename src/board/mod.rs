@@ -16,7 +16,8 @@
 //!
 //! `cortex_m` holds what every board shares because it is the core's, not the board's
 //! (reset record, fault handlers, stack guard and paint, test-image markers); each
-//! board re-exports it.
+//! board re-exports it. `table_flash` holds what the boards' table flashes share
+//! (bounds, reads, erase alignment, the NOR rule, the refusal reasons).
 //!
 //! `qemu_sliders` is a board part, not a board: the slider/encoder model that the
 //! emulated mps2-an386 board has instead of slider drivers (compiled with it only).
@@ -29,6 +30,7 @@
 pub mod cortex_m;
 #[cfg(not(feature = "board-netduinoplus2"))]
 pub mod qemu_sliders;
+pub mod table_flash;
 
 /// The board's memory map (`memory.x`), as build.rs reads it.
 mod memory_x {

@@ -3,12 +3,12 @@
 
 use core::ptr::{read_volatile, write_volatile};
 
-use embedded_storage::nor_flash::{
-    ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
-};
+use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 
 use super::timer::ticks;
 use crate::board::memory_x;
+pub use crate::board::table_flash::FlashError;
+use crate::board::table_flash::{erase_aligned, TableRegion};
 use crate::table::{BankLayout, FlashStatus};
 
 /// Offsets are from the start of the 4 MiB flash, as `table::store` expects.
@@ -27,34 +27,17 @@ const _: () = assert!(memory_x::TABLE_LENGTH == 2 * TABLE_BANK_SIZE);
 const _: () = assert!(TABLE_REGION_START + 2 * TABLE_BANK_SIZE == FLASH_SIZE);
 const _: () = assert!(TABLE_LAYOUT.bank_b_offset + TABLE_LAYOUT.bank_size == FLASH_SIZE);
 /// Erase granularity emulated here (bytes).
-const FLASH_ERASE_SIZE: usize = 4096;
+const FLASH_ERASE_SIZE: u32 = 4096;
 /// Erased byte value.
 const FLASH_ERASED: u8 = 0xFF;
+// SAFETY: [FLASH_BASE + TABLE_REGION_START, FLASH_BASE + FLASH_SIZE) is memory.x's
+// TABLE region (the asserts above), reserved: nothing is linked there and no Rust object
+// or reference covers it; on QEMU it is RAM, read and written only through TableFlash.
+const REGION: TableRegion = unsafe { TableRegion::new(FLASH_BASE, TABLE_REGION_START, FLASH_SIZE) };
 /// Modelled sector-erase time (control ticks): 0.3 s, a NOR sector.
 pub const FLASH_ERASE_TICKS: u32 = 300;
 /// Modelled program time of one write (control ticks).
 pub const FLASH_PROGRAM_TICKS: u32 = 1;
-
-/// Why a flash operation was refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum FlashError {
-    /// Outside the table region.
-    OutOfBounds,
-    /// Not aligned to the erase or write size.
-    NotAligned,
-    /// A write tried to set a bit that is 0 (NOR can only clear bits before an erase).
-    NotErased,
-}
-
-impl NorFlashError for FlashError {
-    fn kind(&self) -> NorFlashErrorKind {
-        match self {
-            FlashError::OutOfBounds => NorFlashErrorKind::OutOfBounds,
-            FlashError::NotAligned => NorFlashErrorKind::NotAligned,
-            FlashError::NotErased => NorFlashErrorKind::Other,
-        }
-    }
-}
 
 /// The table region as NOR flash, busy for the modelled time after each erase or
 /// program ([`FlashStatus`]).
@@ -63,16 +46,6 @@ pub struct TableFlash {
 }
 
 impl TableFlash {
-    fn check(from: u32, len: usize) -> Result<(), FlashError> {
-        let end = (from as usize)
-            .checked_add(len)
-            .ok_or(FlashError::OutOfBounds)?;
-        if from < TABLE_REGION_START || end > FLASH_SIZE as usize {
-            return Err(FlashError::OutOfBounds);
-        }
-        Ok(())
-    }
-
     /// QEMU's SSRAM comes up zeroed, a new NOR flash erased: a TABLE region that reads
     /// all zero (never written: no valid store state is all zero) is erased, so the
     /// store sees blank banks as on a new device. Any other content (written by an
@@ -120,41 +93,34 @@ impl ErrorType for TableFlash {
 impl ReadNorFlash for TableFlash {
     const READ_SIZE: usize = 1;
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
-        Self::check(offset, bytes.len())?;
-        let base = FLASH_BASE + offset as usize;
-        for (i, b) in bytes.iter_mut().enumerate() {
-            // SAFETY: `check` put [offset, offset + len) inside the TABLE region, reserved
-            // in memory.x and used by nothing else (no Rust object there); byte reads.
-            *b = unsafe { read_volatile((base + i) as *const u8) };
-        }
-        Ok(())
+        REGION.read(offset, bytes)
     }
     fn capacity(&self) -> usize {
-        FLASH_SIZE as usize
+        REGION.capacity()
     }
 }
 
 impl NorFlash for TableFlash {
     const WRITE_SIZE: usize = 1;
-    const ERASE_SIZE: usize = FLASH_ERASE_SIZE;
+    const ERASE_SIZE: usize = FLASH_ERASE_SIZE as usize;
     fn erase(&mut self, from: u32, to: u32) -> Result<(), FlashError> {
-        if from > to || from as usize % FLASH_ERASE_SIZE != 0 || to as usize % FLASH_ERASE_SIZE != 0
-        {
+        if !erase_aligned(from, to, FLASH_ERASE_SIZE) {
             return Err(FlashError::NotAligned);
         }
-        Self::check(from, (to - from) as usize)?;
+        REGION.check(from, (to - from) as usize)?;
         for a in from..to {
-            // SAFETY: `check` put [from, to) inside the TABLE region, reserved in memory.x
-            // (no code, data or Rust object there); byte writes of emulated flash (RAM).
-            unsafe { write_volatile((FLASH_BASE + a as usize) as *mut u8, FLASH_ERASED) };
+            // SAFETY: `check` put [from, to) inside the TABLE region, reserved in
+            // memory.x (no code, data or Rust object there); byte writes of emulated
+            // flash (RAM).
+            unsafe { write_volatile(REGION.address(a) as *mut u8, FLASH_ERASED) };
         }
-        let sectors = (to - from) / FLASH_ERASE_SIZE as u32;
+        let sectors = (to - from) / FLASH_ERASE_SIZE;
         self.start_busy(FLASH_ERASE_TICKS.saturating_mul(sectors));
         Ok(())
     }
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
-        Self::check(offset, bytes.len())?;
-        let base = FLASH_BASE + offset as usize;
+        REGION.check(offset, bytes.len())?;
+        let base = REGION.address(offset);
         for (i, b) in bytes.iter().enumerate() {
             let p = (base + i) as *mut u8;
             // SAFETY: `check` put [offset, offset + len) inside the TABLE region, reserved

@@ -121,6 +121,6 @@ fn reg_write(addr: usize, v: u32) {
 use super::cortex_m::reset_record;
 pub use super::cortex_m::{
     bench_end, bench_start, enable_stack_guard, exit, record_and_reset, repaint_stack,
-    stack_depth_bytes, stack_peak_bytes, stack_region_bytes, EXIT_PANIC, STACK_BYTES,
-    STACK_GUARD_BYTES,
+    stack_depth_bytes, stack_peak_bytes, stack_region_bytes, EXIT_FAIL, EXIT_PANIC, EXIT_PASS,
+    STACK_BYTES, STACK_GUARD_BYTES,
 };

@@ -6,14 +6,14 @@
 //! [`FlashStatus::busy`] reads BSY.
 #![allow(unsafe_code)] // Flash interface registers, memory-mapped flash.
 
-use core::ptr::{read_volatile, write_volatile};
+use core::ptr::write_volatile;
 
-use embedded_storage::nor_flash::{
-    ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
-};
+use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 use stm32f4xx_hal::pac;
 
 use crate::board::memory_x;
+pub use crate::board::table_flash::FlashError;
+use crate::board::table_flash::{erase_aligned, TableRegion};
 use crate::table::{BankLayout, FlashStatus};
 
 /// Memory-mapped start of the flash.
@@ -37,6 +37,11 @@ const _: () = assert!(memory_x::TABLE_LENGTH == 2 * TABLE_BANK_SIZE);
 const _: () = assert!(TABLE_REGION_START + 2 * TABLE_BANK_SIZE == FLASH_SIZE);
 const _: () =
     assert!(TABLE_REGION_START == (TABLE_FIRST_SECTOR - SECTOR_NUMBER_OFFSET) * TABLE_SECTOR_BYTES);
+// SAFETY: [FLASH_BASE + TABLE_REGION_START, FLASH_BASE + FLASH_SIZE) is the TABLE
+// region of memory/netduinoplus2.x (the asserts above): sectors 8 to 11 of the
+// memory-mapped flash, reserved (no code, data or Rust object there), byte-readable,
+// used only through TableFlash.
+const REGION: TableRegion = unsafe { TableRegion::new(FLASH_BASE, TABLE_REGION_START, FLASH_SIZE) };
 /// Erased byte value.
 const FLASH_ERASED: u8 = 0xFF;
 /// Unlock keys (RM0090 3.5.1).
@@ -46,43 +51,10 @@ const FLASH_KEY2: u32 = 0xCDEF_89AB;
 /// operation (RM0090 3.9.4); write 1 to clear.
 const FLASH_SR_ERRORS: u32 = (1 << 7) | (1 << 6) | (1 << 5) | (1 << 4) | (1 << 1);
 
-/// Why a flash operation was refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum FlashError {
-    /// Outside the table region.
-    OutOfBounds,
-    /// An erase not covering whole sectors.
-    NotAligned,
-    /// A write tried to set a bit that is 0 (NOR can only clear bits before an erase).
-    NotErased,
-    /// The flash interface reported an error (sequence, protection, alignment).
-    Device,
-}
-
-impl NorFlashError for FlashError {
-    fn kind(&self) -> NorFlashErrorKind {
-        match self {
-            FlashError::OutOfBounds => NorFlashErrorKind::OutOfBounds,
-            FlashError::NotAligned => NorFlashErrorKind::NotAligned,
-            FlashError::NotErased | FlashError::Device => NorFlashErrorKind::Other,
-        }
-    }
-}
-
 /// The TABLE region as NOR flash.
 pub struct TableFlash(pub(super) pac::FLASH);
 
 impl TableFlash {
-    fn check(from: u32, len: usize) -> Result<(), FlashError> {
-        let end = (from as usize)
-            .checked_add(len)
-            .ok_or(FlashError::OutOfBounds)?;
-        if from < TABLE_REGION_START || end > FLASH_SIZE as usize {
-            return Err(FlashError::OutOfBounds);
-        }
-        Ok(())
-    }
-
     fn bsy(&self) -> bool {
         self.0.sr().read().bsy().bit_is_set()
     }
@@ -122,18 +94,10 @@ impl ErrorType for TableFlash {
 impl ReadNorFlash for TableFlash {
     const READ_SIZE: usize = 1;
     fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), FlashError> {
-        Self::check(offset, bytes.len())?;
-        let base = FLASH_BASE + offset as usize;
-        for (i, b) in bytes.iter_mut().enumerate() {
-            // SAFETY: `check` put [offset, offset + len) inside the TABLE region, sectors
-            // reserved in memory/netduinoplus2.x (no code, data or Rust object there);
-            // byte reads of memory-mapped flash (during an erase the bus stalls, no fault).
-            *b = unsafe { read_volatile((base + i) as *const u8) };
-        }
-        Ok(())
+        REGION.read(offset, bytes)
     }
     fn capacity(&self) -> usize {
-        FLASH_SIZE as usize
+        REGION.capacity()
     }
 }
 
@@ -143,10 +107,10 @@ impl NorFlash for TableFlash {
     /// Starts the erase of each sector in `[from, to)` (waiting for the previous one):
     /// returns while the last one runs ([`FlashStatus::busy`]).
     fn erase(&mut self, from: u32, to: u32) -> Result<(), FlashError> {
-        if from > to || from % TABLE_SECTOR_BYTES != 0 || to % TABLE_SECTOR_BYTES != 0 {
+        if !erase_aligned(from, to, TABLE_SECTOR_BYTES) {
             return Err(FlashError::NotAligned);
         }
-        Self::check(from, (to - from) as usize)?;
+        REGION.check(from, (to - from) as usize)?;
         for index in (from / TABLE_SECTOR_BYTES)..(to / TABLE_SECTOR_BYTES) {
             let sector = index + SECTOR_NUMBER_OFFSET;
             self.ready()?;
@@ -165,16 +129,8 @@ impl NorFlash for TableFlash {
     }
     /// Programs byte by byte (x8), waiting for each; bits can only be cleared.
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
-        Self::check(offset, bytes.len())?;
-        let base = FLASH_BASE + offset as usize;
-        for (i, b) in bytes.iter().enumerate() {
-            // SAFETY: as in `read`: `check` put every byte inside the reserved TABLE
-            // region of memory-mapped flash; byte reads.
-            let old = unsafe { read_volatile((base + i) as *const u8) };
-            if b & !old != 0 {
-                return Err(FlashError::NotErased);
-            }
-        }
+        REGION.check_programmable(offset, bytes)?;
+        let base = REGION.address(offset);
         self.ready()?;
         self.0.cr().write(|w| {
             w.psize().set(0b00);
