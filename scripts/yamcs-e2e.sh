@@ -3,11 +3,14 @@
 # m2fw in QEMU, the gateway and Yamcs (scripts/ground-segment.sh), runs
 # yamcs/tools/e2e.py through yamcs-client (ping, housekeeping with units and UTC time,
 # a move in um/arcsec with every verifier stage, a refused move, a table upload/commit/
-# activate, events with severities; every Yamcs-encoded TC byte-identical to m2ground
-# tc's), then takes a headless Chromium screenshot of the Yamcs page with the
-# housekeeping parameters (yamcs/tools/screenshot.py, Chromium over DevTools):
-# target/ground-segment/yamcs-housekeeping.png.
-# Needs scripts/setup.sh. About 1-2 minutes once built.
+# activate, events with severities, sources and named words, number formats, critical
+# commands, alarms; every Yamcs-encoded TC byte-identical to m2ground tc's), then takes
+# headless Chromium screenshots of the Yamcs pages with the housekeeping parameters and
+# the events (yamcs/tools/screenshot.py, Chromium over DevTools; the events page must
+# show its rows and no error): <target>/ground-segment/yamcs-{housekeeping,events}.png.
+# Before: the work directory follows CARGO_TARGET_DIR. After: two more starts, the
+# archive kept, then --clean (yamcs/tools/archive_check.py).
+# Needs scripts/setup.sh. About 2-3 minutes once built.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # The ground segment finds cargo's target directory wherever CARGO_TARGET_DIR puts it.
