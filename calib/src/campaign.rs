@@ -48,6 +48,32 @@ pub(crate) fn reached(
     })
 }
 
+/// The working geometry of `params`, the error in words.
+pub(crate) fn geometry(params: &GeometryParams) -> Result<Geometry<f64>, CampaignError> {
+    Geometry::<f64>::new(params)
+        .map_err(|e| CampaignError(super::files::describe_geometry_error(&e)))
+}
+
+/// Commands target `k` (0-based) with the `commanded` geometry on the `truth` mechanism:
+/// the strokes `IK(target, commanded)` (mm) and the pose the true mechanism reaches with
+/// them; an error names the target (1-based).
+pub(crate) fn command(
+    commanded: &Geometry<f64>,
+    truth: &Geometry<f64>,
+    k: usize,
+    target: &Pose<f64>,
+) -> Result<([f64; 6], Pose<f64>), CampaignError> {
+    let strokes = ik(commanded, target).map_err(|e| {
+        CampaignError(format!(
+            "target {}: {}",
+            k + 1,
+            super::ikfk::describe_ik_error(&e)
+        ))
+    })?;
+    let actual = reached(truth, &strokes, target)?;
+    Ok((strokes, actual))
+}
+
 /// Simulates the campaign: for each target, command `IK(target, nominal)`, let the true
 /// mechanism move, measure its pose with `tracker` (noise drawn from `noise_seed`) and
 /// read the commanded strokes.
@@ -58,21 +84,12 @@ pub fn simulate(
     tracker: &PoseTracker,
     noise_seed: u64,
 ) -> Result<Vec<Measurement>, CampaignError> {
-    let nom = Geometry::<f64>::new(nominal)
-        .map_err(|e| CampaignError(super::files::describe_geometry_error(&e)))?;
-    let tru = Geometry::<f64>::new(truth)
-        .map_err(|e| CampaignError(super::files::describe_geometry_error(&e)))?;
+    let nom = geometry(nominal)?;
+    let tru = geometry(truth)?;
     let mut rng = Pcg64::seed_from_u64(noise_seed);
     let mut out = Vec::with_capacity(targets.len());
     for (k, target) in targets.iter().enumerate() {
-        let strokes = ik(&nom, target).map_err(|e| {
-            CampaignError(format!(
-                "target {}: {}",
-                k + 1,
-                super::ikfk::describe_ik_error(&e)
-            ))
-        })?;
-        let actual = reached(&tru, &strokes, target)?;
+        let (strokes, actual) = command(&nom, &tru, k, target)?;
         out.push(Measurement {
             line: 0,
             pose: tracker.measure(&actual, &mut rng),

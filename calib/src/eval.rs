@@ -6,9 +6,9 @@
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 
-use super::campaign::{reached, CampaignError};
+use super::campaign::{command, geometry, CampaignError};
 use super::plan::DEFAULT_AXIS_MM;
-use m2ctl::kinematics::{ik, Geometry, GeometryParams, Pose};
+use m2ctl::kinematics::{GeometryParams, Pose};
 
 /// Default number of held-out evaluation poses.
 pub const DEFAULT_EVAL_POSES: usize = 200;
@@ -94,20 +94,11 @@ pub fn accuracy(
     truth: &GeometryParams,
     targets: &[Pose<f64>],
 ) -> Result<Accuracy, CampaignError> {
-    let cmd = Geometry::<f64>::new(commanded)
-        .map_err(|e| CampaignError(super::files::describe_geometry_error(&e)))?;
-    let tru = Geometry::<f64>::new(truth)
-        .map_err(|e| CampaignError(super::files::describe_geometry_error(&e)))?;
+    let cmd = geometry(commanded)?;
+    let tru = geometry(truth)?;
     let mut errors = Vec::with_capacity(targets.len());
     for (k, t) in targets.iter().enumerate() {
-        let s = ik(&cmd, t).map_err(|e| {
-            CampaignError(format!(
-                "target {}: {}",
-                k + 1,
-                super::ikfk::describe_ik_error(&e)
-            ))
-        })?;
-        let p = reached(&tru, &s, t)?;
+        let (_, p) = command(&cmd, &tru, k, t)?;
         errors.push(pose_error(&p, t));
     }
     Ok(Accuracy::from_errors(errors))

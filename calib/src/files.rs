@@ -60,20 +60,31 @@ impl fmt::Display for FileError {
 
 impl std::error::Error for FileError {}
 
-fn err(line: usize, message: impl Into<String>) -> FileError {
+/// A [`FileError`] at `line` (1-based, 0 for the whole file); the file readers of the
+/// crate all build their errors with it.
+pub(crate) fn err(line: usize, message: impl Into<String>) -> FileError {
     FileError {
         line,
         message: message.into(),
     }
 }
 
-fn line_of(text: &str, span: &Range<usize>) -> usize {
+/// The 1-based line of `text` where the byte range `span` (a TOML span) starts.
+pub(crate) fn line_of(text: &str, span: &Range<usize>) -> usize {
     let end = span.start.min(text.len());
     text.as_bytes()[..end]
         .iter()
         .filter(|b| **b == b'\n')
         .count()
         + 1
+}
+
+/// Deserialises a TOML file, a syntax or schema error named by its line.
+pub(crate) fn parse_toml<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, FileError> {
+    toml::from_str(text).map_err(|e| {
+        let line = e.span().map(|s| line_of(text, &s)).unwrap_or(0);
+        err(line, e.message().trim().to_string())
+    })
 }
 
 #[derive(Deserialize)]
@@ -150,10 +161,7 @@ fn check_finite(text: &str, span: &Range<usize>, what: &str, v: &[f64]) -> Resul
 
 /// Parses a geometry file's text.
 pub fn parse_geometry(text: &str) -> Result<GeometryFile, FileError> {
-    let raw: RawGeometry = toml::from_str(text).map_err(|e| {
-        let line = e.span().map(|s| line_of(text, &s)).unwrap_or(0);
-        err(line, e.message().trim().to_string())
-    })?;
+    let raw: RawGeometry = parse_toml(text)?;
     check_finite(text, &raw.p0.span(), "p0", raw.p0.get_ref())?;
     let legs_raw = raw.leg.get_ref();
     if legs_raw.len() != LEGS {
@@ -492,16 +500,42 @@ pub struct CsvRow {
     pub values: Vec<f64>,
 }
 
+/// The lines of a CSV file that hold data or the header, numbered from 1 and trimmed:
+/// blank lines and `#` comments are skipped.
+pub(crate) fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    text.lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'))
+}
+
+/// The trimmed fields of data line `line` (`text`, split at `delim`); refused unless
+/// there are `expected` of them, as many as the header has.
+pub(crate) fn split_fields(
+    line: usize,
+    text: &str,
+    delim: char,
+    expected: usize,
+) -> Result<Vec<&str>, FileError> {
+    let fields: Vec<&str> = text.split(delim).map(str::trim).collect();
+    if fields.len() != expected {
+        return Err(err(
+            line,
+            format!(
+                "expected {expected} fields as in the header, found {}",
+                fields.len()
+            ),
+        ));
+    }
+    Ok(fields)
+}
+
 /// Parses a pose/stroke CSV and extracts the columns `wanted` (indices into
 /// [`CSV_COLUMNS`]). Lines starting with `#` and blank lines are skipped; the first other
 /// line is the header. Unknown columns are ignored; a duplicated or missing wanted column,
 /// a wrong field count, a non-number or a non-finite number is an error.
 pub fn parse_csv(text: &str, wanted: Range<usize>) -> Result<Vec<CsvRow>, FileError> {
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim()))
-        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
+    let mut lines = data_lines(text);
     let (hline, header) = lines
         .next()
         .ok_or_else(|| err(0, "no header line (file is empty)"))?;
@@ -529,17 +563,7 @@ pub fn parse_csv(text: &str, wanted: Range<usize>) -> Result<Vec<CsvRow>, FileEr
     }
     let mut rows = Vec::new();
     for (ln, l) in lines {
-        let fields: Vec<&str> = l.split(',').map(str::trim).collect();
-        if fields.len() != names.len() {
-            return Err(err(
-                ln,
-                format!(
-                    "expected {} fields as in the header, found {}",
-                    names.len(),
-                    fields.len()
-                ),
-            ));
-        }
+        let fields = split_fields(ln, l, ',', names.len())?;
         let mut values = Vec::with_capacity(index.len());
         for (&p, k) in index.iter().zip(wanted.clone()) {
             let f = fields[p];

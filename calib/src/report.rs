@@ -191,6 +191,23 @@ fn with_solver(base: &CalibConfig, solver: SolverKind) -> CalibConfig {
     }
 }
 
+/// The rows of one tracker-noise case of the comparison: the campaign measured with
+/// `tracker`, its uncalibrated row, then one row per solver of `solvers` (settings of
+/// `calib` otherwise).
+fn solver_rows(
+    exp: &Experiment,
+    tracker: &PoseTracker,
+    calib: &CalibConfig,
+    solvers: &[SolverKind],
+) -> Result<Vec<Row>, String> {
+    let prep = exp.prepare(tracker).map_err(|e| e.to_string())?;
+    let mut rows = vec![before_row(exp, &prep)?];
+    for &solver in solvers {
+        rows.push(run_solver(exp, &prep, &with_solver(calib, solver))?);
+    }
+    Ok(rows)
+}
+
 /// Runs the whole comparison and returns the report text (Markdown).
 pub fn table3(cfg: &TableConfig) -> Result<String, String> {
     let exp = &cfg.exp;
@@ -214,18 +231,17 @@ pub fn table3(cfg: &TableConfig) -> Result<String, String> {
         coordinates_name(cfg.calib.cuckoo.coordinates)
     );
     // Part 1: the paper's noise.
-    let prep = exp
-        .prepare(&PoseTracker::PAPER)
-        .map_err(|e| e.to_string())?;
-    let mut rows = vec![before_row(exp, &prep)?];
-    for solver in [
-        SolverKind::Smcs,
-        SolverKind::Improved,
-        SolverKind::Lm,
-        SolverKind::ImprovedLm,
-    ] {
-        rows.push(run_solver(exp, &prep, &with_solver(&cfg.calib, solver))?);
-    }
+    let rows = solver_rows(
+        exp,
+        &PoseTracker::PAPER,
+        &cfg.calib,
+        &[
+            SolverKind::Smcs,
+            SolverKind::Improved,
+            SolverKind::Lm,
+            SolverKind::ImprovedLm,
+        ],
+    )?;
     let _ = writeln!(
         out,
         "### Tracker noise {} um / {} arcsec (the paper's Table 3)\n",
@@ -243,17 +259,16 @@ pub fn table3(cfg: &TableConfig) -> Result<String, String> {
         let _ = writeln!(out, "\nPer-pose error plot: {}", path.display());
     }
     // Part 2: realistic noise, bounded vs unbounded.
-    let prep = exp
-        .prepare(&PoseTracker::REALISTIC)
-        .map_err(|e| e.to_string())?;
-    let mut rows = vec![before_row(exp, &prep)?];
-    for solver in [
-        SolverKind::LmUnbounded,
-        SolverKind::Lm,
-        SolverKind::Improved,
-    ] {
-        rows.push(run_solver(exp, &prep, &with_solver(&cfg.calib, solver))?);
-    }
+    let rows = solver_rows(
+        exp,
+        &PoseTracker::REALISTIC,
+        &cfg.calib,
+        &[
+            SolverKind::LmUnbounded,
+            SolverKind::Lm,
+            SolverKind::Improved,
+        ],
+    )?;
     let _ = writeln!(
         out,
         "\n### Tracker noise {} um / {} arcsec: bounded vs unbounded\n",
@@ -339,25 +354,8 @@ pub fn plot_per_pose_with_floor(
     series: &[(&str, &Accuracy)],
     floor: Option<[f64; 6]>,
 ) -> Result<(), String> {
-    use super::tracker::commands::noise_band;
-    use super::tracker::plots::{per_pose, Panel, Series};
-    let panel = |what: &str, unit: &str, rot: bool| Panel {
-        caption: format!("largest |{what} error| of each pose ({unit}, log scale)"),
-        y_label: unit.to_string(),
-        series: series
-            .iter()
-            .map(|(l, a)| Series {
-                label: l.to_string(),
-                values: a
-                    .per_pose_max()
-                    .iter()
-                    .map(|(t, r)| if rot { *r } else { *t })
-                    .collect(),
-            })
-            .collect(),
-        band: floor.map(|f| noise_band(if rot { &f[3..] } else { &f[..3] })),
-        log: true,
-    };
+    use super::tracker::commands::pose_error_panels;
+    use super::tracker::plots::per_pose;
     let n = series
         .iter()
         .map(|(_, a)| a.errors.len())
@@ -367,10 +365,7 @@ pub fn plot_per_pose_with_floor(
         path,
         &format!("Pose error per pose, {n} poses"),
         "pose",
-        &[
-            panel("translation", "um", false),
-            panel("rotation", "arcsec", true),
-        ],
+        &pose_error_panels(series, floor.as_ref(), true),
         floor.map(|_| "measurement noise floor (90 % of pure-noise poses)"),
     )
 }

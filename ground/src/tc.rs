@@ -329,25 +329,21 @@ pub fn check_arguments(
             values.len()
         ));
     }
-    let int = |name: &str| {
+    // The value given for the field called `name`.
+    let value = |name: &str| {
         fields
             .iter()
             .zip(values)
             .find(|(f, _)| f.name == name)
-            .and_then(|(_, v)| match v {
-                ArgValue::Int(i) => Some(*i),
-                ArgValue::Bytes(_) => None,
-            })
+            .map(|(_, v)| v)
     };
-    let bytes = |name: &str| {
-        fields
-            .iter()
-            .zip(values)
-            .find(|(f, _)| f.name == name)
-            .and_then(|(_, v)| match v {
-                ArgValue::Bytes(b) => Some(b.as_slice()),
-                ArgValue::Int(_) => None,
-            })
+    let int = |name: &str| match value(name)? {
+        ArgValue::Int(i) => Some(*i),
+        ArgValue::Bytes(_) => None,
+    };
+    let bytes = |name: &str| match value(name)? {
+        ArgValue::Bytes(b) => Some(b.as_slice()),
+        ArgValue::Int(_) => None,
     };
     for (f, v) in fields.iter().zip(values) {
         match (v, f.wire) {

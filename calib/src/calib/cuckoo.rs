@@ -32,6 +32,9 @@ use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal, StandardNormal};
 use rand_pcg::Pcg64;
 
+// The Gamma function lives with the other special functions (stats); re-exported so
+// `cuckoo::gamma` stays where Mantegna's formula uses it.
+pub use super::stats::gamma;
 use super::{CalibError, ParamBox, ParamVec, Problem, N_PARAMS};
 use m2ctl::units::UM_PER_MM;
 
@@ -186,36 +189,6 @@ pub fn mantegna_sigma(beta: f64) -> f64 {
     let num = gamma(1.0 + beta) * (std::f64::consts::PI * beta / 2.0).sin();
     let den = gamma((1.0 + beta) / 2.0) * beta * 2f64.powf((beta - 1.0) / 2.0);
     (num / den).powf(1.0 / beta)
-}
-
-/// Lanczos coefficients (g = 7, n = 9) for the Gamma function.
-const LANCZOS_G: f64 = 7.0;
-const LANCZOS: [f64; 9] = [
-    0.999_999_999_999_809_9,
-    676.520_368_121_885_1,
-    -1_259.139_216_722_402_8,
-    771.323_428_777_653_1,
-    -176.615_029_162_140_6,
-    12.507_343_278_686_905,
-    -0.138_571_095_265_720_12,
-    9.984_369_578_019_572e-6,
-    1.505_632_735_149_311_6e-7,
-];
-
-/// The Gamma function (Lanczos approximation, ~1e-15 relative for the arguments here).
-pub fn gamma(x: f64) -> f64 {
-    use std::f64::consts::PI;
-    if x < 0.5 {
-        PI / ((PI * x).sin() * gamma(1.0 - x))
-    } else {
-        let x = x - 1.0;
-        let mut a = LANCZOS[0];
-        let t = x + LANCZOS_G + 0.5;
-        for (i, c) in LANCZOS.iter().enumerate().skip(1) {
-            a += c / (x + i as f64);
-        }
-        (2.0 * PI).sqrt() * t.powf(x + 0.5) * (-t).exp() * a
-    }
 }
 
 /// The improved algorithm's step coefficients at generation `t` of `t_max`:

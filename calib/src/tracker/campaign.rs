@@ -155,6 +155,23 @@ pub fn simulate(
     simulate_with_truth(nominal, &truth, setup, plan, seeds)
 }
 
+/// The stroke record of pose `k` (0-based) of a plan, numbered `k + 1`: the strokes the
+/// `nominal` geometry commands for `pose` (mm); an error names it as `what` `k + 1`.
+fn nominal_strokes(
+    nominal: &Geometry<f64>,
+    k: usize,
+    pose: &Pose<f64>,
+    what: &str,
+) -> Result<StrokeRecord, String> {
+    let s = ik(nominal, pose)
+        .map_err(|e| format!("{what} {}: {}", k + 1, crate::ikfk::describe_ik_error(&e)))?;
+    Ok(StrokeRecord {
+        line: 0,
+        pose: k as u32 + 1,
+        strokes_mm: s,
+    })
+}
+
 /// [`simulate`] with a given true geometry.
 pub fn simulate_with_truth(
     nominal: &GeometryParams,
@@ -170,25 +187,15 @@ pub fn simulate_with_truth(
     let mut strokes = Vec::with_capacity(plan.len());
     let mut true_poses = Vec::with_capacity(plan.len());
     for (k, target) in plan.iter().enumerate() {
-        let s = ik(&nom, target).map_err(|e| {
-            format!(
-                "plan pose {}: {}",
-                k + 1,
-                crate::ikfk::describe_ik_error(&e)
-            )
-        })?;
-        let reached = true_motion(&tru, &s, target).map_err(|e| {
+        let rec = nominal_strokes(&nom, k, target, "plan pose")?;
+        let reached = true_motion(&tru, &rec.strokes_mm, target).map_err(|e| {
             format!(
                 "plan pose {}: true mechanism: {}",
                 k + 1,
                 crate::ikfk::describe_fk_error(&e)
             )
         })?;
-        strokes.push(StrokeRecord {
-            line: 0,
-            pose: k as u32 + 1,
-            strokes_mm: s,
-        });
+        strokes.push(rec);
         true_poses.push(reached);
     }
     let mut rng = Pcg64::seed_from_u64(seeds.noise);
@@ -236,18 +243,7 @@ pub fn nominal_data(
     };
     let mut strokes = Vec::with_capacity(poses.len());
     for (k, p) in poses.iter().enumerate() {
-        let s = ik(&nom, p).map_err(|e| {
-            format!(
-                "candidate pose {}: {}",
-                k + 1,
-                crate::ikfk::describe_ik_error(&e)
-            )
-        })?;
-        strokes.push(StrokeRecord {
-            line: 0,
-            pose: k as u32 + 1,
-            strokes_mm: s,
-        });
+        strokes.push(nominal_strokes(&nom, k, p, "candidate pose")?);
     }
     let mut rng = Pcg64::seed_from_u64(0);
     let points = measure(&scene, &nominal.p0_mm, poses, &mut rng);

@@ -87,6 +87,39 @@ pub fn noise_band(s: &[f64]) -> Band {
     }
 }
 
+/// The two panels of a per-pose error plot of the accuracies `series` (label, accuracy):
+/// the largest |translation error| of each pose (um) and the largest |rotation error|
+/// (arcsec), each with the [`noise_band`] of `floor`, the 1-sigma noise of one pose
+/// measurement per axis (um x3, arcsec x3), if given; `log` for log-scale axes.
+pub fn pose_error_panels(
+    series: &[(&str, &Accuracy)],
+    floor: Option<&[f64; 6]>,
+    log: bool,
+) -> [Panel; 2] {
+    let scale = if log { ", log scale" } else { "" };
+    let panel = |what: &str, unit: &str, rot: bool| Panel {
+        caption: format!("largest |{what} error| of each pose ({unit}{scale})"),
+        y_label: unit.to_string(),
+        series: series
+            .iter()
+            .map(|(l, a)| Series {
+                label: l.to_string(),
+                values: a
+                    .per_pose_max()
+                    .iter()
+                    .map(|(t, r)| if rot { *r } else { *t })
+                    .collect(),
+            })
+            .collect(),
+        band: floor.map(|f| noise_band(if rot { &f[3..] } else { &f[..3] })),
+        log,
+    };
+    [
+        panel("translation", "um", false),
+        panel("rotation", "arcsec", true),
+    ]
+}
+
 /// The tracker's 1-sigma noise of one pose measurement at home (um x3, arcsec x3).
 pub fn pose_noise(fit: &BundleFit, p0_mm: &[f64; 3], noise: &TrackerNoise) -> Option<[f64; 6]> {
     bundle::pose_measurement_sigma(
@@ -648,33 +681,16 @@ pub fn run_point_calibrate(a: &PointCalibrateArgs) -> Result<(String, String), S
             x_label = "held-out pose";
         }
         if let Some(p) = &a.plot {
-            let band_t = band_label.map(|_| noise_band(&noise_sigma[..3]));
-            let band_r = band_label.map(|_| noise_band(&noise_sigma[3..]));
-            let panel = |what: &str, unit: &str, rot: bool, band: Option<Band>| Panel {
-                caption: format!("largest |{what} error| of each pose ({unit})"),
-                y_label: unit.to_string(),
-                series: plot_series
-                    .iter()
-                    .map(|(l, acc)| Series {
-                        label: l.clone(),
-                        values: acc
-                            .per_pose_max()
-                            .iter()
-                            .map(|(t, r)| if rot { *r } else { *t })
-                            .collect(),
-                    })
-                    .collect(),
-                band,
-                log: false,
-            };
+            let series: Vec<(&str, &Accuracy)> = plot_series
+                .iter()
+                .map(|(l, acc)| (l.as_str(), acc))
+                .collect();
+            let floor = band_label.map(|_| &noise_sigma);
             per_pose(
                 p,
                 &title,
                 x_label,
-                &[
-                    panel("translation", "um", false, band_t),
-                    panel("rotation", "arcsec", true, band_r),
-                ],
+                &pose_error_panels(&series, floor, false),
                 band_label,
             )?;
             let _ = writeln!(s, "plot: {}", p.display());

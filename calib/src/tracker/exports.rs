@@ -39,17 +39,8 @@
 
 use std::collections::HashMap;
 
-use super::files::{
-    parse_export, push_unique, PointPose, PointRecord, BASE_POSE, MAX_RANGE_MM, MIN_RANGE_MM,
-};
-use crate::files::FileError;
-
-fn err(line: usize, message: impl Into<String>) -> FileError {
-    FileError {
-        line,
-        message: message.into(),
-    }
-}
+use super::files::{check_range, parse_export, push_unique, PointPose, PointRecord, BASE_POSE};
+use crate::files::{err, split_fields, FileError};
 
 /// A length unit of an export.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -465,6 +456,10 @@ pub fn read_export(text: &str, opts: &ExportOptions) -> Result<Vec<PointRecord>,
         ));
     };
     let k = unit.mm();
+    let range_hint = format!(
+        "unit {}: a wrong unit, or coordinates not in the tracker's frame: give the tracker's position with --tracker-at",
+        unit.name()
+    );
     let mut out = Vec::new();
     let mut seen: HashMap<(PointPose, String), usize> = HashMap::new();
     let mut collection: Option<(String, usize)> = None;
@@ -472,17 +467,7 @@ pub fn read_export(text: &str, opts: &ExportOptions) -> Result<Vec<PointRecord>,
         if skip(l) {
             continue;
         }
-        let f: Vec<&str> = l.split(delim).map(str::trim).collect();
-        if f.len() != names.len() {
-            return Err(err(
-                ln,
-                format!(
-                    "expected {} fields as in the header, found {}",
-                    names.len(),
-                    f.len()
-                ),
-            ));
-        }
+        let f = split_fields(ln, l, delim, names.len())?;
         if let Some(c) = c_coll {
             match &collection {
                 None => collection = Some((f[c].to_string(), ln)),
@@ -544,16 +529,7 @@ pub fn read_export(text: &str, opts: &ExportOptions) -> Result<Vec<PointRecord>,
             }
             _ => None,
         };
-        let range = (y[0] * y[0] + y[1] * y[1] + y[2] * y[2]).sqrt();
-        if !(MIN_RANGE_MM..=MAX_RANGE_MM).contains(&range) {
-            return Err(err(
-                ln,
-                format!(
-                    "point {name} is {range:.1} mm from the tracker: outside {MIN_RANGE_MM}..{MAX_RANGE_MM} mm (unit {}: a wrong unit, or coordinates not in the tracker's frame: give the tracker's position with --tracker-at)",
-                    unit.name()
-                ),
-            ));
-        }
+        check_range(ln, &name, &y, &range_hint)?;
         push_unique(
             &mut out,
             &mut seen,

@@ -45,7 +45,7 @@ use std::fmt::Write as _;
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::files::FileError;
+use crate::files::{data_lines, err, line_of, parse_toml, split_fields, FileError};
 use m2ctl::kinematics::LEGS;
 use m2ctl::sim::tracker::NamedPoint;
 
@@ -65,13 +65,6 @@ pub const POINT_COLUMNS: [&str; 6] = ["pose", "point", "x_mm", "y_mm", "z_mm", "
 /// Column names of the stroke file.
 pub const STROKE_COLUMNS: [&str; 7] =
     ["pose", "s1_mm", "s2_mm", "s3_mm", "s4_mm", "s5_mm", "s6_mm"];
-
-fn err(line: usize, message: impl Into<String>) -> FileError {
-    FileError {
-        line,
-        message: message.into(),
-    }
-}
 
 // ---------------------------------------------------------------------------------------
 // Target file
@@ -192,15 +185,6 @@ struct RawTargets {
     fiducial: Spanned<Vec<RawFiducial>>,
 }
 
-fn line_of(text: &str, span: &std::ops::Range<usize>) -> usize {
-    let end = span.start.min(text.len());
-    text.as_bytes()[..end]
-        .iter()
-        .filter(|b| **b == b'\n')
-        .count()
-        + 1
-}
-
 /// Whether three or more points span a plane (not collinear).
 fn spans_plane(points: &[[f64; 3]]) -> bool {
     let Some(first) = points.first() else {
@@ -220,10 +204,7 @@ fn spans_plane(points: &[[f64; 3]]) -> bool {
 
 /// Parses a target file.
 pub fn parse_targets(text: &str) -> Result<TargetFile, FileError> {
-    let raw: RawTargets = toml::from_str(text).map_err(|e| {
-        let line = e.span().map(|s| line_of(text, &s)).unwrap_or(0);
-        err(line, e.message().trim().to_string())
-    })?;
+    let raw: RawTargets = parse_toml(text)?;
     let mut names: HashMap<String, usize> = HashMap::new();
     let mut take =
         |name: &Spanned<String>, mm: &Spanned<[f64; 3]>| -> Result<NamedPoint, FileError> {
@@ -334,14 +315,6 @@ pub fn format_targets(t: &TargetFile, header_comment: &str) -> String {
 // CSV helpers
 // ---------------------------------------------------------------------------------------
 
-/// Non-comment, non-blank lines with their 1-based numbers.
-fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
-    text.lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim()))
-        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'))
-}
-
 /// The header's column positions for `columns` (the last `optional` may be missing).
 fn header_index(
     line: usize,
@@ -447,6 +420,27 @@ pub(super) fn push_unique(
     Ok(())
 }
 
+/// Refuses a point whose distance from the tracker `y_mm` (tracker frame, mm) is outside
+/// [`MIN_RANGE_MM`]..[`MAX_RANGE_MM`], naming it, its line and what is likely wrong
+/// (`hint`, which differs by reader).
+pub(super) fn check_range(
+    line: usize,
+    name: &str,
+    y_mm: &[f64; 3],
+    hint: &str,
+) -> Result<(), FileError> {
+    let range = (y_mm[0] * y_mm[0] + y_mm[1] * y_mm[1] + y_mm[2] * y_mm[2]).sqrt();
+    if !(MIN_RANGE_MM..=MAX_RANGE_MM).contains(&range) {
+        return Err(err(
+            line,
+            format!(
+                "point {name} is {range:.1} mm from the tracker: outside {MIN_RANGE_MM}..{MAX_RANGE_MM} mm ({hint})"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Parses a tracker point export (see the module docs). Checks that need the target file
 /// (names, counts) are in [`check_export`].
 pub fn parse_export(text: &str) -> Result<Vec<PointRecord>, FileError> {
@@ -459,16 +453,7 @@ pub fn parse_export(text: &str) -> Result<Vec<PointRecord>, FileError> {
     let mut out: Vec<PointRecord> = Vec::new();
     let mut seen: HashMap<(PointPose, String), usize> = HashMap::new();
     for (ln, l) in lines {
-        let f: Vec<&str> = l.split(',').map(str::trim).collect();
-        if f.len() != nfields {
-            return Err(err(
-                ln,
-                format!(
-                    "expected {nfields} fields as in the header, found {}",
-                    f.len()
-                ),
-            ));
-        }
+        let f = split_fields(ln, l, ',', nfields)?;
         let pose = if f[col(0)].eq_ignore_ascii_case(BASE_POSE) {
             PointPose::Base
         } else {
@@ -482,15 +467,12 @@ pub fn parse_export(text: &str) -> Result<Vec<PointRecord>, FileError> {
         for (k, v) in y.iter_mut().enumerate() {
             *v = number(ln, POINT_COLUMNS[2 + k], f[col(2 + k)])?;
         }
-        let range = (y[0] * y[0] + y[1] * y[1] + y[2] * y[2]).sqrt();
-        if !(MIN_RANGE_MM..=MAX_RANGE_MM).contains(&range) {
-            return Err(err(
-                ln,
-                format!(
-                    "point {name} is {range:.1} mm from the tracker: outside {MIN_RANGE_MM}..{MAX_RANGE_MM} mm (coordinates must be in the tracker's own frame, mm)"
-                ),
-            ));
-        }
+        check_range(
+            ln,
+            &name,
+            &y,
+            "coordinates must be in the tracker's own frame, mm",
+        )?;
         let sigma_mm = match idx[5] {
             Some(p) if !f[p].is_empty() => {
                 let s = number(ln, "sigma_mm", f[p])?;
@@ -573,16 +555,7 @@ pub fn parse_strokes(text: &str) -> Result<Vec<StrokeRecord>, FileError> {
     let mut out: Vec<StrokeRecord> = Vec::new();
     let mut seen: HashMap<u32, usize> = HashMap::new();
     for (ln, l) in lines {
-        let f: Vec<&str> = l.split(',').map(str::trim).collect();
-        if f.len() != nfields {
-            return Err(err(
-                ln,
-                format!(
-                    "expected {nfields} fields as in the header, found {}",
-                    f.len()
-                ),
-            ));
-        }
+        let f = split_fields(ln, l, ',', nfields)?;
         let pose = pose_index(ln, f[col(0)])?;
         let mut strokes_mm = [0.0; LEGS];
         for (k, v) in strokes_mm.iter_mut().enumerate() {
@@ -635,6 +608,9 @@ pub fn check_export(
     points: &[PointRecord],
     strokes: &[StrokeRecord],
 ) -> Result<Vec<u32>, (Which, FileError)> {
+    // Each refusal names the file it is in and the line.
+    let in_points = |line: usize, message: String| (Which::Points, err(line, message));
+    let in_strokes = |line: usize, message: String| (Which::Strokes, err(line, message));
     let is_ball = |n: &str| targets.balls.iter().any(|b| b.name == n);
     let is_fid = |n: &str| targets.fiducials.iter().any(|f| f.name == n);
     let mut per_pose: BTreeMap<u32, (usize, usize)> = BTreeMap::new();
@@ -643,45 +619,36 @@ pub fn check_export(
         match p.pose {
             PointPose::Base => {
                 if is_ball(&p.name) {
-                    return Err((
-                        Which::Points,
-                        err(
-                            p.line,
-                            format!(
-                                "{} is a ball, not a fiducial: balls belong to a pose",
-                                p.name
-                            ),
+                    return Err(in_points(
+                        p.line,
+                        format!(
+                            "{} is a ball, not a fiducial: balls belong to a pose",
+                            p.name
                         ),
                     ));
                 }
                 if !is_fid(&p.name) {
-                    return Err((
-                        Which::Points,
-                        err(
-                            p.line,
-                            format!("fiducial {} is not in the target file", p.name),
-                        ),
+                    return Err(in_points(
+                        p.line,
+                        format!("fiducial {} is not in the target file", p.name),
                     ));
                 }
                 fiducials += 1;
             }
             PointPose::Pose(k) => {
                 if is_fid(&p.name) {
-                    return Err((
-                        Which::Points,
-                        err(
-                            p.line,
-                            format!(
-                                "{} is a fiducial: fiducials belong to the '{BASE_POSE}' rows",
-                                p.name
-                            ),
+                    return Err(in_points(
+                        p.line,
+                        format!(
+                            "{} is a fiducial: fiducials belong to the '{BASE_POSE}' rows",
+                            p.name
                         ),
                     ));
                 }
                 if !is_ball(&p.name) {
-                    return Err((
-                        Which::Points,
-                        err(p.line, format!("ball {} is not in the target file", p.name)),
+                    return Err(in_points(
+                        p.line,
+                        format!("ball {} is not in the target file", p.name),
                     ));
                 }
                 let e = per_pose.entry(k).or_insert((0, p.line));
@@ -690,36 +657,27 @@ pub fn check_export(
         }
     }
     if fiducials < MIN_FIDUCIALS {
-        return Err((
-            Which::Points,
-            err(0, format!("{fiducials} fiducials measured ('{BASE_POSE}' rows): the registration needs at least {MIN_FIDUCIALS}")),
-        ));
+        return Err(in_points(0, format!("{fiducials} fiducials measured ('{BASE_POSE}' rows): the registration needs at least {MIN_FIDUCIALS}")));
     }
     for (k, (n, line)) in &per_pose {
         if *n < MIN_BALLS_PER_POSE {
-            return Err((
-                Which::Points,
-                err(
-                    *line,
-                    format!("pose {k} has {n} balls: at least {MIN_BALLS_PER_POSE} are needed"),
-                ),
+            return Err(in_points(
+                *line,
+                format!("pose {k} has {n} balls: at least {MIN_BALLS_PER_POSE} are needed"),
             ));
         }
         if !strokes.iter().any(|s| s.pose == *k) {
-            return Err((
-                Which::Points,
-                err(*line, format!("pose {k} has no strokes in the stroke file")),
+            return Err(in_points(
+                *line,
+                format!("pose {k} has no strokes in the stroke file"),
             ));
         }
     }
     for s in strokes {
         if !per_pose.contains_key(&s.pose) {
-            return Err((
-                Which::Strokes,
-                err(
-                    s.line,
-                    format!("pose {} has strokes but no measured balls", s.pose),
-                ),
+            return Err(in_strokes(
+                s.line,
+                format!("pose {} has strokes but no measured balls", s.pose),
             ));
         }
     }

@@ -85,12 +85,7 @@ pub fn failure_codes() -> Vec<FailureCode> {
     };
     let d = |r: ReportedIn, meaning: &str, data: &str| (r, meaning.to_string(), data.to_string());
     let validation = m2ctl::table::ValidationConfig::flight();
-    let ws = &validation.max_workspace;
-    let ws_arcsec: Vec<f64> = ws
-        .rotation_rad
-        .iter()
-        .map(|r| r * m2ctl::units::ARCSEC_PER_RAD)
-        .collect();
+    let (ws_mm, ws_arcsec) = super::names::workspace_caps();
     let max_obt_ms = u64::from(u32::MAX) * u64::from(m2ctl::timing::CYCLE_US) / 1000;
     use m2ctl::table::validate::field_index as fi;
     let range = |a: u16, b: u16| format!("{a}..{}", b - 1);
@@ -411,8 +406,7 @@ pub fn failure_codes() -> Vec<FailureCode> {
                 Compl,
                 &format!(
                     "a workspace half-range beyond ±{} mm / ±{}\"",
-                    uniform(&ws.translation_mm),
-                    uniform(&ws_arcsec)
+                    ws_mm, ws_arcsec
                 ),
                 "axis 0..5",
             ),

@@ -91,3 +91,15 @@ pub(super) fn uniform(values: &[f64]) -> String {
             .join("/")
     }
 }
+
+/// The flight validation's workspace caps as the ICD writes them (the largest half-ranges
+/// a table may hold): x, y, z in mm and alpha, beta, gamma in arcsec, each [`uniform`].
+pub(super) fn workspace_caps() -> (String, String) {
+    let ws = m2ctl::table::ValidationConfig::flight().max_workspace;
+    let arcsec: Vec<f64> = ws
+        .rotation_rad
+        .iter()
+        .map(|r| r * m2ctl::units::ARCSEC_PER_RAD)
+        .collect();
+    (uniform(&ws.translation_mm), uniform(&arcsec))
+}

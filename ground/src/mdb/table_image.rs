@@ -48,12 +48,7 @@ pub fn table_image() -> Vec<TableImageRow> {
         F64,
     }
     let validation = m2ctl::table::ValidationConfig::flight();
-    let ws = &validation.max_workspace;
-    let ws_arcsec: Vec<f64> = ws
-        .rotation_rad
-        .iter()
-        .map(|r| r * m2ctl::units::ARCSEC_PER_RAD)
-        .collect();
+    let (ws_mm, ws_arcsec) = super::names::workspace_caps();
     let code = |e: ValidationError| hex4(e.code());
     let non_finite = code(ValidationError::NonFinite { field: 0 });
     let dev = uniform(&[validation.max_coordinate_deviation_mm]);
@@ -175,10 +170,7 @@ pub fn table_image() -> Vec<TableImageRow> {
             field::WORKSPACE_TRANSLATION,
             "workspace half-range x, y, z (base axes)".into(),
             "mm",
-            format!(
-                "finite, >= 0, <= {} mm ({ws_cap})",
-                uniform(&ws.translation_mm)
-            ),
+            format!("finite, >= 0, <= {} mm ({ws_cap})", ws_mm),
             |t| f64s_le(&t.workspace.translation_mm),
         ),
         (
@@ -186,7 +178,7 @@ pub fn table_image() -> Vec<TableImageRow> {
             field::WORKSPACE_ROTATION,
             "workspace half-range alpha, beta, gamma".into(),
             "rad",
-            format!("finite, >= 0, <= {} arcsec ({ws_cap})", uniform(&ws_arcsec)),
+            format!("finite, >= 0, <= {} arcsec ({ws_cap})", ws_arcsec),
             |t| f64s_le(&t.workspace.rotation_rad),
         ),
         (
