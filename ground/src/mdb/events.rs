@@ -251,12 +251,8 @@ pub fn events() -> Vec<Event> {
 
 /// Bits of an auxiliary word.
 const AUX_BITS: u32 = u32::BITS;
-/// Lowest bit of the legs in FAULT_LATCHED's aux1 (flags in the bits below), as the
-/// controller packs it (`controller/mod.rs`, `controller/motion.rs`).
-pub const FAULT_LEGS_SHIFT: u32 = 24;
-/// Lowest bit of the report subtype in ACTIVITY_FAILED's aux1 (failure code below), as
-/// the controller packs it (`controller/schedule.rs`).
-pub const ACTIVITY_SUBTYPE_SHIFT: u32 = 16;
+/// How the controller packs its event words (defined with the event IDs).
+pub use m2ctl::link::tm::event_id::{ACTIVITY_SUBTYPE_SHIFT, FAULT_LEGS_SHIFT};
 
 /// How each event's auxiliary words are named (the meanings of [`events`]' aux texts).
 fn aux_decoding(id: u16) -> (Vec<AuxPart>, Vec<AuxPart>) {
