@@ -6,20 +6,33 @@
 # with the mission database generated from m2ground mdb-json.
 #
 #   scripts/ground-segment.sh                 # bring it up; Ctrl-C stops everything
-#   scripts/ground-segment.sh -- CMD ARGS...  # bring it up, run CMD, stop; CMD's exit code
+#   scripts/ground-segment.sh --clean         # the same, after deleting the Yamcs archive
+#   scripts/ground-segment.sh --where         # print the work directory and exit
+#   scripts/ground-segment.sh [--clean] -- CMD ARGS...  # bring it up, run CMD, stop; CMD's exit code
 #
 # Needs scripts/setup.sh (QEMU, Python yamcs packages, Java 17). Work files, logs and
-# the Yamcs archive are in target/ground-segment/ (fresh at every start).
+# the Yamcs archive are in <cargo target directory>/ground-segment/ (target/ unless
+# CARGO_TARGET_DIR or the cargo configuration says otherwise); the archive is kept
+# between starts (replay, history) unless --clean is given; the rest is regenerated.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
-W=$ROOT/target/ground-segment
+# Where cargo puts its binaries (CARGO_TARGET_DIR, .cargo/config.toml...): cargo knows.
+TARGET=$(cargo metadata --format-version 1 --no-deps | python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
+W=$TARGET/ground-segment
 HTTP_PORT=${M2_YAMCS_HTTP_PORT:-8090}
 LINK_PORT=${M2_YAMCS_LINK_PORT:-10015}
 export DEFMT_LOG=${DEFMT_LOG:-info}
 
+if [ "${1:-}" = "--where" ]; then echo "$W"; exit 0; fi   # the work directory, nothing started
 cmd=()
+clean=0
+if [ "${1:-}" = "--clean" ]; then clean=1; shift; fi
 if [ "${1:-}" = "--" ]; then shift; cmd=("$@"); fi
+if [ $# -gt 0 ] && [ ${#cmd[@]} -eq 0 ]; then
+  echo "usage: scripts/ground-segment.sh [--clean] [-- CMD ARGS...]" >&2
+  exit 2
+fi
 
 for p in "$HTTP_PORT" "$LINK_PORT"; do
   if (exec 3<>"/dev/tcp/127.0.0.1/$p") 2>/dev/null; then
@@ -31,13 +44,19 @@ done
 echo "ground-segment: building m2fw (QEMU) and m2ground"
 cargo build --release --target thumbv7em-none-eabihf --features firmware --bin m2fw
 cargo build --release --features host --bin m2ground
-M2GROUND=$ROOT/target/release/m2ground
-ELF=$ROOT/target/thumbv7em-none-eabihf/release/m2fw
+M2GROUND=$TARGET/release/m2ground
+ELF=$TARGET/thumbv7em-none-eabihf/release/m2fw
 LIB=$(python3 -c 'import fprime_yamcs_bundle, os; print(os.path.join(os.path.dirname(fprime_yamcs_bundle.__file__), "lib"))')
 [ -f "$LIB/yamcs-core-5.12.8.jar" ] || { echo "ground-segment: Yamcs jars missing in $LIB (scripts/setup.sh)" >&2; exit 1; }
 
-rm -rf "$W"
+# The archive (yamcs/data) survives a restart; everything else is regenerated.
+if [ "$clean" = 1 ]; then
+  echo "ground-segment: --clean: deleting the Yamcs archive $W/yamcs/data"
+  rm -rf "$W/yamcs/data"
+fi
+rm -rf "$W/yamcs/etc" "$W/yamcs/mdb" "$W/logs" "$W/uart.sock"
 mkdir -p "$W/yamcs/etc" "$W/yamcs/data" "$W/logs"
+echo "ground-segment: Yamcs archive $W/yamcs/data ($(du -sh "$W/yamcs/data" | cut -f1))"
 cp "$ROOT"/yamcs/etc/* "$W/yamcs/etc/"
 sed -i "s/port: 8090/port: $HTTP_PORT/" "$W/yamcs/etc/yamcs.yaml"
 sed -i "s/port: 10015/port: $LINK_PORT/" "$W/yamcs/etc/yamcs.m2.yaml"
@@ -76,7 +95,8 @@ if [ "$(id -u)" -eq 0 ]; then prio=(nice -n -10); fi
 pids+=($!)
 
 "$M2GROUND" gateway --uart "unix:$SOCK" --listen "127.0.0.1:$LINK_PORT" \
-  --tco-url "http://127.0.0.1:$HTTP_PORT/api/tco/m2/tco0/coefficients" --stats-s 10 \
+  --tco-url "http://127.0.0.1:$HTTP_PORT/api/tco/m2/tco0/coefficients" \
+  --events-url "http://127.0.0.1:$HTTP_PORT/api/archive/m2/events" --stats-s 10 \
   > "$W/logs/gateway.log" 2>&1 &
 pids+=($!)
 

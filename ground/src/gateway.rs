@@ -21,6 +21,12 @@
 //!   (first packet, clock drift, a controller reboot) the gateway sets them by HTTP
 //!   (`POST /api/tco/{instance}/{service}/coefficients`: UTC of raw OBT 0 and UTC seconds
 //!   per raw count), and Yamcs stamps every packet with `UTC = boot + rate * OBT`.
+//! * Events ([`event_json`]): every TM[5,x] packet forwarded to Yamcs is also posted as a
+//!   Yamcs event (`POST /api/archive/{instance}/events`) with the source
+//!   [`EVENT_SOURCE`], the event's label as type, its severity, the on-board time through
+//!   the correlation in force and its text with the auxiliary words named by the mission
+//!   database ([`Mdb::event_text`]). Yamcs 5.12's own PUS event decoder sets no source,
+//!   and the web UI's event table cannot sort events without one.
 
 use std::collections::VecDeque;
 use std::io::{Read, Write};
@@ -33,11 +39,14 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use m2ctl::link::framing::{encode_frame, max_cobs_len, max_frame_len, Deframer};
 use m2ctl::link::tm::TIME_FRACTIONS_PER_SECOND;
+use m2ctl::link::tm::{parse_tm, TmReport};
 use m2ctl::link::{
     CCSDS_PRIMARY_HEADER_LEN, MAX_TC_PACKET_LEN, MAX_TM_PACKET_LEN, PUS_TM_SEC_HEADER_LEN_NO_TIME,
     TM_TIMESTAMP_LEN,
 };
 use m2ctl::units::US_PER_S;
+
+use crate::mdb::{mdb, yamcs_severity, Mdb, EVENT_SOURCE};
 
 /// Deframer buffer for telemetry: the COBS encoding of the largest TM packet.
 pub const TM_DEFRAMER_LEN: usize = max_cobs_len(MAX_TM_PACKET_LEN);
@@ -51,6 +60,8 @@ pub const CORRELATION_TOLERANCE_S: f64 = 0.005;
 pub const REBOOT_STEP_S: f64 = 1.0;
 /// Offset of the CUC timestamp in a TM packet (bytes).
 pub const TM_TIME_OFFSET: usize = CCSDS_PRIMARY_HEADER_LEN + PUS_TM_SEC_HEADER_LEN_NO_TIME;
+/// Offset of the PUS service in a TM secondary header (bytes; the subtype follows).
+const PUS_TM_SERVICE_OFFSET: usize = 1;
 /// The CCSDS data length field holds the packet length minus this.
 const CCSDS_LENGTH_OFFSET: usize = CCSDS_PRIMARY_HEADER_LEN + 1;
 /// Offset of the CCSDS data length field (bytes).
@@ -83,6 +94,10 @@ pub struct Stats {
     pub tc_refused: AtomicU64,
     /// Coefficient updates accepted by Yamcs.
     pub tco_updates: AtomicU64,
+    /// Events posted to Yamcs.
+    pub events_posted: AtomicU64,
+    /// Events Yamcs did not take (after [`EVENT_POST_TRIES`] attempts).
+    pub events_lost: AtomicU64,
 }
 
 impl Stats {
@@ -94,13 +109,15 @@ impl Stats {
     pub fn line(&self) -> String {
         let g = |c: &AtomicU64| c.load(Ordering::Relaxed);
         format!(
-            "TM {} packets ({} bad frames, {} dropped from the backlog), TC {} packets ({} refused), {} time correlations",
+            "TM {} packets ({} bad frames, {} dropped from the backlog), TC {} packets ({} refused), {} time correlations, {} events posted ({} lost)",
             g(&self.tm_packets),
             g(&self.tm_bad_frames),
             g(&self.tm_backlog_dropped),
             g(&self.tc_packets),
             g(&self.tc_refused),
-            g(&self.tco_updates)
+            g(&self.tco_updates),
+            g(&self.events_posted),
+            g(&self.events_lost)
         )
     }
 }
@@ -355,6 +372,64 @@ pub fn coefficients_json(fit: &TimeFit) -> String {
     )
 }
 
+/// Attempts to post one event, [`TCO_RETRY`] apart.
+pub const EVENT_POST_TRIES: usize = 5;
+
+/// Escapes `s` as the contents of a JSON string.
+fn json_str(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            c if u32::from(c) < 0x20 => out.push_str(&format!("\\u{:04x}", u32::from(c))),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// The body of Yamcs' `CreateEvent` for a TM[5,x] packet (`None` for any other packet,
+/// or one that does not parse): type = the event's label, severity as Yamcs' PUS event
+/// decoder maps the subtype, source [`EVENT_SOURCE`], the message with the auxiliary
+/// words named ([`Mdb::event_text`]), the time = `fit` applied to the packet's on-board
+/// time (Yamcs' mission time without a correlation), and in `extra` the event ID, the
+/// raw auxiliary words and the on-board time (raw CUC 4+2).
+pub fn event_json(mdb: &Mdb, packet: &[u8], fit: Option<TimeFit>) -> Option<String> {
+    let tm = parse_tm(packet).ok()?;
+    let TmReport::Event {
+        severity,
+        event_id,
+        aux: [aux0, aux1],
+    } = tm.report
+    else {
+        return None;
+    };
+    let (label, text) = match mdb.event_text(event_id, aux0, aux1) {
+        Some((e, text)) => (e.name.to_string(), text),
+        None => (
+            format!("EVENT_{event_id}"),
+            format!("unknown event {event_id}: aux {aux0}, {aux1}"),
+        ),
+    };
+    let obt_s = tm_obt_s(packet)?;
+    let obt_raw = packet
+        .get(TM_TIME_OFFSET..TM_TIME_OFFSET + TM_TIMESTAMP_LEN)?
+        .iter()
+        .fold(0u64, |acc, b| (acc << 8) | u64::from(*b));
+    let time = fit
+        .map(|f| format!(",\"time\":\"{}\"", rfc3339(f.utc(obt_s))))
+        .unwrap_or_default();
+    Some(format!(
+        "{{\"type\":\"{}\",\"message\":\"{}\",\"severity\":\"{}\",\"source\":\"{}\"{time},\
+         \"extra\":{{\"event_id\":\"{event_id}\",\"aux0\":\"{aux0}\",\"aux1\":\"{aux1}\",\"obt\":\"{obt_raw}\"}}}}",
+        json_str(&label),
+        json_str(&text),
+        yamcs_severity(severity),
+        json_str(EVENT_SOURCE),
+    ))
+}
+
 /// Longest status line read from an HTTP answer (bytes).
 const HTTP_STATUS_LINE_MAX: usize = 4096;
 
@@ -458,6 +533,8 @@ impl Uart {
 pub struct Options {
     /// Yamcs' SetCoefficients URL; no time correlation without it.
     pub tco_url: Option<String>,
+    /// Yamcs' CreateEvent URL (`.../api/archive/{instance}/events`); no events without it.
+    pub events_url: Option<String>,
     /// TM packets kept while Yamcs is away.
     pub backlog: usize,
     /// Print the counters this often.
@@ -489,6 +566,51 @@ pub fn run(
     let uart_tx = Arc::new(Mutex::new(uart_tx));
     let capacity = options.backlog.max(1);
 
+    // Events: posted on their own thread, in the order their packets went to Yamcs, each
+    // with the correlation line in force when its packet went (the one Yamcs stamped it
+    // with).
+    let events_tx = options.events_url.clone().map(|url| {
+        let (tx, rx) = mpsc::channel::<(Vec<u8>, Option<TimeFit>)>();
+        let (stats, stop) = (stats.clone(), stop.clone());
+        std::thread::spawn(move || {
+            let mdb = mdb();
+            while let Ok((packet, fit)) = rx.recv() {
+                let Some(body) = event_json(&mdb, &packet, fit) else {
+                    continue;
+                };
+                let mut posted = false;
+                for _ in 0..EVENT_POST_TRIES {
+                    if stop.load(Ordering::Relaxed) {
+                        break;
+                    }
+                    match http_post_json(&url, &body) {
+                        Ok(()) => {
+                            posted = true;
+                            break;
+                        }
+                        Err(e) => {
+                            eprintln!("gateway: event not posted: {e}");
+                            std::thread::sleep(TCO_RETRY);
+                        }
+                    }
+                }
+                Stats::add(
+                    if posted {
+                        &stats.events_posted
+                    } else {
+                        &stats.events_lost
+                    },
+                    1,
+                );
+            }
+        });
+        tx
+    });
+    let is_event = |p: &[u8]| {
+        p.get(CCSDS_PRIMARY_HEADER_LEN + PUS_TM_SERVICE_OFFSET)
+            == Some(&m2ctl::link::service::EVENT)
+    };
+
     // Yamcs connections: one at a time, the newest wins; its TC go to the controller.
     listener.set_nonblocking(true).map_err(|e| e.to_string())?;
     {
@@ -500,6 +622,7 @@ pub fn run(
             stop.clone(),
         );
         let (latest_fit, tco_url) = (latest_fit.clone(), options.tco_url.clone());
+        let events_tx = events_tx.clone();
         std::thread::spawn(move || {
             while !stop.load(Ordering::Relaxed) {
                 let Ok((mut s, _)) = listener.accept() else {
@@ -523,6 +646,12 @@ pub fn run(
                 }
                 if let (Ok(mut c), Ok(mut b)) = (client.lock(), backlog.lock()) {
                     let ok = b.iter().all(|p| s.write_all(p).is_ok());
+                    if let (true, Some(tx)) = (ok, &events_tx) {
+                        let fit = latest_fit.lock().ok().and_then(|f| *f);
+                        for p in b.iter().filter(|p| is_event(p)) {
+                            let _ = tx.send((p.clone(), fit));
+                        }
+                    }
                     Stats::add(&stats.tm_packets, b.len() as u64);
                     b.clear();
                     if ok {
@@ -646,6 +775,9 @@ pub fn run(
             let sent = c.as_mut().is_some_and(|s| s.write_all(&p).is_ok());
             if sent {
                 Stats::add(&stats.tm_packets, 1);
+                if let (Some(tx), true) = (&events_tx, is_event(&p)) {
+                    let _ = tx.send((p, correlator.published()));
+                }
             } else {
                 *c = None;
                 if b.len() == capacity {

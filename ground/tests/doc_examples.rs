@@ -177,6 +177,13 @@ const PLACEHOLDERS: &[(&str, &str, &str, &str)] = &[
         "the same path on an HTTP stand-in of the test's: a Yamcs on this machine must not \
          be sent time correlations",
     ),
+    (
+        "docs/ground-segment.md",
+        "--events-url",
+        "http://127.0.0.1:8090/api/archive/m2/events",
+        "the same path on an HTTP stand-in of the test's: a Yamcs on this machine must not \
+         be sent events",
+    ),
 ];
 
 /// Inputs the test provides (no example writes them): (document, file, how, why).
@@ -789,7 +796,7 @@ fn substitute(
                 p.display().to_string()
             }
             ("--listen", _) => format!("127.0.0.1:{}", free_port()),
-            ("--tco-url", url) => {
+            ("--tco-url" | "--events-url", url) => {
                 url.replace("127.0.0.1:8090", &format!("127.0.0.1:{}", http_stand_in()))
             }
             _ => panic!("placeholder {w} after {before}: no value"),
@@ -1125,7 +1132,8 @@ fn checks() -> Vec<(&'static str, &'static str, Check)> {
         (
             "docs/ground-segment.md",
             "gateway --uart unix:PATH --listen 127.0.0.1:10015 --tco-url \
-             http://127.0.0.1:8090/api/tco/m2/tco0/coefficients --wait-s 30 --stats-s 10",
+             http://127.0.0.1:8090/api/tco/m2/tco0/coefficients --events-url \
+             http://127.0.0.1:8090/api/archive/m2/events --wait-s 30 --stats-s 10",
             check(|r, _| {
                 expect(r.stderr().contains("controller stream closed"), || r.stderr())
             }),

@@ -16,8 +16,8 @@ use m2ctl::link::framing::Deframer;
 use m2ctl::link::tm::{parse_tm, EventSeverity, TmReport, TmTime, TmWriter};
 use m2ctl::link::{decode_telecommand, Command, Housekeeping, WirePose, MAX_TM_FRAME_LEN};
 use m2ground::gateway::{
-    ccsds_packet_len, coefficients_json, rfc3339, run, tm_obt_s, Correlator, Options, Stats,
-    TcPath, TimeFit, TmPath, Uart,
+    ccsds_packet_len, coefficients_json, event_json, rfc3339, run, tm_obt_s, Correlator, Options,
+    Stats, TcPath, TimeFit, TmPath, Uart,
 };
 use m2ground::tc::{frame, TcSequencer};
 
@@ -306,6 +306,7 @@ fn the_gateway_on_sockets_forwards_both_ways_and_sets_the_time_correlation() {
     let stop = Arc::new(AtomicBool::new(false));
     let options = Options {
         tco_url: Some(tco_url),
+        events_url: None,
         backlog: 100,
         stats_every: None,
     };
@@ -395,4 +396,101 @@ fn the_gateway_on_sockets_forwards_both_ways_and_sets_the_time_correlation() {
     );
     assert!(line.contains("1 time correlations"), "{line}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// One TM[5,x] packet (unframed) as the controller emits it, at OBT 3.5 s.
+fn event_packet(severity: EventSeverity, id: u16, aux: [u32; 2]) -> Vec<u8> {
+    let mut out = [0u8; MAX_TM_FRAME_LEN];
+    let len = TmWriter::new()
+        .emit_event(TmTime::from_millis(3500), severity, id, aux, &mut out)
+        .unwrap();
+    deframe_one(&out[..len])
+}
+
+#[test]
+fn events_go_to_yamcs_with_a_source_and_their_words_named() {
+    use m2ctl::controller::{CommandError, State};
+    use m2ctl::kinematics::Refusals;
+    use m2ctl::link::tm::event_id;
+    use m2ctl::motion::trajectory::MotionError;
+    use m2ctl::supervision::flags::FaultFlags;
+    let mdb = m2ground::mdb::mdb();
+    let fit = TimeFit {
+        boot_unix_s: 1_764_583_200.0,
+        rate: 1.25,
+    };
+    let json = |p: &[u8], fit| -> serde_json::Value {
+        serde_json::from_str(&event_json(&mdb, p, fit).expect("an event")).unwrap()
+    };
+    // States by their Rust names.
+    let p = event_packet(
+        EventSeverity::Info,
+        event_id::STATE_CHANGED,
+        [
+            u32::from(State::Idle.code()),
+            u32::from(State::Moving.code()),
+        ],
+    );
+    let j = json(&p, Some(fit));
+    assert_eq!(j["source"], "M2");
+    assert_eq!(j["type"], "STATE_CHANGED");
+    assert_eq!(j["severity"], "INFO");
+    assert_eq!(j["message"], "controller state IDLE -> MOVING");
+    assert_eq!(j["time"], rfc3339(fit.utc(3.5)));
+    assert_eq!(j["extra"]["obt"], (3.5f64 * 65536.0).to_string());
+    // Refusal bits and failure code by name; Low = Yamcs WATCH.
+    let refusal = Refusals {
+        axes_outside: 0b1,
+        ..Refusals::default()
+    };
+    let code = CommandError::Motion(MotionError::TargetRefused(refusal)).code();
+    let p = event_packet(
+        EventSeverity::Low,
+        event_id::MOVE_REFUSED,
+        [refusal.to_bits(), u32::from(code)],
+    );
+    let j = json(&p, None);
+    assert_eq!(j["severity"], "WATCH");
+    assert!(
+        j.get("time").is_none(),
+        "no correlation: Yamcs' mission time"
+    );
+    assert_eq!(
+        j["message"],
+        format!(
+            "move refused: refusal bits X_OUTSIDE_WORKSPACE (0x{:x}), failure code MOTION_TARGET_REFUSED",
+            refusal.to_bits()
+        )
+    );
+    // Fault flags and the legs they name (bits 24..); High = CRITICAL.
+    let flags = FaultFlags::ENCODER_STUCK.bits() | FaultFlags::ENCODER_JUMP.bits();
+    let new = FaultFlags::ENCODER_JUMP.bits() | (0b100_010 << 24);
+    let j = json(
+        &event_packet(EventSeverity::High, event_id::FAULT_LATCHED, [flags, new]),
+        Some(fit),
+    );
+    assert_eq!(j["severity"], "CRITICAL");
+    assert_eq!(
+        j["message"],
+        format!(
+            "fault latched: flags ENCODER_STUCK|ENCODER_JUMP (0x{flags:x}), new ENCODER_JUMP, LEG2|LEG6 (0x{new:x})"
+        )
+    );
+    // An event that names nothing shows its numbers; an unknown ID is still an event.
+    let j = json(
+        &event_packet(EventSeverity::Info, event_id::TABLE_ACTIVATED, [77, 0x1234]),
+        None,
+    );
+    assert_eq!(j["message"], "table 77 activated, CRC-32 4660");
+    let j = json(&event_packet(EventSeverity::Medium, 0x7777, [1, 2]), None);
+    assert_eq!(
+        (&j["type"], &j["severity"]),
+        (&"EVENT_30583".into(), &"DISTRESS".into())
+    );
+    // Other packets, and a corrupt event (CRC), are not events.
+    let (_, packets) = controller_tm(1);
+    assert!(event_json(&mdb, &packets[0], None).is_none());
+    let mut bad = event_packet(EventSeverity::Info, event_id::BOOT, [0, 0]);
+    bad[20] ^= 1;
+    assert!(event_json(&mdb, &bad, None).is_none());
 }

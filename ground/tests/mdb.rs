@@ -755,3 +755,250 @@ fn table_image_rows_are_where_the_encoder_puts_them() {
         assert_eq!(Table::decode(&bytes), Ok(t), "the image decodes back");
     }
 }
+
+#[test]
+fn event_words_are_named_from_the_description_s_own_vocabularies() {
+    let m = mdb();
+    let mut named = 0;
+    for e in &m.events {
+        for parts in [&e.aux0_decode, &e.aux1_decode] {
+            let mut used = 0u64;
+            for p in parts.iter() {
+                match p.decode {
+                    mdb::AuxDecode::Enum { enumeration } => assert!(
+                        m.enums.iter().any(|x| x.name == enumeration),
+                        "{}: no enumeration {enumeration}",
+                        e.name
+                    ),
+                    mdb::AuxDecode::Bits { bit_field } => {
+                        let f = m.bit_fields.iter().find(|x| x.name == bit_field);
+                        let f = f.unwrap_or_else(|| panic!("{}: no bit field {bit_field}", e.name));
+                        assert!(
+                            f.bits.iter().all(|(b, _, _)| *b < p.width),
+                            "{}: {bit_field} has bits beyond its {} bits",
+                            e.name,
+                            p.width
+                        );
+                    }
+                }
+                assert!(p.width > 0 && p.shift + p.width <= 32, "{}: {p:?}", e.name);
+                let mask = ((1u64 << p.width) - 1) << p.shift;
+                assert_eq!(used & mask, 0, "{}: parts overlap", e.name);
+                used |= mask;
+                named += 1;
+            }
+        }
+    }
+    assert!(named >= 10, "{named} named parts");
+    // Every state pair reads back as the states' Rust names.
+    use m2ctl::controller::State;
+    let states = [
+        State::Idle,
+        State::Moving,
+        State::Stopping,
+        State::StrokeMoving,
+        State::Faulted,
+    ];
+    for a in states {
+        for b in states {
+            let (_, text) = m
+                .event_text(
+                    m2ctl::link::tm::event_id::STATE_CHANGED,
+                    u32::from(a.code()),
+                    u32::from(b.code()),
+                )
+                .unwrap();
+            assert_eq!(
+                text,
+                format!(
+                    "controller state {} -> {}",
+                    mdb::upper_snake(&format!("{a:?}")),
+                    mdb::upper_snake(&format!("{b:?}"))
+                )
+            );
+        }
+    }
+    // Every failure code in a MOVE_REFUSED reads back as its label.
+    for c in mdb::failure_codes() {
+        let (_, text) = m
+            .event_text(
+                m2ctl::link::tm::event_id::MOVE_REFUSED,
+                0,
+                u32::from(c.code),
+            )
+            .unwrap();
+        assert!(
+            text.ends_with(&format!("failure code {}", c.label)),
+            "{text}"
+        );
+        assert!(text.contains("refusal bits none (0x0)"), "{text}");
+    }
+}
+
+#[test]
+fn calibrated_numbers_show_one_raw_count_and_no_rounding_noise() {
+    let m = mdb();
+    let fields = m
+        .telemetry
+        .iter()
+        .flat_map(|p| p.fields.iter())
+        .chain(m.telecommands.iter().flat_map(|t| t.fields.iter()));
+    let mut checked = 0;
+    for f in fields {
+        let Meaning::Number { scale, .. } = f.meaning else {
+            assert_eq!(f.fraction_digits, None, "{}", f.name);
+            continue;
+        };
+        if scale == 1.0 {
+            assert_eq!(f.fraction_digits, None, "{}: an integer", f.name);
+            continue;
+        }
+        let d = f
+            .fraction_digits
+            .unwrap_or_else(|| panic!("{}: no format", f.name)) as usize;
+        let show = |raw: i64, d: usize| format!("{:.*}", d, raw as f64 * scale);
+        // Enough: neighbouring raw values never show alike.
+        for k in (-2_000i64..2_000).chain([4_990, 65_534, 1_000_000]) {
+            assert_ne!(
+                show(k, d),
+                show(k + 1, d),
+                "{}: raw {k} with {d} decimals",
+                f.name
+            );
+        }
+        // The fewest: with one decimal less some neighbours collide.
+        if d > 0 {
+            assert!(
+                (0i64..100_000).any(|k| show(k, d - 1) == show(k + 1, d - 1)),
+                "{}: {d} decimals are more than one raw count needs",
+                f.name
+            );
+        }
+        checked += 1;
+    }
+    assert!(checked > 20, "{checked} calibrated fields");
+    // The example: 4,991 nm.
+    let x = m
+        .telemetry
+        .iter()
+        .flat_map(|p| p.fields.iter())
+        .find(|f| f.name == "pose_fk_x")
+        .unwrap();
+    assert_eq!(
+        format!("{:.*}", x.fraction_digits.unwrap() as usize, 4991.0 * 0.001),
+        "4.991"
+    );
+    assert_ne!(
+        format!("{}", 4991.0 * 0.001),
+        "4.991",
+        "the noise the format removes"
+    );
+}
+
+/// The flight commands an operator must confirm: what they change is not undone by the
+/// next command, or they bypass the pose checks (exhaustive: a new command does not
+/// compile until it is classified here).
+fn must_confirm(c: &Command) -> bool {
+    use m2ctl::link::schedule::ScheduleCommand;
+    match c {
+        Command::ActivateTable { .. }
+        | Command::SwitchBank
+        | Command::RevertToNominal
+        | Command::DirectStroke { .. }
+        | Command::CommitTable { .. }
+        | Command::Schedule(ScheduleCommand::Reset) => true,
+        Command::Schedule(
+            ScheduleCommand::EnableRelease
+            | ScheduleCommand::DisableRelease
+            | ScheduleCommand::Insert(_)
+            | ScheduleCommand::Delete(_)
+            | ScheduleCommand::TimeShiftAll(_)
+            | ScheduleCommand::SummaryReport,
+        )
+        | Command::Ping
+        | Command::HousekeepingOneShot
+        | Command::LoadTableChunk(_)
+        | Command::DumpTable(_)
+        | Command::ReportParameters(_)
+        | Command::SetParameters(_)
+        | Command::SetTimeReportRate(_)
+        | Command::MoveAbsolute(_)
+        | Command::CheckMove(_)
+        | Command::MoveRelative(_)
+        | Command::Stop
+        | Command::ClearFault => false,
+    }
+}
+
+#[test]
+fn dangerous_telecommands_are_critical_and_no_other() {
+    let mut critical = Vec::new();
+    for tc in mdb().telecommands {
+        let command = (tc.build)(&arg_sets(&tc)[0]).unwrap_or_else(|e| panic!("{}: {e}", tc.name));
+        assert_eq!(
+            tc.critical.is_some(),
+            must_confirm(&command),
+            "{}: critical {:?}, builds {command:?}",
+            tc.name,
+            tc.critical
+        );
+        if tc.critical.is_some() {
+            critical.push(tc.name.clone());
+        }
+    }
+    assert_eq!(critical.len(), 6, "{critical:?}");
+}
+
+#[test]
+fn health_parameters_have_their_alarms() {
+    let m = mdb();
+    let hk = &m
+        .telemetry
+        .iter()
+        .find(|p| p.name == "housekeeping")
+        .unwrap()
+        .fields;
+    for a in &m.alarms {
+        let f = hk
+            .iter()
+            .find(|f| f.name == a.parameter)
+            .unwrap_or_else(|| panic!("alarm on {}: no housekeeping field", a.parameter));
+        assert!(a.min_violations >= 1);
+        match (&a.rule, &f.meaning) {
+            (mdb::AlarmRule::States { levels }, Meaning::Enum { enumeration }) => {
+                let e = m.enums.iter().find(|e| e.name == *enumeration).unwrap();
+                for (label, _) in levels {
+                    assert!(
+                        e.values.iter().any(|v| &v.1 == label),
+                        "{}: no state {label}",
+                        a.parameter
+                    );
+                }
+            }
+            (mdb::AlarmRule::Above { .. }, Meaning::Number { .. } | Meaning::Bits { .. }) => {}
+            (r, mm) => panic!("{}: rule {r:?} on {mm:?}", a.parameter),
+        }
+    }
+    // FAULTED, and only FAULTED, is a critical state (the controller's own name).
+    let state = m.alarms.iter().find(|a| a.parameter == "state").unwrap();
+    let mdb::AlarmRule::States { levels } = &state.rule else {
+        panic!("state: {:?}", state.rule)
+    };
+    let faulted = mdb::upper_snake(&format!("{:?}", m2ctl::controller::State::Faulted));
+    assert_eq!(levels, &vec![(faulted, "CRITICAL")]);
+    // Any latched fault flag and any count of lost data raise an alarm.
+    for p in [
+        "fault_flags",
+        "warning_flags",
+        "tm_dropped",
+        "cycle_overruns",
+        "uart_overruns",
+        "tc_rejected",
+    ] {
+        let a = m.alarms.iter().find(|a| a.parameter == p);
+        assert!(
+            matches!(a.map(|a| &a.rule), Some(mdb::AlarmRule::Above { limit, .. }) if *limit == 0.0),
+            "{p}: {a:?}"
+        );
+    }
+}

@@ -508,7 +508,8 @@ impl<M: MechanismIo> Controller<M> {
                 event::FAULT_LATCHED,
                 [
                     verdict.latched.bits(),
-                    verdict.new_faults.bits() | (u32::from(verdict.new_fault_legs) << 24),
+                    verdict.new_faults.bits()
+                        | (u32::from(verdict.new_fault_legs) << event::FAULT_LEGS_SHIFT),
                 ],
             );
             self.begin_stop();

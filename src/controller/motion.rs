@@ -498,7 +498,7 @@ impl<M: MechanismIo> Controller<M> {
             event::FAULT_LATCHED,
             [
                 self.supervisor.latched().bits(),
-                flag.bits() | (u32::from(legs) << 24),
+                flag.bits() | (u32::from(legs) << event::FAULT_LEGS_SHIFT),
             ],
         );
         self.hold_now();

@@ -479,7 +479,8 @@ impl<M: MechanismIo> Controller<M> {
                 event::ACTIVITY_FAILED,
                 [
                     request_id_word(request_id),
-                    (u32::from(report.subtype()) << 16) | u32::from(code),
+                    (u32::from(report.subtype()) << event::ACTIVITY_SUBTYPE_SHIFT)
+                        | u32::from(code),
                 ],
             );
         }

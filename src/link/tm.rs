@@ -343,6 +343,12 @@ pub mod event_id {
     /// when release was enabled (never run). aux0: request ID, aux1: release time (OBT
     /// seconds).
     pub const ACTIVITY_EXPIRED: u16 = 0x00B2;
+
+    /// Lowest bit of the legs in an event word that packs fault flags and their legs
+    /// (FAULT_LATCHED's aux1: flags in the bits below, bit i above = leg i+1).
+    pub const FAULT_LEGS_SHIFT: u32 = 24;
+    /// Lowest bit of the report subtype in ACTIVITY_FAILED's aux1 (failure code below).
+    pub const ACTIVITY_SUBTYPE_SHIFT: u32 = 16;
 }
 
 /// Why telemetry could not be emitted.

@@ -367,8 +367,10 @@ def main() -> int:
     # 6. Events with severities: listed once Yamcs has archived the ones this run made
     # (the wall clock only bounds the wait).
     print("6. events")
-    names = {e["name"] for e in json.loads(subprocess.run(
-        [M2GROUND, "mdb-json"], check=True, capture_output=True, text=True).stdout)["events"]}
+    mdb_json = json.loads(subprocess.run(
+        [M2GROUND, "mdb-json"], check=True, capture_output=True, text=True).stdout)
+    names = {e["name"] for e in mdb_json["events"]}
+    states = {label for _, label, _ in next(e for e in mdb_json["enums"] if e["name"] == "controller_state")["values"]}
     expected = {"BOOT", "BOOT_DETAIL", "STATE_CHANGED", "MOVE_REFUSED", "PARAMETERS_CHANGED",
                 "ACTIVITY_RELEASED", "TABLE_COMMITTED", "TABLE_ACTIVATED"}
 
@@ -392,7 +394,86 @@ def main() -> int:
     check(seen.get("PARAMETERS_CHANGED") == {"INFO"}, f"PARAMETERS_CHANGED INFO: {seen.get('PARAMETERS_CHANGED')}")
     check(seen.get("ACTIVITY_RELEASED") == {"INFO"}, f"ACTIVITY_RELEASED INFO: {seen.get('ACTIVITY_RELEASED')}")
     check("TABLE_COMMITTED" in seen and "TABLE_ACTIVATED" in seen, "table committed and activated events")
+    # Every event has a source (the web UI's event table sorts by it), and the texts name
+    # states, refusal bits and failure codes (the gateway posts them, named by the MDB).
+    every = list(op.client.get_archive(INSTANCE).list_events())
+    sourceless = [e.event_type for e in every if not e.source]
+    check(bool(every) and not sourceless,
+          f"every event has a source ({len(every)} events, sources {sorted({e.source for e in every})}; "
+          f"without: {sourceless})")
+    changes = [e.message for e in events if e.event_type == "STATE_CHANGED"]
+    named = [m for m in changes if m.startswith("controller state ")
+             and {x.strip() for x in m[len("controller state "):].split("->")} <= states]
+    check(bool(changes) and named == changes, f"STATE_CHANGED texts name the states: {changes[:3]}")
+    refused = [e.message for e in events if e.event_type == "MOVE_REFUSED"]
+    check(bool(refused) and all("X_OUTSIDE_WORKSPACE" in m and "MOTION_TARGET_REFUSED" in m for m in refused),
+          f"MOVE_REFUSED text names the refusal bit and the failure code: {refused}")
     figures["events (type: severities)"] = {k: sorted(v) for k, v in sorted(seen.items())}
+
+    # 6b. The MDB as Yamcs serves it: number formats and critical commands.
+    print("6b. number formats, significance")
+
+    def api(path):
+        return json.load(urllib.request.urlopen(f"http://{URL}/api/mdb/{INSTANCE}/{path}", timeout=10))
+    formats, wrong = 0, []
+    for pkt in mdb_json["telemetry"]:
+        for f in pkt["fields"]:
+            if f.get("fraction_digits") is None:
+                continue
+            nf = api("parameters/M2/" + f["name"]).get("type", {}).get("numberFormat", {})
+            formats += 1
+            if (nf.get("minimumFractionDigits"), nf.get("maximumFractionDigits")) != (f["fraction_digits"],) * 2:
+                wrong.append((f["name"], f["fraction_digits"], nf))
+    check(formats > 20 and not wrong,
+          f"{formats} calibrated parameters carry their number format in Yamcs "
+          f"(pose_fk_x: {api('parameters/M2/pose_fk_x')['type'].get('numberFormat')}); wrong: {wrong[:3]}")
+    sig, wrong = {}, []
+    for tc in mdb_json["telecommands"]:
+        got = api("commands/M2/" + tc["name"]).get("significance", {})
+        level = got.get("consequenceLevel", "NONE")
+        if tc.get("critical"):
+            sig[tc["name"]] = level
+            if level != "CRITICAL" or got.get("reasonForWarning") != tc["critical"]:
+                wrong.append((tc["name"], got))
+        elif level not in ("NONE", "NORMAL"):
+            wrong.append((tc["name"], got))
+    check(len(sig) >= 6 and not wrong, f"critical commands in Yamcs: {sig}; wrong: {wrong[:3]}")
+
+    # 6c. Alarms: the description's alarms as Yamcs serves them; none on the state while
+    # IDLE; a telecommand the link refuses raises tc_rejected's alarm.
+    print("6c. alarms")
+    defined, wrong = [], []
+    for a in mdb_json["alarms"]:
+        got = api("parameters/M2/" + a["parameter"]).get("type", {}).get("defaultAlarm", {})
+        rule = a["rule"]
+        if rule["kind"] == "states":
+            have = {(e.get("label"), e.get("level")) for e in got.get("enumerationAlarms", [])}
+            ok = {tuple(x) for x in rule["levels"]} <= have
+        else:
+            have = [(r.get("level"), r.get("maxInclusive")) for r in got.get("staticAlarmRanges", [])]
+            ok = (rule["level"], rule["limit"]) in have
+        (defined if ok else wrong).append((a["parameter"], have))
+    check(len(defined) == len(mdb_json["alarms"]) >= 7 and not wrong,
+          f"{len(defined)} alarms defined in Yamcs (state: {dict(defined).get('state')}); wrong: {wrong}")
+
+    def active_alarms():
+        body = json.load(urllib.request.urlopen(
+            f"http://{URL}/api/processors/{INSTANCE}/{PROCESSOR}/alarms", timeout=10))
+        return {a["id"]["name"].rsplit("/", 1)[-1]: a for a in body.get("alarms", [])}
+    hk = op.hk_after(op.newest_obt())
+    check(hk.value("state").eng_value == "IDLE" and "state" not in active_alarms(),
+          f"no alarm on the state while IDLE (active: {sorted(active_alarms())})")
+    # A chunk that would end past the table: the link refuses it (acceptance fails).
+    cmd = op.command("LOAD_TABLE_CHUNK", {"offset": 515, "data": bytes(4)})
+    check(op.stages(cmd)["Acceptance"] == "NOK", f"chunk past the table refused at acceptance ({cmd.error})")
+    rejected = op.hk_after(op.done(cmd, subtype=2).obt).value("tc_rejected").eng_value
+    try:
+        alarm = op.wait("tc_rejected's alarm", lambda: active_alarms().get("tc_rejected"), 15.0)
+    except TimeoutError:
+        alarm = None
+    check(rejected > 0 and alarm is not None and alarm.get("severity") == "WATCH",
+          f"tc_rejected = {rejected} raises a WATCH alarm: {alarm and {k: alarm.get(k) for k in ('severity', 'type', 'violations')}}")
+    figures["active alarms"] = {k: v.get("severity") for k, v in active_alarms().items()}
 
     # 7. Time: CUC 4+2 decoded and correlated to UTC (checked last, when the QEMU
     # controller's clock has settled).

@@ -41,6 +41,10 @@ def main() -> int:
     ap.add_argument("--wait-s", type=float, default=12.0)
     ap.add_argument("--size", default="1500x1000")
     ap.add_argument("--port", type=int, default=9333)
+    ap.add_argument("--expect", action="append", default=[],
+                    help="text the page must show (else exit 1)")
+    ap.add_argument("--forbid", action="append", default=[],
+                    help="text the page must not show (else exit 1)")
     a = ap.parse_args()
     w, h = (int(x) for x in a.size.split("x"))
     profile = tempfile.mkdtemp(prefix="m2-chromium-")
@@ -83,7 +87,16 @@ def main() -> int:
         body = text.get("result", {}).get("value", "")
         print(f"screenshot: {a.out} ({len(body)} characters of text on the page)")
         ws.close()
-        return 0 if body.strip() else 1
+        ok = bool(body.strip())
+        for t in a.expect:
+            found = t in body
+            print(f"  {'ok  ' if found else 'FAIL'} the page shows {t!r}")
+            ok &= found
+        for t in a.forbid:
+            found = t in body
+            print(f"  {'FAIL' if found else 'ok  '} the page does not show {t!r}")
+            ok &= not found
+        return 0 if ok else 1
     finally:
         chrome.terminate()
         try:

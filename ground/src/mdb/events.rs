@@ -1,7 +1,7 @@
 //! Service-5 events: IDs, severities and the meaning of their auxiliary words.
 
 use super::housekeeping::source_codes;
-use super::{Event, SeverityUse};
+use super::{AuxDecode, AuxPart, Event, Mdb, SeverityUse};
 use m2ctl::link::tm::{event_id, EventSeverity};
 use m2ctl::link::{service, subtype};
 use m2ctl::table::BootSource;
@@ -31,10 +31,12 @@ pub fn events() -> Vec<Event> {
         aux0: aux0.into(),
         aux1: aux1.into(),
         message,
+        aux0_decode: Vec::new(),
+        aux1_decode: Vec::new(),
     };
     let sources = format!("source ({})", source_codes("nominal", ""));
     let request_id_word = "request ID of the released TC (packet ID << 16, sequence control)";
-    vec![
+    let all = vec![
         ev(
             event_id::STATE_CHANGED,
             "STATE_CHANGED",
@@ -238,7 +240,130 @@ pub fn events() -> Vec<Event> {
             ("request ID of the TC", "release time (OBT, whole seconds)"),
             "activity {aux0} deleted unrun: release time {aux1} s passed while release was disabled",
         ),
-    ]
+    ];
+    all.into_iter()
+        .map(|mut e| {
+            (e.aux0_decode, e.aux1_decode) = aux_decoding(e.id);
+            e
+        })
+        .collect()
+}
+
+/// Bits of an auxiliary word.
+const AUX_BITS: u32 = u32::BITS;
+/// How the controller packs its event words (defined with the event IDs).
+pub use m2ctl::link::tm::event_id::{ACTIVITY_SUBTYPE_SHIFT, FAULT_LEGS_SHIFT};
+
+/// How each event's auxiliary words are named (the meanings of [`events`]' aux texts).
+fn aux_decoding(id: u16) -> (Vec<AuxPart>, Vec<AuxPart>) {
+    let part = |shift: u32, width: u32, decode: AuxDecode| AuxPart {
+        shift,
+        width,
+        decode,
+    };
+    let whole = |decode: AuxDecode| vec![part(0, AUX_BITS, decode)];
+    let e = |enumeration| AuxDecode::Enum { enumeration };
+    let b = |bit_field| AuxDecode::Bits { bit_field };
+    let flags_and_legs = vec![
+        part(0, FAULT_LEGS_SHIFT, b("fault_flags")),
+        part(FAULT_LEGS_SHIFT, AUX_BITS - FAULT_LEGS_SHIFT, b("leg_mask")),
+    ];
+    match id {
+        event_id::STATE_CHANGED => (whole(e("controller_state")), whole(e("controller_state"))),
+        event_id::FAULT_LATCHED => (whole(b("fault_flags")), flags_and_legs),
+        event_id::FAULTS_CLEARED => (whole(b("fault_flags")), Vec::new()),
+        event_id::WARNING_CHANGED => (whole(b("fault_flags")), whole(b("leg_mask"))),
+        event_id::MOVE_REFUSED => (whole(b("refusal_bits")), whole(e("failure_code"))),
+        event_id::SETPOINT_REFUSED => (whole(b("refusal_bits")), Vec::new()),
+        event_id::TABLE_REJECTED => (whole(e("failure_code")), Vec::new()),
+        event_id::TABLE_COMMITTED => (Vec::new(), whole(e("bank"))),
+        event_id::TABLE_RELOADED => (Vec::new(), whole(e("boot_source"))),
+        event_id::BOOT => (whole(e("boot_source")), Vec::new()),
+        event_id::ACTIVITY_FAILED => (
+            Vec::new(),
+            vec![part(0, ACTIVITY_SUBTYPE_SHIFT, e("failure_code"))],
+        ),
+        _ => (Vec::new(), Vec::new()),
+    }
+}
+
+/// The source Yamcs gives every event of the controller (the web UI sorts by it).
+pub const EVENT_SOURCE: &str = "M2";
+
+/// Yamcs' severity of a TM[5,x] subtype (as Yamcs' PUS event decoder maps them).
+pub fn yamcs_severity(s: EventSeverity) -> &'static str {
+    match s {
+        EventSeverity::Info => "INFO",
+        EventSeverity::Low => "WATCH",
+        EventSeverity::Medium => "DISTRESS",
+        EventSeverity::High => "CRITICAL",
+    }
+}
+
+impl Mdb {
+    /// An auxiliary word as the operator reads it: each part by name (an enumeration's
+    /// label, or the names of the set bits joined by `|`, `none` if none), the word in
+    /// hex after named bits; the number when the event names nothing.
+    pub fn aux_text(&self, parts: &[AuxPart], word: u32) -> String {
+        if parts.is_empty() {
+            return word.to_string();
+        }
+        let mut has_bits = false;
+        let named: Vec<String> = parts
+            .iter()
+            .map(|p| {
+                let v = word.checked_shr(p.shift).unwrap_or(0)
+                    & u32::MAX.checked_shr(AUX_BITS - p.width).unwrap_or(0);
+                match p.decode {
+                    AuxDecode::Enum { enumeration } => self
+                        .enums
+                        .iter()
+                        .find(|e| e.name == enumeration)
+                        .and_then(|e| e.values.iter().find(|(x, _, _)| *x == i64::from(v)))
+                        .map_or_else(|| format!("{v} (unknown)"), |(_, l, _)| l.clone()),
+                    AuxDecode::Bits { bit_field } => {
+                        has_bits = true;
+                        let bits = self
+                            .bit_fields
+                            .iter()
+                            .find(|f| f.name == bit_field)
+                            .map(|f| f.bits.as_slice())
+                            .unwrap_or(&[]);
+                        let names: Vec<String> = (0..p.width)
+                            .filter(|i| v & (1 << i) != 0)
+                            .map(|i| {
+                                bits.iter()
+                                    .find(|(b, _, _)| *b == i)
+                                    .map_or_else(|| format!("BIT{i}"), |(_, n, _)| n.clone())
+                            })
+                            .collect();
+                        if names.is_empty() {
+                            "none".into()
+                        } else {
+                            names.join("|")
+                        }
+                    }
+                }
+            })
+            .collect();
+        let text = named.join(", ");
+        if has_bits {
+            format!("{text} (0x{word:x})")
+        } else {
+            text
+        }
+    }
+
+    /// The event `id` with its message, the auxiliary words named ([`Event::message`]
+    /// with `{aux0}`, `{aux1}` replaced by [`Mdb::aux_text`]); `None` for an unknown ID.
+    pub fn event_text(&self, id: u16, aux0: u32, aux1: u32) -> Option<(&Event, String)> {
+        let e = self.events.iter().find(|e| e.id == id)?;
+        let text = e
+            .message
+            .replace("{aux0}", &self.aux_text(&e.aux0_decode, aux0))
+            .replace("{aux1}", &self.aux_text(&e.aux1_decode, aux1));
+        Some((e, text))
+    }
 }
 
 /// Label of a severity (Yamcs: INFO, WATCH, DISTRESS, CRITICAL for subtypes 1..4).

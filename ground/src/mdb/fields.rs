@@ -16,6 +16,7 @@ pub(super) fn field(
         name: name.into(),
         offset,
         wire,
+        fraction_digits: meaning.fraction_digits(),
         meaning,
         description: description.into(),
     }

@@ -34,6 +34,7 @@
 //! * `fields`, `names`: field constructors, labels and number formats;
 //! * `codec`: encoding and decoding by the description (what Yamcs does with the XTCE).
 
+mod alarms;
 mod bit_fields;
 mod codec;
 mod enumerations;
@@ -46,6 +47,7 @@ mod table_image;
 mod telecommands;
 mod telemetry;
 
+pub use alarms::alarms;
 use bit_fields::leg_mask_bits;
 pub use bit_fields::{bank_status_flags, fault_flag_bits, fault_flags_doc, refusal_bits, FlagDoc};
 use enumerations::{
@@ -54,7 +56,7 @@ use enumerations::{
 pub use enumerations::{
     controller_state_doc, parameter_default, parameter_description, reset_causes,
 };
-pub use events::{events, severity_name};
+pub use events::{events, severity_name, yamcs_severity, EVENT_SOURCE};
 use failure_codes::failure_code_values;
 pub use failure_codes::{failure_codes, FailureCode, ReportedIn};
 pub use fields::{POSE_AXES, S_PER_CUC_FRACTION};
@@ -197,6 +199,26 @@ pub struct Field {
     pub meaning: Meaning,
     /// What it is (frame and unit included).
     pub description: String,
+    /// Decimals its engineering value is shown with ([`Meaning::fraction_digits`]):
+    /// Yamcs' number format, so that 4,991 nm shows as `4.991 um`, not
+    /// `4.9910000000000005 um`.
+    pub fraction_digits: Option<u32>,
+}
+
+impl Meaning {
+    /// The fewest decimals that show one raw count of a calibrated number
+    /// (`ceil(-log10(scale))`: 3 for 0.001 um per nm, 6 for 1e-6 arcsec per
+    /// micro-arcsecond, 5 for 1/65536 s); `None` for anything shown as an integer.
+    pub fn fraction_digits(&self) -> Option<u32> {
+        /// Below this, `-log10(scale)` is taken as the integer it is meant to be.
+        const LOG_ROUNDING: f64 = 1e-9;
+        match *self {
+            Meaning::Number { scale, .. } if scale != 1.0 && scale > 0.0 => {
+                Some((-scale.log10() - LOG_ROUNDING).ceil().max(0.0) as u32)
+            }
+            _ => None,
+        }
+    }
 }
 
 /// A raw argument value of a telecommand.
@@ -237,6 +259,9 @@ pub struct Telecommand {
     pub app_data_layout: String,
     /// Seconds within which the completion report must come.
     pub completion_timeout_s: f64,
+    /// Why it is critical (Yamcs significance CRITICAL: the operator confirms it);
+    /// `None`: a normal telecommand.
+    pub critical: Option<&'static str>,
     /// Raw arguments -> flight command.
     #[serde(skip)]
     pub build: BuildFn,
@@ -335,6 +360,37 @@ pub struct Event {
     pub aux1: String,
     /// One-line text for the operator (`{aux0}`, `{aux1}` are replaced).
     pub message: &'static str,
+    /// How aux0 is shown by name ([`Mdb::event_text`]); empty: as a number.
+    pub aux0_decode: Vec<AuxPart>,
+    /// How aux1 is shown by name; empty: as a number.
+    pub aux1_decode: Vec<AuxPart>,
+}
+
+/// Bits `shift..shift + width` of an event's auxiliary word, shown by name.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct AuxPart {
+    /// Lowest bit of the part.
+    pub shift: u32,
+    /// Bits of the part.
+    pub width: u32,
+    /// How its value is named.
+    pub decode: AuxDecode,
+}
+
+/// How a part of an auxiliary word is named.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum AuxDecode {
+    /// The label of one value of an enumeration ([`Mdb::enums`]).
+    Enum {
+        /// Enumeration name.
+        enumeration: &'static str,
+    },
+    /// The names of the set bits of a bit field ([`Mdb::bit_fields`]).
+    Bits {
+        /// Bit field name.
+        bit_field: &'static str,
+    },
 }
 
 /// One severity an event is sent with.
@@ -410,6 +466,39 @@ pub struct Mdb {
     pub failure_codes: Vec<FailureCode>,
     /// The parameter table image's layout (what TC[6,2] loads, TM[6,6] dumps).
     pub table_image: Vec<TableImageRow>,
+    /// Alarms of housekeeping parameters.
+    pub alarms: Vec<ParameterAlarm>,
+}
+
+/// When Yamcs raises an alarm on a parameter.
+#[derive(Clone, Debug, Serialize)]
+pub struct ParameterAlarm {
+    /// The parameter (a TM field's name).
+    pub parameter: &'static str,
+    /// The rule.
+    pub rule: AlarmRule,
+    /// Consecutive values in alarm before it is raised (debounce).
+    pub min_violations: u32,
+    /// Why it matters to the operator.
+    pub why: &'static str,
+}
+
+/// An alarm rule (levels are Yamcs': WATCH, WARNING, DISTRESS, CRITICAL, SEVERE).
+#[derive(Clone, Debug, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum AlarmRule {
+    /// An enumerated parameter: the level of each label in alarm.
+    States {
+        /// `(label, level)`.
+        levels: Vec<(String, &'static str)>,
+    },
+    /// A number: in alarm at `level` when above `limit` (engineering units).
+    Above {
+        /// Highest value not in alarm.
+        limit: f64,
+        /// Level.
+        level: &'static str,
+    },
 }
 
 /// The mission database.
@@ -501,5 +590,6 @@ pub fn mdb() -> Mdb {
         ],
         failure_codes: failure_codes(),
         table_image: table_image(),
+        alarms: alarms(),
     }
 }

@@ -152,6 +152,7 @@ fn schedule_telecommands() -> Vec<Telecommand> {
               build: BuildFn|
      -> Telecommand {
         Telecommand {
+            critical: None,
             name: name.into(),
             service: service::SCHEDULING,
             subtype: sub,
@@ -221,6 +222,7 @@ fn schedule_telecommands() -> Vec<Telecommand> {
     ));
     vec![
         Telecommand {
+            critical: None,
             name: "SET_TIME_REPORT_RATE".into(),
             service: service::TIME,
             subtype: subtype::SET_TIME_REPORT_RATE,
@@ -529,6 +531,7 @@ fn function_args(f: FunctionId) -> FunctionDesc {
 pub(super) fn telecommands() -> Vec<Telecommand> {
     let mut v = vec![
         Telecommand {
+            critical: None,
             name: "PING".into(),
             service: service::TEST,
             subtype: subtype::PING,
@@ -541,6 +544,7 @@ pub(super) fn telecommands() -> Vec<Telecommand> {
             build: |_| Ok(Command::Ping),
         },
         Telecommand {
+            critical: None,
             name: "HOUSEKEEPING_ONE_SHOT".into(),
             service: service::HOUSEKEEPING,
             subtype: subtype::HK_ONE_SHOT,
@@ -557,6 +561,7 @@ pub(super) fn telecommands() -> Vec<Telecommand> {
             build: |_| Ok(Command::HousekeepingOneShot),
         },
         Telecommand {
+            critical: None,
             name: "LOAD_TABLE_CHUNK".into(),
             service: service::MEMORY,
             subtype: subtype::MEMORY_LOAD,
@@ -602,6 +607,7 @@ pub(super) fn telecommands() -> Vec<Telecommand> {
             build: build_load_chunk,
         },
         Telecommand {
+            critical: None,
             name: "DUMP_TABLE".into(),
             service: service::MEMORY,
             subtype: subtype::MEMORY_DUMP,
@@ -634,6 +640,7 @@ pub(super) fn telecommands() -> Vec<Telecommand> {
     for f in FunctionId::ALL {
         let d = function_args(f);
         v.push(Telecommand {
+            critical: None,
             name: upper_snake(&format!("{f:?}")),
             service: service::FUNCTION,
             subtype: subtype::PERFORM_FUNCTION,
@@ -648,6 +655,7 @@ pub(super) fn telecommands() -> Vec<Telecommand> {
     }
     v.extend([
         Telecommand {
+            critical: None,
             name: "REPORT_PARAMETER".into(),
             service: service::PARAMETER,
             subtype: subtype::PARAMETER_REPORT_REQUEST,
@@ -677,6 +685,7 @@ pub(super) fn telecommands() -> Vec<Telecommand> {
             build: build_report_parameter,
         },
         Telecommand {
+            critical: None,
             name: "SET_PARAMETER".into(),
             service: service::PARAMETER,
             subtype: subtype::PARAMETER_SET,
@@ -709,5 +718,24 @@ pub(super) fn telecommands() -> Vec<Telecommand> {
         },
     ]);
     v.extend(schedule_telecommands());
+    for tc in &mut v {
+        tc.critical = critical_reason(&tc.name);
+    }
     v
+}
+
+/// Why a telecommand is critical (Yamcs asks the operator to confirm it), `None` for a
+/// normal one: what it changes cannot be undone by the next command, or it bypasses
+/// the controller's workspace checks. `ground/tests/mdb.rs` checks this against every
+/// flight [`Command`] the telecommand builds.
+fn critical_reason(name: &str) -> Option<&'static str> {
+    Some(match name {
+        "ACTIVATE_TABLE" => "replaces the running geometry and limits",
+        "SWITCH_BANK" => "changes the table the next boot runs",
+        "REVERT_TO_NOMINAL" => "drops the calibrated table for the compiled-in one",
+        "DIRECT_STROKE" => "moves one leg outside the pose checks (recovery)",
+        "SCHEDULE_RESET" => "deletes every time-tagged activity",
+        "COMMIT_TABLE" => "writes the flash bank the next activation or boot uses",
+        _ => return None,
+    })
 }

@@ -145,6 +145,10 @@ pub(crate) struct GatewayCli {
     /// without it Yamcs stamps packets with their reception time.
     #[arg(long)]
     tco_url: Option<String>,
+    /// Yamcs' event URL (http://127.0.0.1:8090/api/archive/m2/events): every TM[5,x] is
+    /// posted there as a Yamcs event, its text named by the mission database.
+    #[arg(long)]
+    events_url: Option<String>,
     /// Seconds to wait for the controller's stream to appear.
     #[arg(long, default_value_t = 30)]
     wait_s: u64,
@@ -171,6 +175,7 @@ pub(crate) fn gateway_cmd(a: &GatewayCli) -> Result<(), String> {
     );
     let options = Options {
         tco_url: a.tco_url.clone(),
+        events_url: a.events_url.clone(),
         backlog: DEFAULT_BACKLOG_PACKETS,
         stats_every: (a.stats_s > 0).then(|| Duration::from_secs(a.stats_s)),
     };
