@@ -331,8 +331,9 @@ impl Fine {
             } else {
                 err + RETREAT_MM
             };
-            // `max` then `min`, not `clamp` (which panics on bounds out of order or NaN).
-            let step = step.max(-MAX_CORRECTION_MM).min(MAX_CORRECTION_MM);
+            // Constant bounds: `clamp` cannot panic. The run-time bounds below take `max`
+            // then `min` (`clamp` panics on bounds out of order or NaN).
+            let step = step.clamp(-MAX_CORRECTION_MM, MAX_CORRECTION_MM);
             *d = (*h + step)
                 .max(*t - MAX_CORRECTION_MM)
                 .min(*t + MAX_CORRECTION_MM)
