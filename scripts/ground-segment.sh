@@ -94,9 +94,15 @@ if [ "$(id -u)" -eq 0 ]; then prio=(nice -n -10); fi
   -kernel "$ELF" > "$W/logs/qemu.log" 2>&1 &
 pids+=($!)
 
+# Yamcs' security is on (yamcs/etc/security.yaml): the gateway logs in as its own user
+# (role Gateway: time correlation, events and its link-health parameters only), by
+# HTTP Basic authentication.
+GW_USER=$(python3 "$ROOT/yamcs/tools/users.py" gateway)
 "$M2GROUND" gateway --uart "unix:$SOCK" --listen "127.0.0.1:$LINK_PORT" \
-  --tco-url "http://127.0.0.1:$HTTP_PORT/api/tco/m2/tco0/coefficients" \
-  --events-url "http://127.0.0.1:$HTTP_PORT/api/archive/m2/events" --stats-s 10 \
+  --tco-url "http://$GW_USER@127.0.0.1:$HTTP_PORT/api/tco/m2/tco0/coefficients" \
+  --events-url "http://$GW_USER@127.0.0.1:$HTTP_PORT/api/archive/m2/events" \
+  --parameters-url "http://$GW_USER@127.0.0.1:$HTTP_PORT/api/processors/m2/realtime/parameters:batchSet" \
+  --health-s 2 --stats-s 10 \
   > "$W/logs/gateway.log" 2>&1 &
 pids+=($!)
 
@@ -106,15 +112,19 @@ pids+=($!)
 
 echo "ground-segment: waiting for Yamcs and the link"
 for _ in $(seq 1 120); do
-  if python3 - "$HTTP_PORT" <<'EOF' 2>/dev/null; then break; fi
+  if python3 - "$HTTP_PORT" "$ROOT/yamcs/tools" <<'EOF' 2>/dev/null; then break; fi
 import sys, json, urllib.request
-links = json.load(urllib.request.urlopen(f"http://127.0.0.1:{sys.argv[1]}/api/links/m2", timeout=2))
+sys.path.insert(0, sys.argv[2])
+from users import basic_auth
+req = urllib.request.Request(f"http://127.0.0.1:{sys.argv[1]}/api/links/m2",
+                             headers={"Authorization": basic_auth("observer")})
+links = json.load(urllib.request.urlopen(req, timeout=2))
 sys.exit(0 if any(l.get("status") == "OK" and int(l.get("dataInCount", 0)) > 0 for l in links.get("links", [])) else 1)
 EOF
   for p in "${pids[@]}"; do kill -0 "$p" 2>/dev/null || { echo "ground-segment: a process died; logs in $W/logs" >&2; tail -20 "$W"/logs/*.log >&2; exit 1; }; done
   sleep 1
 done
-echo "ground-segment: up. Yamcs web UI http://localhost:$HTTP_PORT (instance m2); logs in $W/logs"
+echo "ground-segment: up. Yamcs web UI http://localhost:$HTTP_PORT (instance m2; users in yamcs/etc/users.yaml); logs in $W/logs"
 
 if [ ${#cmd[@]} -gt 0 ]; then
   set +e

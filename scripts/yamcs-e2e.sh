@@ -4,7 +4,8 @@
 # yamcs/tools/e2e.py through yamcs-client (ping, housekeeping with units and UTC time,
 # a move in um/arcsec with every verifier stage, a refused move, a table upload/commit/
 # activate, events with severities, sources and named words, number formats, critical
-# commands, alarms; every Yamcs-encoded TC byte-identical to m2ground tc's), then takes
+# commands, alarms, users and roles: the observer refused (403), the operator not;
+# every Yamcs-encoded TC byte-identical to m2ground tc's), then takes
 # headless Chromium screenshots of the Yamcs pages with the housekeeping parameters and
 # the events (yamcs/tools/screenshot.py, Chromium over DevTools; the events page must
 # show its rows and no error): <target>/ground-segment/yamcs-{housekeeping,events}.png.
@@ -28,11 +29,11 @@ python3 yamcs/tools/e2e.py
 id=$(cat "$M2_GROUND_DIR/plist_id")
 python3 yamcs/tools/screenshot.py \
   "http://$M2_YAMCS_URL/telemetry/parameter-lists/$id/realtime?c=m2__realtime" \
-  "$M2_GROUND_DIR/yamcs-housekeeping.png" --wait-s 12
+  "$M2_GROUND_DIR/yamcs-housekeeping.png" --wait-s 12 --user observer
 # The Events page of the web UI (Yamcs sorts events by source; an event without one
 # broke the table): rows of the boot, no error banner.
 python3 yamcs/tools/screenshot.py "http://$M2_YAMCS_URL/events?c=m2__realtime" \
-  "$M2_GROUND_DIR/yamcs-events.png" --wait-s 10 \
+  "$M2_GROUND_DIR/yamcs-events.png" --wait-s 10 --user observer \
   --expect BOOT_DETAIL --expect STATE_CHANGED --forbid localeCompare --forbid "Cannot read properties"
 '
 echo "yamcs-e2e: restart: the archive is kept"

@@ -44,9 +44,9 @@ use m2ctl::link::{
     CCSDS_PRIMARY_HEADER_LEN, MAX_TC_PACKET_LEN, MAX_TM_PACKET_LEN, PUS_TM_SEC_HEADER_LEN_NO_TIME,
     TM_TIMESTAMP_LEN,
 };
-use m2ctl::units::US_PER_S;
+use m2ctl::units::{MS_PER_S, US_PER_S};
 
-use crate::mdb::{mdb, yamcs_severity, Mdb, EVENT_SOURCE};
+use crate::mdb::{mdb, yamcs_severity, LinkHealth, LinkHealthKind, Mdb, EVENT_SOURCE};
 
 /// Deframer buffer for telemetry: the COBS encoding of the largest TM packet.
 pub const TM_DEFRAMER_LEN: usize = max_cobs_len(MAX_TM_PACKET_LEN);
@@ -98,11 +98,31 @@ pub struct Stats {
     pub events_posted: AtomicU64,
     /// Events Yamcs did not take (after [`EVENT_POST_TRIES`] attempts).
     pub events_lost: AtomicU64,
+    /// Bits (`f64::to_bits`) of the newest TM packet's arrival after the UTC the
+    /// correlation in force gives its on-board time (ms); 0 until the first.
+    pub tco_residual_ms_bits: AtomicU64,
 }
 
 impl Stats {
     fn add(c: &AtomicU64, n: u64) {
         c.fetch_add(n, Ordering::Relaxed);
+    }
+
+    /// The value of a link-health quantity (counters as they are, exactly below 2^53).
+    pub fn health(&self, q: LinkHealth) -> f64 {
+        let g = |c: &AtomicU64| c.load(Ordering::Relaxed) as f64;
+        match q {
+            LinkHealth::TmPackets => g(&self.tm_packets),
+            LinkHealth::TmBadFrames => g(&self.tm_bad_frames),
+            LinkHealth::TmBacklogDropped => g(&self.tm_backlog_dropped),
+            LinkHealth::TcPackets => g(&self.tc_packets),
+            LinkHealth::TcRefused => g(&self.tc_refused),
+            LinkHealth::EventsLost => g(&self.events_lost),
+            LinkHealth::TcoUpdates => g(&self.tco_updates),
+            LinkHealth::TcoResidualMs => {
+                f64::from_bits(self.tco_residual_ms_bits.load(Ordering::Relaxed))
+            }
+        }
     }
 
     /// One line for the log.
@@ -372,6 +392,33 @@ pub fn coefficients_json(fit: &TimeFit) -> String {
     )
 }
 
+/// The body of Yamcs' `BatchSetParameterValues` setting every link-health parameter of
+/// the mission database (`/{space system}/{name}`, local parameters) to `stats`' values:
+/// counters as `UINT64`, floats as `DOUBLE`.
+pub fn link_health_json(mdb: &Mdb, stats: &Stats) -> String {
+    let values: Vec<String> = mdb
+        .link_health
+        .iter()
+        .map(|p| {
+            let v = stats.health(p.quantity);
+            let value = match p.kind {
+                LinkHealthKind::Counter => {
+                    format!("{{\"type\":\"UINT64\",\"uint64Value\":\"{}\"}}", v as u64)
+                }
+                LinkHealthKind::Float => {
+                    format!("{{\"type\":\"DOUBLE\",\"doubleValue\":{v:?}}}")
+                }
+            };
+            format!(
+                "{{\"id\":{{\"name\":\"/{}/{}\"}},\"value\":{value}}}",
+                json_str(mdb.name),
+                json_str(p.name)
+            )
+        })
+        .collect();
+    format!("{{\"request\":[{}]}}", values.join(","))
+}
+
 /// Attempts to post one event, [`TCO_RETRY`] apart.
 pub const EVENT_POST_TRIES: usize = 5;
 
@@ -433,13 +480,54 @@ pub fn event_json(mdb: &Mdb, packet: &[u8], fit: Option<TimeFit>) -> Option<Stri
 /// Longest status line read from an HTTP answer (bytes).
 const HTTP_STATUS_LINE_MAX: usize = 4096;
 
-/// POSTs `body` (JSON) to `url` (`http://host:port/path`, plain HTTP on the local
-/// machine); `Ok` on a 2xx answer (read from the status line only).
+/// Standard base64 (RFC 4648 section 4, with padding) of `bytes`.
+pub fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            chunk.get(1).copied().unwrap_or(0),
+            chunk.get(2).copied().unwrap_or(0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for i in 0..4 {
+            if i <= chunk.len() {
+                out.push(char::from(ALPHABET[(n >> (18 - 6 * i) & 0x3F) as usize]));
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+/// `url` without a `user:password@` (for logs and errors).
+pub fn without_user(url: &str) -> String {
+    let (scheme, rest) = url.split_once("://").unwrap_or(("", url));
+    let (authority, path) = rest.split_once('/').unwrap_or((rest, ""));
+    let host = authority.rsplit_once('@').map_or(authority, |(_, h)| h);
+    format!("{scheme}://{host}/{path}")
+}
+
+/// POSTs `body` (JSON) to `url` (`http://[user:password@]host:port/path`, plain HTTP on
+/// the local machine; a user in the URL is sent as HTTP Basic authentication, which
+/// Yamcs accepts with its security enabled); `Ok` on a 2xx answer (read from the
+/// status line only).
 pub fn http_post_json(url: &str, body: &str) -> Result<(), String> {
     let rest = url
         .strip_prefix("http://")
         .ok_or_else(|| format!("{url}: only http:// URLs"))?;
-    let (host, path) = rest.split_once('/').unwrap_or((rest, ""));
+    let (authority, path) = rest.split_once('/').unwrap_or((rest, ""));
+    let (credentials, host) = match authority.rsplit_once('@') {
+        Some((user, host)) => (Some(user), host),
+        None => (None, authority),
+    };
+    let auth = credentials
+        .map(|c| format!("Authorization: Basic {}\r\n", base64(c.as_bytes())))
+        .unwrap_or_default();
+    // Errors name the URL without its password.
+    let url = without_user(url);
     let addr = std::net::ToSocketAddrs::to_socket_addrs(host)
         .map_err(|e| format!("{host}: {e}"))?
         .next()
@@ -449,7 +537,7 @@ pub fn http_post_json(url: &str, body: &str) -> Result<(), String> {
     s.set_read_timeout(Some(HTTP_TIMEOUT))
         .map_err(|e| e.to_string())?;
     let req = format!(
-        "POST /{path} HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
+        "POST /{path} HTTP/1.1\r\nHost: {host}\r\n{auth}Content-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
         body.len()
     );
     s.write_all(req.as_bytes()).map_err(|e| e.to_string())?;
@@ -539,6 +627,12 @@ pub struct Options {
     pub backlog: usize,
     /// Print the counters this often.
     pub stats_every: Option<Duration>,
+    /// Yamcs' BatchSetParameterValues URL
+    /// (`.../api/processors/{instance}/{processor}/parameters:batchSet`); no link-health
+    /// parameters without it.
+    pub parameters_url: Option<String>,
+    /// Publish the link-health parameters this often.
+    pub health_every: Duration,
 }
 
 fn now_unix_s() -> f64 {
@@ -719,6 +813,28 @@ pub fn run(
         tx
     });
 
+    // Link health: the counters as Yamcs parameters (a post Yamcs refuses is logged; the
+    // next one carries the newer values).
+    if let Some(url) = options.parameters_url.clone() {
+        let (stats, stop) = (stats.clone(), stop.clone());
+        let every = options.health_every.max(CONNECT_RETRY);
+        std::thread::spawn(move || {
+            let mdb = mdb();
+            let mut failing = false;
+            while !stop.load(Ordering::Relaxed) {
+                match http_post_json(&url, &link_health_json(&mdb, &stats)) {
+                    Ok(()) => failing = false,
+                    Err(e) if !failing => {
+                        eprintln!("gateway: link health not posted: {e}");
+                        failing = true;
+                    }
+                    Err(_) => {}
+                }
+                std::thread::sleep(every);
+            }
+        });
+    }
+
     // Statistics.
     if let Some(every) = options.stats_every {
         let (stats, stop) = (stats.clone(), stop.clone());
@@ -767,6 +883,14 @@ pub fn run(
                     } else {
                         let _ = tx.send(fit);
                     }
+                }
+                // The residual against the line Yamcs stamps this packet with (set just
+                // above when it changed): >= 0 but for the tolerance the line may lag by.
+                if let Some(line) = correlator.published() {
+                    let residual_ms = (arrival - line.utc(obt)) * f64::from(MS_PER_S);
+                    stats
+                        .tco_residual_ms_bits
+                        .store(residual_ms.to_bits(), Ordering::Relaxed);
                 }
             }
             let (Ok(mut c), Ok(mut b)) = (client.lock(), backlog.lock()) else {

@@ -16,8 +16,8 @@ use m2ctl::link::framing::Deframer;
 use m2ctl::link::tm::{parse_tm, EventSeverity, TmReport, TmTime, TmWriter};
 use m2ctl::link::{decode_telecommand, Command, Housekeeping, WirePose, MAX_TM_FRAME_LEN};
 use m2ground::gateway::{
-    ccsds_packet_len, coefficients_json, event_json, rfc3339, run, tm_obt_s, Correlator, Options,
-    Stats, TcPath, TimeFit, TmPath, Uart,
+    base64, ccsds_packet_len, coefficients_json, event_json, http_post_json, link_health_json,
+    rfc3339, run, tm_obt_s, Correlator, Options, Stats, TcPath, TimeFit, TmPath, Uart,
 };
 use m2ground::tc::{frame, TcSequencer};
 
@@ -308,7 +308,7 @@ fn the_gateway_on_sockets_forwards_both_ways_and_sets_the_time_correlation() {
         tco_url: Some(tco_url),
         events_url: None,
         backlog: 100,
-        stats_every: None,
+        ..Options::default()
     };
     let gw = {
         let (stats, stop) = (stats.clone(), stop.clone());
@@ -493,4 +493,203 @@ fn events_go_to_yamcs_with_a_source_and_their_words_named() {
     let mut bad = event_packet(EventSeverity::Info, event_id::BOOT, [0, 0]);
     bad[20] ^= 1;
     assert!(event_json(&mdb, &bad, None).is_none());
+}
+
+#[test]
+fn base64_matches_the_rfc_4648_test_vectors() {
+    // RFC 4648 section 10.
+    for (plain, encoded) in [
+        ("", ""),
+        ("f", "Zg=="),
+        ("fo", "Zm8="),
+        ("foo", "Zm9v"),
+        ("foob", "Zm9vYg=="),
+        ("fooba", "Zm9vYmE="),
+        ("foobar", "Zm9vYmFy"),
+    ] {
+        assert_eq!(base64(plain.as_bytes()), encoded, "{plain:?}");
+    }
+}
+
+/// One HTTP request as a fake server receives it: its head (up to the blank line).
+fn one_request_head(
+    listener: TcpListener,
+    status: &'static str,
+) -> std::thread::JoinHandle<String> {
+    std::thread::spawn(move || {
+        let (mut s, _) = listener.accept().unwrap();
+        let mut head = Vec::new();
+        let mut b = [0u8; 1];
+        while !head.ends_with(b"\r\n\r\n") && s.read(&mut b).unwrap() == 1 {
+            head.push(b[0]);
+        }
+        s.write_all(format!("HTTP/1.1 {status}\r\nContent-Length: 0\r\n\r\n").as_bytes())
+            .unwrap();
+        String::from_utf8(head).unwrap()
+    })
+}
+
+#[test]
+fn a_user_in_the_url_goes_to_yamcs_as_basic_authentication_and_stays_out_of_errors() {
+    // With a user: Basic base64("gateway:s3cret") (RFC 7617), and the path and host.
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let server = one_request_head(listener, "200 OK");
+    http_post_json(
+        &format!("http://gateway:s3cret@127.0.0.1:{port}/api/tco/m2/tco0/coefficients"),
+        "{}",
+    )
+    .unwrap();
+    let head = server.join().unwrap();
+    assert!(
+        head.starts_with("POST /api/tco/m2/tco0/coefficients HTTP/1.1\r\n"),
+        "{head}"
+    );
+    assert!(
+        head.contains(&format!("Host: 127.0.0.1:{port}\r\n")),
+        "{head}"
+    );
+    assert!(
+        head.contains("\r\nAuthorization: Basic Z2F0ZXdheTpzM2NyZXQ=\r\n"),
+        "{head}"
+    );
+    // Without: no Authorization header.
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let server = one_request_head(listener, "200 OK");
+    http_post_json(&format!("http://127.0.0.1:{port}/x"), "{}").unwrap();
+    assert!(!server.join().unwrap().contains("Authorization"));
+    // Refused (Yamcs: 403 when the user may not): an error that names the URL, not the
+    // password.
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let server = one_request_head(listener, "403 Forbidden");
+    let e = http_post_json(&format!("http://gateway:s3cret@127.0.0.1:{port}/x"), "{}").unwrap_err();
+    server.join().unwrap();
+    assert!(
+        e.contains("403") && e.contains(&format!("127.0.0.1:{port}/x")),
+        "{e}"
+    );
+    assert!(!e.contains("s3cret"), "{e}");
+}
+
+#[test]
+fn link_health_goes_to_yamcs_as_the_mdb_describes_it() {
+    use m2ground::mdb::{mdb, LinkHealth, LinkHealthKind};
+    use std::sync::atomic::AtomicU64;
+    let m = mdb();
+    let stats = Stats::default();
+    // A distinct value in every counter, a residual of 12.5 ms.
+    let counters: [(&AtomicU64, LinkHealth, u64); 7] = [
+        (&stats.tm_packets, LinkHealth::TmPackets, 101),
+        (&stats.tm_bad_frames, LinkHealth::TmBadFrames, 3),
+        (&stats.tm_backlog_dropped, LinkHealth::TmBacklogDropped, 5),
+        (&stats.tc_packets, LinkHealth::TcPackets, 17),
+        (&stats.tc_refused, LinkHealth::TcRefused, 2),
+        (&stats.events_lost, LinkHealth::EventsLost, 7),
+        (&stats.tco_updates, LinkHealth::TcoUpdates, 11),
+    ];
+    for (c, _, v) in &counters {
+        c.store(*v, Ordering::Relaxed);
+    }
+    stats
+        .tco_residual_ms_bits
+        .store(12.5f64.to_bits(), Ordering::Relaxed);
+    let body: serde_json::Value = serde_json::from_str(&link_health_json(&m, &stats)).unwrap();
+    let sets = body["request"].as_array().unwrap();
+    // One value per described parameter, every quantity described once.
+    assert_eq!(sets.len(), m.link_health.len());
+    assert_eq!(m.link_health.len(), LinkHealth::ALL.len());
+    for p in &m.link_health {
+        let name = format!("/M2/{}", p.name);
+        let set: Vec<_> = sets
+            .iter()
+            .filter(|s| s["id"]["name"] == name.as_str())
+            .collect();
+        assert_eq!(set.len(), 1, "{name}");
+        let v = &set[0]["value"];
+        match p.kind {
+            LinkHealthKind::Counter => {
+                let want = counters.iter().find(|c| c.1 == p.quantity).unwrap().2;
+                assert_eq!(v["type"], "UINT64", "{name}");
+                assert_eq!(v["uint64Value"], want.to_string().as_str(), "{name}");
+            }
+            LinkHealthKind::Float => {
+                assert_eq!(p.quantity, LinkHealth::TcoResidualMs);
+                assert_eq!(v["type"], "DOUBLE", "{name}");
+                assert_eq!(v["doubleValue"].as_f64(), Some(12.5), "{name}");
+            }
+        }
+    }
+}
+
+#[test]
+fn the_gateway_publishes_its_bad_frames_to_yamcs() {
+    // A fake controller that sends garbage, a fake Yamcs HTTP server for the parameters:
+    // a post arrives whose link_tm_bad_frames counts the dropped frame.
+    let dir = std::env::temp_dir().join(format!("m2-gw-health-{}", std::process::id()));
+    let _ = std::fs::create_dir_all(&dir);
+    let sock = dir.join("uart.sock");
+    let _ = std::fs::remove_file(&sock);
+    let controller = UnixListener::bind(&sock).unwrap();
+    let http = TcpListener::bind("127.0.0.1:0").unwrap();
+    let url = format!(
+        "http://gateway:pw@{}/api/processors/m2/realtime/parameters:batchSet",
+        http.local_addr().unwrap()
+    );
+    let yamcs_side = TcpListener::bind("127.0.0.1:0").unwrap();
+    let (rx, tx) = Uart::Unix(sock.clone())
+        .open(Duration::from_secs(5))
+        .unwrap();
+    let (mut qemu, _) = controller.accept().unwrap();
+    let stats = Arc::new(Stats::default());
+    let stop = Arc::new(AtomicBool::new(false));
+    let options = Options {
+        backlog: 10,
+        parameters_url: Some(url),
+        health_every: Duration::from_millis(100),
+        ..Options::default()
+    };
+    let gw = {
+        let (stats, stop) = (stats.clone(), stop.clone());
+        std::thread::spawn(move || run(yamcs_side, rx, tx, &options, stats, stop))
+    };
+    // A frame that is not COBS of a packet (a zero-length code byte).
+    qemu.write_all(&[0x00, 0x05, 0x01, 0x00]).unwrap();
+    let t0 = Instant::now();
+    let mut bad_frames = None;
+    while bad_frames != Some(1) && t0.elapsed() < Duration::from_secs(20) {
+        let (mut s, _) = http.accept().unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+        let mut req = Vec::new();
+        let mut buf = [0u8; 4096];
+        while !req.ends_with(b"]}") {
+            match s.read(&mut buf) {
+                Ok(0) | Err(_) => break,
+                Ok(n) => req.extend_from_slice(&buf[..n]),
+            }
+        }
+        s.write_all(b"HTTP/1.1 200 OK\r\nContent-Length: 0\r\n\r\n")
+            .unwrap();
+        let text = String::from_utf8(req).unwrap();
+        assert!(text.starts_with("POST /api/processors/m2/realtime/parameters:batchSet "));
+        assert!(
+            text.contains("Authorization: Basic Z2F0ZXdheTpwdw==\r\n"),
+            "{text}"
+        );
+        let body: serde_json::Value =
+            serde_json::from_str(text.split("\r\n\r\n").nth(1).unwrap()).unwrap();
+        bad_frames = body["request"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|s| s["id"]["name"] == "/M2/link_tm_bad_frames")
+            .and_then(|s| s["value"]["uint64Value"].as_str()?.parse::<u64>().ok());
+    }
+    assert_eq!(bad_frames, Some(1));
+    assert_eq!(stats.tm_bad_frames.load(Ordering::Relaxed), 1);
+    stop.store(true, Ordering::Relaxed);
+    drop(qemu);
+    let _ = gw.join();
+    let _ = std::fs::remove_dir_all(&dir);
 }

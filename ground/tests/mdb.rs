@@ -1002,3 +1002,57 @@ fn health_parameters_have_their_alarms() {
         );
     }
 }
+
+#[test]
+fn link_health_parameters_are_described_once_with_alarms_on_the_error_counters() {
+    use m2ground::mdb::{LinkHealth, LinkHealthKind, TCO_RESIDUAL_ALARM_MS};
+    let m = mdb();
+    // Every quantity once, under a name no TM field has.
+    let names: BTreeSet<_> = m.link_health.iter().map(|p| p.name).collect();
+    assert_eq!(names.len(), m.link_health.len());
+    assert_eq!(m.link_health.len(), LinkHealth::ALL.len());
+    for p in &m.link_health {
+        assert!(
+            m.telemetry
+                .iter()
+                .all(|t| t.fields.iter().all(|f| f.name != p.name)),
+            "{}: also a TM field",
+            p.name
+        );
+        assert_eq!(p.quantity.parameter().name, p.name);
+        assert!(p.min_violations >= 1 && !p.description.is_empty());
+    }
+    // Any count of lost or corrupted traffic raises an alarm; the plain counts do not.
+    let rule = |q: LinkHealth| {
+        m.link_health
+            .iter()
+            .find(|p| p.quantity == q)
+            .unwrap()
+            .alarm
+            .clone()
+    };
+    for q in [
+        LinkHealth::TmBadFrames,
+        LinkHealth::TmBacklogDropped,
+        LinkHealth::TcRefused,
+        LinkHealth::EventsLost,
+    ] {
+        assert!(
+            matches!(rule(q), Some(mdb::AlarmRule::Above { limit, .. }) if limit == 0.0),
+            "{q:?}"
+        );
+    }
+    for q in [
+        LinkHealth::TmPackets,
+        LinkHealth::TcPackets,
+        LinkHealth::TcoUpdates,
+    ] {
+        assert!(rule(q).is_none(), "{q:?}");
+    }
+    // The correlation's residual: a float in ms, in alarm above its limit.
+    let r = LinkHealth::TcoResidualMs.parameter();
+    assert_eq!((r.kind, r.unit), (LinkHealthKind::Float, Some("ms")));
+    assert!(
+        matches!(r.alarm, Some(mdb::AlarmRule::Above { limit, .. }) if limit == TCO_RESIDUAL_ALARM_MS)
+    );
+}

@@ -16,6 +16,8 @@ import time
 
 from yamcs.client import YamcsClient
 
+from users import credentials
+
 URL = os.environ.get("M2_YAMCS_URL", "localhost:8090")
 
 
@@ -24,7 +26,7 @@ def main() -> int:
     if mode not in ("kept", "clean"):
         print(__doc__, file=sys.stderr)
         return 2
-    archive = YamcsClient(URL).get_archive("m2")
+    archive = YamcsClient(URL, credentials=credentials("observer")).get_archive("m2")
     want_boots = 2 if mode == "kept" else 1
     t0 = time.time()
     while True:

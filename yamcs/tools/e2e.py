@@ -15,7 +15,11 @@ Checks (each failure exits non-zero with the reason):
     upload`), committed and activated, is the active table in housekeeping;
  6. the controller's events are listed by Yamcs with their severities;
  7. TM time: the CUC 4+2 on-board time (seconds and fraction) turned into UTC by the
-    time-correlation coefficients the gateway set, and received after generation.
+    time-correlation coefficients the gateway set, and received after generation;
+ 8. link health: the gateway's counters and time-correlation residual are Yamcs
+    parameters with the values the gateway has, their alarms as described;
+ 9. security: the operator (this test's user) commands; the observer reads but its
+    command is refused (HTTP 403) and reaches nothing; without a login nothing is served.
 Prints the figures: commands sent, parameters seen, packets, timings.
 """
 
@@ -30,10 +34,13 @@ import tempfile
 import threading
 import time
 from datetime import timezone
+import urllib.error
 import urllib.request
 from pathlib import Path
 
-from yamcs.client import YamcsClient
+from yamcs.client import YamcsClient, YamcsError
+
+from users import basic_auth, credentials
 
 ROOT = Path(__file__).resolve().parents[2]
 URL = os.environ.get("M2_YAMCS_URL", "localhost:8090")
@@ -101,7 +108,7 @@ class Operator:
     has: the controller in QEMU runs on its own clock, ahead of a loaded host."""
 
     def __init__(self):
-        self.client = YamcsClient(URL)
+        self.client = YamcsClient(URL, credentials=credentials("operator"))
         self.proc = self.client.get_processor(INSTANCE, PROCESSOR)
         self.conn = self.proc.create_command_connection()
         self.mdb = self.client.get_mdb(INSTANCE)
@@ -204,6 +211,26 @@ def same_bytes(op: Operator, cmd, reference_args: list[str], index: int = 0) -> 
         sent == ours,
         f"{cmd.name.split('/')[-1]}: Yamcs' packet == m2ground tc's ({len(ours)} bytes, seq {seq})",
     ) or print(f"       yamcs    {sent.hex() if sent else None}\n       m2ground {ours.hex()}")
+
+
+def get_json(path: str, user: str = "operator"):
+    """GET a Yamcs API path as `user` (yamcs/etc/users.yaml)."""
+    req = urllib.request.Request(f"http://{URL}{path}", headers={"Authorization": basic_auth(user)})
+    return json.load(urllib.request.urlopen(req, timeout=10))
+
+
+def http_status(path: str, user: str | None, body: bytes | None = None) -> int:
+    """The HTTP status of a request to Yamcs as `user` (None: no login)."""
+    headers = {"Content-Type": "application/json"}
+    if user:
+        headers["Authorization"] = basic_auth(user)
+    req = urllib.request.Request(f"http://{URL}{path}", data=body, headers=headers,
+                                 method="POST" if body is not None else "GET")
+    try:
+        with urllib.request.urlopen(req, timeout=10) as r:
+            return r.status
+    except urllib.error.HTTPError as e:
+        return e.code
 
 
 def main() -> int:
@@ -414,7 +441,7 @@ def main() -> int:
     print("6b. number formats, significance")
 
     def api(path):
-        return json.load(urllib.request.urlopen(f"http://{URL}/api/mdb/{INSTANCE}/{path}", timeout=10))
+        return get_json(f"/api/mdb/{INSTANCE}/{path}")
     formats, wrong = 0, []
     for pkt in mdb_json["telemetry"]:
         for f in pkt["fields"]:
@@ -457,8 +484,7 @@ def main() -> int:
           f"{len(defined)} alarms defined in Yamcs (state: {dict(defined).get('state')}); wrong: {wrong}")
 
     def active_alarms():
-        body = json.load(urllib.request.urlopen(
-            f"http://{URL}/api/processors/{INSTANCE}/{PROCESSOR}/alarms", timeout=10))
+        body = get_json(f"/api/processors/{INSTANCE}/{PROCESSOR}/alarms")
         return {a["id"]["name"].rsplit("/", 1)[-1]: a for a in body.get("alarms", [])}
     hk = op.hk_after(op.newest_obt())
     check(hk.value("state").eng_value == "IDLE" and "state" not in active_alarms(),
@@ -520,6 +546,118 @@ def main() -> int:
     # The QEMU controller's clock is not steady (emulation speed); a real one is.
     check(-0.5 <= med <= 0.5, f"TM time correlated to UTC: reports received {med * 1e3:.1f} ms (median) after generation")
 
+    # 8. Link health: the gateway's counters as local parameters (it sets them every 2 s
+    # through Yamcs' API), with the description's alarms.
+    print("8. link health")
+    health = {p["name"]: p for p in mdb_json["link_health"]}
+
+    def health_values():
+        out = {}
+        for name in health:
+            try:
+                v = get_json(f"/api/processors/{INSTANCE}/{PROCESSOR}/parameters/M2/{name}")
+            except urllib.error.HTTPError:
+                return None
+            if "engValue" not in v:
+                return None
+            ev = v["engValue"]
+            out[name] = (float(ev.get("uint64Value", ev.get("doubleValue", "nan"))), v)
+        return out
+    link_info = op.client.get_link(INSTANCE, "m2-gateway").get_info()
+
+    def settled():
+        # Values published after the last TC went out (the gateway's TC count is the link's).
+        vals = health_values()
+        return vals if vals and vals["link_tc_packets"][0] == link_info.out_count else None
+    try:
+        vals = op.wait("link health with the link's TC count", settled, 20.0)
+    except TimeoutError:
+        vals = health_values() or {}
+    shown = {k: v[0] for k, v in vals.items()}
+    figures["link health"] = shown
+    check(len(vals) == len(health) >= 8,
+          f"{len(vals)} link-health parameters with values in Yamcs: {shown}")
+    check(shown.get("link_tc_packets") == link_info.out_count and shown.get("link_tm_packets", 0) > 0,
+          f"gateway TC packets {shown.get('link_tc_packets')} = the link's TC out {link_info.out_count}; "
+          f"TM packets {shown.get('link_tm_packets')}")
+    errors = ("link_tm_bad_frames", "link_tm_backlog_dropped", "link_tc_refused", "link_events_lost")
+    # The residual is >= 0 but for the 5 ms the gateway lets its line lag
+    # (gateway::CORRELATION_TOLERANCE_S) before it corrects it.
+    check(all(shown.get(e) == 0 for e in errors) and -5.0 <= shown.get("link_tco_residual", -99) < 60_000,
+          f"no link errors, time-correlation residual {shown.get('link_tco_residual')} ms")
+    defined, wrong = [], []
+    for name, p in health.items():
+        if p["alarm"] is None:
+            continue
+        got = api("parameters/M2/" + name).get("type", {}).get("defaultAlarm", {})
+        have = [(r.get("level"), r.get("maxInclusive")) for r in got.get("staticAlarmRanges", [])]
+        ok = (p["alarm"]["level"], p["alarm"]["limit"]) in have
+        (defined if ok else wrong).append((name, have))
+    check(len(defined) >= 5 and not wrong, f"link-health alarms in Yamcs: {defined}; wrong: {wrong}")
+    # The alarm works on these parameters: a bad frame (set by the operator, who may
+    # write local parameters) raises link_tm_bad_frames' WARNING; the gateway's next
+    # publication puts the real count back.
+    req = urllib.request.Request(
+        f"http://{URL}/api/processors/{INSTANCE}/{PROCESSOR}/parameters/M2/link_tm_bad_frames",
+        data=json.dumps({"type": "UINT64", "uint64Value": "1"}).encode(),
+        headers={"Content-Type": "application/json", "Authorization": basic_auth("operator")}, method="PUT")
+    urllib.request.urlopen(req, timeout=10)
+    try:
+        alarm = op.wait("link_tm_bad_frames' alarm", lambda: active_alarms().get("link_tm_bad_frames"), 15.0)
+    except TimeoutError:
+        alarm = None
+    check(alarm is not None and alarm.get("severity") == "WARNING",
+          f"link_tm_bad_frames = 1 raises a WARNING alarm: {alarm and alarm.get('severity')}")
+    try:
+        back = op.wait("the gateway's count back", lambda: (lambda v: v if v and v["link_tm_bad_frames"][0] == 0 else None)(health_values()), 15.0)
+    except TimeoutError:
+        back = None
+    check(back is not None, "the gateway's next publication sets link_tm_bad_frames back to its count, 0")
+    # Writing them is the gateway's (and the operator's) right, not the observer's.
+    req = urllib.request.Request(
+        f"http://{URL}/api/processors/{INSTANCE}/{PROCESSOR}/parameters/M2/link_tm_bad_frames",
+        data=json.dumps({"type": "UINT64", "uint64Value": "0"}).encode(),
+        headers={"Content-Type": "application/json", "Authorization": basic_auth("observer")}, method="PUT")
+    try:
+        urllib.request.urlopen(req, timeout=10)
+        code = 200
+    except urllib.error.HTTPError as e:
+        code = e.code
+    check(code == 403, f"the observer cannot set a link-health parameter: HTTP {code}")
+
+    # 9. Security (yamcs/etc/security.yaml, roles.yaml, users.yaml): this test logs in as
+    # the operator, whose commands went through above. The observer reads but cannot
+    # command: refused with 403, and nothing reaches the controller; without a login
+    # Yamcs serves nothing.
+    print("9. security")
+    me = get_json("/api/user")
+    check(me.get("name") == "operator" and not me.get("superuser"),
+          f"this test is the operator (not a superuser): {me.get('name')}, roles {me.get('roles')}")
+    observer = YamcsClient(URL, credentials=credentials("observer"))
+    obs_proc = observer.get_processor(INSTANCE, PROCESSOR)
+    seen_by_observer = obs_proc.get_parameter_value(NS + "cycle_counter")
+    check(seen_by_observer is not None and get_json(f"/api/links/{INSTANCE}", "observer").get("links"),
+          f"the observer reads telemetry (cycle_counter {seen_by_observer and seen_by_observer.eng_value}) and links")
+    tc_before = op.client.get_link(INSTANCE, "m2-gateway").get_info().out_count
+    status = http_status(f"/api/processors/{INSTANCE}/{PROCESSOR}/commands{NS}PING", "observer", b"{}")
+    try:
+        obs_proc.issue_command(NS + "PING")
+        refused = "not refused"
+    except YamcsError as e:  # yamcs-client: "403 Client Error: ..."
+        refused = f"{type(e).__name__}: {e}"
+    check(status == 403 and refused.startswith("YamcsError: 403"),
+          f"the observer's PING is refused: HTTP {status}; yamcs-client {refused}")
+    cmd = op.command("PING")
+    tc_after = op.client.get_link(INSTANCE, "m2-gateway").get_info().out_count
+    check(cmd.is_success() and tc_after == tc_before + 1,
+          f"the operator's PING goes through ({cmd.error or 'OK'}); link TC {tc_before} -> {tc_after}: "
+          "one, the operator's, none of the observer's")
+    anon = {p: http_status(p, None) for p in (f"/api/links/{INSTANCE}", f"/api/mdb/{INSTANCE}/parameters")}
+    anon_cmd = http_status(f"/api/processors/{INSTANCE}/{PROCESSOR}/commands{NS}PING", None, b"{}")
+    check(set(anon.values()) == {401} and anon_cmd == 401,
+          f"without a login: reads {anon}, command {anon_cmd} (401)")
+    figures["security (observer command, anonymous)"] = (status, anon_cmd)
+
     # A parameter list of the housekeeping for the web UI (and its screenshot).
     body = json.dumps({
         "name": "M2 housekeeping",
@@ -530,7 +668,8 @@ def main() -> int:
                      "/M2/tc_accepted", "/M2/tc_rejected"],
     }).encode()
     req = urllib.request.Request(f"http://{URL}/api/parameter-lists/{INSTANCE}/lists", data=body,
-                                 headers={"Content-Type": "application/json"}, method="POST")
+                                 headers={"Content-Type": "application/json",
+                                          "Authorization": basic_auth("operator")}, method="POST")
     info = json.load(urllib.request.urlopen(req, timeout=10))
     out_dir = Path(os.environ.get("M2_GROUND_DIR", "."))
     (out_dir / "plist_id").write_text(info["id"])

@@ -33,6 +33,7 @@ from yamcs.pymdb import (
     CommandLevel,
     CompleteVerifier,
     Container,
+    DataSource,
     EnumeratedArgument,
     EnumeratedParameter,
     EnumerationAlarm,
@@ -87,6 +88,35 @@ class Generator:
         self.params: dict[str, object] = {}
         # Parameter (= type) name -> decimals shown (the description's fraction_digits).
         self.number_formats: dict[str, int] = {}
+
+    # ------------------------------------------------------------------ link health
+
+    def link_health(self):
+        """The gateway's link-health parameters: local parameters (Yamcs takes their
+        values from the gateway through its HTTP API), with their alarms."""
+        s = self.system
+        for p in self.mdb["link_health"]:
+            name = p["name"]
+            rule = p["alarm"]
+            alarm = None
+            if rule is not None:
+                if rule["kind"] != "above":
+                    raise ValueError(f"{name}: unknown link-health alarm rule {rule['kind']}")
+                alarm = ThresholdAlarm(**{f"{rule['level'].lower()}_high": rule["limit"]},
+                                       minimum_violations=p["min_violations"])
+            common = dict(data_source=DataSource.LOCAL, persistent=False, units=p["unit"],
+                          short_description=p["description"], alarm=alarm)
+            if p["kind"] == "counter":
+                param = IntegerParameter(s, name, signed=False, bits=64, **common)
+            elif p["kind"] == "float":
+                param = FloatParameter(s, name, bits=64, **common)
+                if p.get("fraction_digits") is not None:
+                    self.number_formats[name] = p["fraction_digits"]
+            else:
+                raise ValueError(f"{name}: unknown kind {p['kind']}")
+            if name in self.params:
+                raise ValueError(f"{name}: a link-health parameter named like a TM field")
+            self.params[name] = param
 
     # ------------------------------------------------------------------ telemetry
 
@@ -566,6 +596,7 @@ def main(argv: list[str]) -> int:
     out = Path(argv[2])
     g = Generator(mdb)
     g.telemetry()
+    g.link_health()
     g.commands()
     missing = set(g.alarms) - g.alarmed
     if missing:

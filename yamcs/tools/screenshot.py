@@ -4,7 +4,11 @@ protocol (websocket-client, a yamcs-client dependency): the page is given real t
 connect its websocket and receive live values before the capture, which Chromium's
 one-shot --screenshot does not wait for.
 
-    python3 yamcs/tools/screenshot.py URL OUT.png [--wait-s 12] [--size 1500x1000]
+    python3 yamcs/tools/screenshot.py URL OUT.png [--wait-s 12] [--size 1500x1000] [--user observer]
+
+With --user the browser is logged in as that user of yamcs/etc/users.yaml (Yamcs'
+security is on): the tokens of a password login are set as the cookies the web UI
+keeps them in (access_token, refresh_token).
 """
 
 from __future__ import annotations
@@ -20,6 +24,8 @@ import time
 import urllib.request
 
 import websocket
+
+from users import access_token
 
 FLAGS = [
     "--headless",
@@ -41,6 +47,7 @@ def main() -> int:
     ap.add_argument("--wait-s", type=float, default=12.0)
     ap.add_argument("--size", default="1500x1000")
     ap.add_argument("--port", type=int, default=9333)
+    ap.add_argument("--user", help="log in as this user of yamcs/etc/users.yaml")
     ap.add_argument("--expect", action="append", default=[],
                     help="text the page must show (else exit 1)")
     ap.add_argument("--forbid", action="append", default=[],
@@ -78,6 +85,12 @@ def main() -> int:
 
         call("Emulation.setDeviceMetricsOverride", width=w, height=h, deviceScaleFactor=1, mobile=False)
         call("Page.enable")
+        if a.user:
+            origin = "/".join(a.url.split("/")[:3])
+            token = access_token(a.user, origin.split("//", 1)[1])
+            for name in ("access_token", "refresh_token"):
+                if token.get(name):
+                    call("Network.setCookie", name=name, value=token[name], url=origin + "/", path="/")
         call("Page.navigate", url=a.url)
         time.sleep(a.wait_s)
         shot = call("Page.captureScreenshot", format="png")

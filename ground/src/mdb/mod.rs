@@ -31,6 +31,7 @@
 //! * `telemetry`: every other TM packet layout;
 //! * `enumerations`, `bit_fields`, `failure_codes`, `events`: the vocabularies;
 //! * `table_image`: the parameter table image's layout;
+//! * `link_health`: the gateway's counters and time-correlation quality as parameters;
 //! * `fields`, `names`: field constructors, labels and number formats;
 //! * `codec`: encoding and decoding by the description (what Yamcs does with the XTCE).
 
@@ -42,6 +43,7 @@ mod events;
 mod failure_codes;
 mod fields;
 mod housekeeping;
+mod link_health;
 mod names;
 mod table_image;
 mod telecommands;
@@ -61,6 +63,9 @@ use failure_codes::failure_code_values;
 pub use failure_codes::{failure_codes, FailureCode, ReportedIn};
 pub use fields::{POSE_AXES, S_PER_CUC_FRACTION};
 pub use housekeeping::{housekeeping_fields, housekeeping_rows, HkGetter, HkRow};
+pub use link_health::{
+    link_health, LinkHealth, LinkHealthKind, LinkHealthParameter, TCO_RESIDUAL_ALARM_MS,
+};
 pub use names::{hex4, telecommand_name, thousands, upper_snake};
 pub use table_image::{table_image, TableImageRow};
 use telecommands::telecommands;
@@ -468,6 +473,8 @@ pub struct Mdb {
     pub table_image: Vec<TableImageRow>,
     /// Alarms of housekeeping parameters.
     pub alarms: Vec<ParameterAlarm>,
+    /// The gateway's link-health parameters (Yamcs local parameters, with their alarms).
+    pub link_health: Vec<LinkHealthParameter>,
 }
 
 /// When Yamcs raises an alarm on a parameter.
@@ -591,5 +598,6 @@ pub fn mdb() -> Mdb {
         failure_codes: failure_codes(),
         table_image: table_image(),
         alarms: alarms(),
+        link_health: link_health(),
     }
 }

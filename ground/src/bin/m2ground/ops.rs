@@ -149,6 +149,14 @@ pub(crate) struct GatewayCli {
     /// posted there as a Yamcs event, its text named by the mission database.
     #[arg(long)]
     events_url: Option<String>,
+    /// Yamcs' parameter URL
+    /// (http://127.0.0.1:8090/api/processors/m2/realtime/parameters:batchSet): the
+    /// link-health parameters (counters, time-correlation residual) are set there.
+    #[arg(long)]
+    parameters_url: Option<String>,
+    /// Publish the link-health parameters every N seconds.
+    #[arg(long, default_value_t = 2)]
+    health_s: u64,
     /// Seconds to wait for the controller's stream to appear.
     #[arg(long, default_value_t = 30)]
     wait_s: u64,
@@ -170,7 +178,10 @@ pub(crate) fn gateway_cmd(a: &GatewayCli) -> Result<(), String> {
         a.listen,
         a.tco_url
             .as_ref()
-            .map(|u| format!(", time correlation -> {u}"))
+            .map(|u| format!(
+                ", time correlation -> {}",
+                m2ground::gateway::without_user(u)
+            ))
             .unwrap_or_default()
     );
     let options = Options {
@@ -178,6 +189,8 @@ pub(crate) fn gateway_cmd(a: &GatewayCli) -> Result<(), String> {
         events_url: a.events_url.clone(),
         backlog: DEFAULT_BACKLOG_PACKETS,
         stats_every: (a.stats_s > 0).then(|| Duration::from_secs(a.stats_s)),
+        parameters_url: a.parameters_url.clone(),
+        health_every: Duration::from_secs(a.health_s),
     };
     run(
         listener,
