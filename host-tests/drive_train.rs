@@ -5,6 +5,7 @@
 mod common;
 
 use common::{wire, TestRng};
+use m2ctl::controller::params::{index, PARAMETERS};
 use m2ctl::hw::{SliderDrives, StrokeEncoders};
 use m2ctl::kinematics::{ik, Pose, LEGS};
 use m2ctl::link::command::ParameterValues;
@@ -12,7 +13,6 @@ use m2ctl::link::tm::Verification;
 use m2ctl::link::Command;
 use m2ctl::nominal::PROTOTYPE;
 use m2ctl::plant::Sliders;
-use m2ctl::sim::bench::DEFAULT_PLANT_SEED;
 use m2ctl::sim::drive_train::{
     drive_full_step_um, drive_microstep_um, drive_screw_lead_mm, DriveTrain, DriveTrainConfig,
     DriveTrainError, DriveTrainParam, LegDriveTrain, DEFAULT_MICROSTEP_ERROR_UM,
@@ -509,20 +509,13 @@ fn flag_names(bits: u32) -> String {
 /// The open-loop controller of before issue 21, as a configuration: an in-position
 /// tolerance (100 um) no drive train's error reaches and a dwell of one cycle, so every
 /// move completes the cycle after its path, uncorrected.
-const OPEN_LOOP: &[(u16, i32)] = &[(0x0015, 100_000), (0x0016, 1)];
+const OPEN_LOOP: &[(u16, i32)] = &[
+    (PARAMETERS[index::IN_POSITION_TOLERANCE].id, 100_000),
+    (PARAMETERS[index::IN_POSITION_DWELL].id, 1),
+];
 
 fn study(train: DriveTrainConfig, params: &[(u16, i32)]) -> Row {
-    let plant = Plant::new(
-        &PROTOTYPE,
-        PlantConfig {
-            seed: DEFAULT_PLANT_SEED,
-            ..PlantConfig::default()
-        },
-    )
-    .unwrap()
-    .with_drive_train(train)
-    .unwrap();
-    let mut r = Bench::with_plant(plant);
+    let mut r = Bench::with_drive_train(train).unwrap();
     r.run(2);
     if !params.is_empty() {
         let set = ParameterValues::new(params).unwrap();
@@ -721,17 +714,7 @@ fn open_loop_accuracy_study() {
 /// commanded strokes are within 10 nm of the target's, where the path ends) and the
 /// cycles to its completion; and the number of moves that ended in 0x070F.
 fn time_to_in_position(size_um: f64, n: usize) -> (Vec<(u32, u32)>, usize) {
-    let plant = Plant::new(
-        &PROTOTYPE,
-        PlantConfig {
-            seed: DEFAULT_PLANT_SEED,
-            ..PlantConfig::default()
-        },
-    )
-    .unwrap()
-    .with_drive_train(DriveTrainConfig::realistic())
-    .unwrap();
-    let mut r = Bench::with_plant(plant);
+    let mut r = Bench::with_drive_train(DriveTrainConfig::realistic()).unwrap();
     r.run(2);
     let mut rng = TestRng(STUDY_SEED ^ size_um.to_bits());
     let mut out = Vec::new();

@@ -15,10 +15,8 @@ use m2ctl::kinematics::{ik, Pose, LEGS};
 use m2ctl::link::command::ParameterValues;
 use m2ctl::link::tm::Verification;
 use m2ctl::link::{Command, WirePose};
-use m2ctl::nominal::PROTOTYPE;
-use m2ctl::sim::bench::DEFAULT_PLANT_SEED;
 use m2ctl::sim::drive_train::{DriveTrainConfig, LegDriveTrain};
-use m2ctl::sim::{Bench, InjectedFault, Plant, PlantConfig};
+use m2ctl::sim::{Bench, InjectedFault};
 use m2ctl::supervision::FaultFlags;
 
 /// Most cycles a move of these tests may take.
@@ -30,17 +28,7 @@ const TOLERANCE_ID: u16 = PARAMETERS[index::IN_POSITION_TOLERANCE].id;
 const DWELL_ID: u16 = PARAMETERS[index::IN_POSITION_DWELL].id;
 
 fn bench(train: DriveTrainConfig) -> Bench {
-    let plant = Plant::new(
-        &PROTOTYPE,
-        PlantConfig {
-            seed: DEFAULT_PLANT_SEED,
-            ..PlantConfig::default()
-        },
-    )
-    .unwrap()
-    .with_drive_train(train)
-    .unwrap();
-    let mut r = Bench::with_plant(plant);
+    let mut r = Bench::with_drive_train(train).unwrap();
     r.run(2);
     r
 }

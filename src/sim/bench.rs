@@ -12,6 +12,7 @@
 
 use std::collections::VecDeque;
 
+use super::drive_train::{DriveTrainConfig, DriveTrainError};
 use super::plant::{Plant, PlantConfig, SharedPlant};
 use crate::controller::comms::{JobPort, LinkService, RxBytes, TxBytes};
 use crate::controller::telemetry::{host_queue, TmConsumer, TmProducer};
@@ -165,18 +166,30 @@ impl Bench {
         Self::with_flash(MockFlash::new(SIM_FLASH_BYTES))
     }
 
-    /// The nominal mechanism on this flash.
-    pub fn with_flash(flash: MockFlash) -> Self {
-        let plant = Plant::new(
+    /// The nominal mechanism (plant seed [`DEFAULT_PLANT_SEED`]).
+    fn nominal_plant() -> Plant {
+        Plant::new(
             &PROTOTYPE,
             PlantConfig {
                 seed: DEFAULT_PLANT_SEED,
                 ..PlantConfig::default()
             },
         )
-        .unwrap_or_else(|e| panic!("nominal geometry: {e:?}"));
+        .unwrap_or_else(|e| panic!("nominal geometry: {e:?}"))
+    }
+
+    /// The nominal mechanism on this drive train, a blank flash; refused as
+    /// [`Plant::with_drive_train`] refuses the configuration.
+    pub fn with_drive_train(train: DriveTrainConfig) -> Result<Self, DriveTrainError> {
+        Ok(Self::with_plant(
+            Self::nominal_plant().with_drive_train(train)?,
+        ))
+    }
+
+    /// The nominal mechanism on this flash.
+    pub fn with_flash(flash: MockFlash) -> Self {
         Self::build(
-            plant.shared(),
+            Self::nominal_plant().shared(),
             flash,
             BenchConfig::default(),
             Station::new(),
