@@ -14,6 +14,8 @@
 //! * [`units`]: the unit conversion factors, each defined once.
 //! * [`softfloat`], [`mem`]: the target's `f64` arithmetic and memory copy and fill,
 //!   written for size.
+//! * [`thermal`]: temperature sensors (PT1000 through an ADC) and the thermal model:
+//!   the stroke offsets that keep a pose as the parts expand.
 //! * [`drivers`]: BiSS-C encoders, step/direction drives, limit switches on
 //!   embedded-hal 1.0 traits (no board imports).
 //! * `sim` (host): the simulated plant (true geometry, sliders, encoders).
@@ -49,6 +51,7 @@ pub mod selftest;
 pub mod softfloat;
 pub mod supervision;
 pub mod table;
+pub mod thermal;
 pub mod timing;
 pub mod units;
 pub mod worker;
