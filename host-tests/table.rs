@@ -10,6 +10,7 @@ use m2ctl::table::layout::{stored_crc, CRC32, TABLE_CRC_OFFSET, TABLE_FORMAT_VER
 use m2ctl::table::mock_flash::{MockFlash, TearMode};
 use m2ctl::table::store::{seq_newer, CommitHeader, HEADER_SLOT_LEN, RECORD_LEN};
 use m2ctl::table::*;
+use m2ctl::thermal::ThermalModel;
 use m2ctl::units::ARCSEC_PER_RAD;
 use proptest::prelude::*;
 
@@ -46,12 +47,44 @@ fn calibrated(id: u32, shift_mm: f64) -> Table {
     }
     t.p0_mm[2] += 0.1;
     t.supervision.fault_debounce_cycles = 4 + id as u16;
+    // A thermal model whose every field differs, so that a field out of place shows.
+    t.thermal = ThermalModel {
+        reference_c: 18.5 + id as f32,
+        expansion_per_k: [8.6e-6, 23.1e-6, 22.9e-6, 23.6e-6],
+        column_length_mm: 61.25,
+        sensor_of: core::array::from_fn(|leg| core::array::from_fn(|p| ((leg + p) % 8) as u8)),
+    };
     t
+}
+
+/// A thermal model out of range is refused by the validation with 0x041d and the
+/// field; the table otherwise valid.
+#[test]
+fn a_thermal_model_out_of_range_is_refused_by_field() {
+    type Spoil<'a> = &'a dyn Fn(&mut ThermalModel);
+    let cases: [(Spoil, u16); 4] = [
+        (&|m| m.reference_c = f32::NAN, 1),
+        (&|m| m.expansion_per_k[2] = 1.0e-3, 2),
+        (&|m| m.column_length_mm = -1.0, 3),
+        (&|m| m.sensor_of[4][1] = 8, 4),
+    ];
+    for (spoil, field) in cases {
+        let mut t = calibrated(9, 0.1);
+        assert_eq!(validate(&t, &cfg()), Ok(()));
+        spoil(&mut t.thermal);
+        let e = validate(&t, &cfg()).unwrap_err();
+        assert_eq!((e.code(), e.detail()), (0x041d, field));
+        // It survives the encoding: the refusal is the table's, not the decoder's.
+        assert_eq!(
+            Table::decode(&t.to_bytes()).map(|d| d.to_bytes()),
+            Ok(t.to_bytes())
+        );
+    }
 }
 
 #[test]
 fn layout_round_trip() {
-    assert_eq!(TABLE_LEN, 516);
+    assert_eq!(TABLE_LEN, 564);
     for t in [Table::nominal(), calibrated(7, 0.3), calibrated(8, -0.2)] {
         let mut buf = [0u8; TABLE_LEN];
         t.encode(&mut buf);
@@ -96,7 +129,9 @@ fn decode_errors() {
     let good = Table::nominal().to_bytes();
     assert_eq!(
         Table::decode(&good[..TABLE_LEN - 1]),
-        Err(TableError::WrongLength { got: 515 })
+        Err(TableError::WrongLength {
+            got: TABLE_LEN as u16 - 1
+        })
     );
     assert_eq!(Table::decode(&[]), Err(TableError::WrongLength { got: 0 }));
     let mut long = [0u8; TABLE_LEN + 1];
@@ -108,11 +143,12 @@ fn decode_errors() {
     let mut b = good;
     b[0] = b'X';
     assert_eq!(Table::decode(&b), Err(TableError::BadMagic));
+    // Format 1 (before the thermal model) is another format: refused by its version.
     let mut b = good;
-    b[4] = 2;
+    b[4] = 1;
     assert_eq!(
         Table::decode(&b),
-        Err(TableError::UnsupportedVersion { version: 2 })
+        Err(TableError::UnsupportedVersion { version: 1 })
     );
     let mut b = good;
     b[6] = 0;
@@ -125,7 +161,7 @@ fn decode_errors() {
     assert_eq!(Table::decode(&b), Err(TableError::BadCrc));
     // Reserved field non-zero with a correct CRC.
     let mut b = good;
-    b[510] = 1;
+    b[m2ctl::table::layout::field::RESERVED.start] = 1;
     let crc = CRC32.checksum(&b[..TABLE_CRC_OFFSET]);
     b[TABLE_CRC_OFFSET..].copy_from_slice(&crc.to_le_bytes());
     assert_eq!(Table::decode(&b), Err(TableError::ReservedNotZero));
@@ -143,6 +179,11 @@ fn geometry_conversion_and_nominal() {
     )
     .unwrap();
     assert_eq!(back, t);
+    assert_eq!(
+        back.thermal,
+        ThermalModel::NONE,
+        "no thermal model from a geometry"
+    );
     let no_limits: GeometryParams = nominal::PROTOTYPE;
     assert_eq!(
         Table::from_geometry(&no_limits, 1, t.provenance, DEFAULT_SUPERVISION),

@@ -270,7 +270,7 @@ pub struct ThermalModel {
     pub sensor_of: [[u8; PARTS]; LEGS],
 }
 
-/// Why a thermal model is refused. Stable codes, in the table validation's range.
+/// Why a thermal model is refused: the detail of the table validation's error 0x041d.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ThermalModelError {
     /// Reference temperature outside the sensors' range, or not finite.
@@ -284,13 +284,13 @@ pub enum ThermalModelError {
 }
 
 impl ThermalModelError {
-    /// Stable code for telemetry.
-    pub const fn code(self) -> u16 {
+    /// Stable code (the detail word of the table validation's 0x041d).
+    pub const fn code(self) -> u8 {
         match self {
-            ThermalModelError::Reference => 0x0111,
-            ThermalModelError::Expansion => 0x0112,
-            ThermalModelError::ColumnLength => 0x0113,
-            ThermalModelError::Sensor => 0x0114,
+            ThermalModelError::Reference => 1,
+            ThermalModelError::Expansion => 2,
+            ThermalModelError::ColumnLength => 3,
+            ThermalModelError::Sensor => 4,
         }
     }
 }

@@ -347,6 +347,24 @@ pub fn describe_validation_error(e: &ValidationError) -> String {
                 .get(usize::from(*axis))
                 .unwrap_or(&"?")
         ),
+        ValidationError::Thermal { field } => {
+            use m2ctl::thermal as th;
+            let what = match field {
+                1 => format!(
+                    "reference temperature (allowed {}..{} C)",
+                    th::SENSOR_MIN_C,
+                    th::SENSOR_MAX_C
+                ),
+                2 => format!(
+                    "expansion coefficient (allowed 0..{:e} per K)",
+                    th::MAX_EXPANSION_PER_K
+                ),
+                3 => format!("column length (allowed 0..{} mm)", th::MAX_COLUMN_LENGTH_MM),
+                4 => format!("sensor index (allowed 0..{})", th::TEMP_SENSORS - 1),
+                _ => format!("field {field}"),
+            };
+            format!("thermal model: {what} out of range")
+        }
         ValidationError::Supervision { field } => {
             format!("supervision threshold {field} not positive or not ordered")
         }

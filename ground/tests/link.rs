@@ -1251,7 +1251,7 @@ fn m2ground_tc_refuses_what_the_controller_refuses_and_takes_its_edges() {
     );
     cases += 8;
 
-    // Table chunks: offset 0..515, 1..128 bytes, offset + length <= 516.
+    // Table chunks: offset 0..TABLE_LEN-1, 1..128 bytes, offset + length <= TABLE_LEN.
     let load = |offset: usize, n: usize| {
         words(&format!(
             "load-table-chunk offset={offset} data={}",
@@ -1272,17 +1272,25 @@ fn m2ground_tc_refuses_what_the_controller_refuses_and_takes_its_edges() {
         (
             TABLE_LEN - 3,
             4,
-            "data: 4 bytes at offset 513 end at 517, outside the table (offset + length <= 516)",
+            format!(
+                "data: 4 bytes at offset {} end at {}, outside the table (offset + length <= {TABLE_LEN})",
+                TABLE_LEN - 3,
+                TABLE_LEN + 1
+            ),
         ),
-        (TABLE_LEN, 1, "offset = 516: outside 0..=515 byte"),
+        (
+            TABLE_LEN,
+            1,
+            format!("offset = {TABLE_LEN}: outside 0..={} byte", TABLE_LEN - 1),
+        ),
         (
             0,
             TABLE_CHUNK_MAX_LEN + 1,
-            "data: 129 bytes, outside 1..=128",
+            "data: 129 bytes, outside 1..=128".to_string(),
         ),
-        (0, 0, "data: 0 bytes, outside 1..=128"),
+        (0, 0, "data: 0 bytes, outside 1..=128".to_string()),
     ] {
-        refused(load(offset, n), &[says]);
+        refused(load(offset, n), &[says.as_str()]);
         assert!(
             TableChunk::new(offset as u16, &vec![0x5a; n]).is_err(),
             "{offset} {n}"

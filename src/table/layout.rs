@@ -5,7 +5,7 @@
 //! a checked parse in the smoltcp style: any byte string gives `Ok` or a [`TableError`],
 //! never a panic.
 //!
-//! # Layout, format version 1 ([`TABLE_FORMAT_VERSION`]), [`TABLE_LEN`] = 516 bytes
+//! # Layout, format version 2 ([`TABLE_FORMAT_VERSION`]), [`TABLE_LEN`] = 564 bytes
 //!
 //! Written once, as the named byte ranges of [`field`] (smoltcp's `mod field`),
 //! little-endian: the encoder and the decoder step through them in order (on the host
@@ -14,7 +14,8 @@
 //! database's table-image rows and the ICD's generated table (docs/icd.md section 5) take
 //! their offsets and sizes from them.
 //!
-//! A new format version gets a new number; a decoder of version 1 rejects every other.
+//! A new format version gets a new number; a decoder of version 2 rejects every other.
+//! (Version 1, 516 bytes, had no thermal model: version 2 inserts it before the CRC.)
 
 use crc::CRC_32_ISO_HDLC;
 
@@ -23,11 +24,12 @@ use crate::link::wire::{Field, Order, Reader, Writer};
 
 use crate::kinematics::{GeometryParams, LegParams, StrokeLimits, WorkspaceLimits, LEGS};
 use crate::nominal;
+use crate::thermal::{ThermalModel, PARTS};
 
 /// Magic at the start of every encoded table.
 pub const TABLE_MAGIC: [u8; 4] = *b"M2TB";
 /// Binary layout version this code writes and reads.
-pub const TABLE_FORMAT_VERSION: u16 = 1;
+pub const TABLE_FORMAT_VERSION: u16 = 2;
 /// Length of the provenance tag (bytes, ASCII).
 pub const PROVENANCE_TAG_LEN: usize = 16;
 /// Number of joint coordinates in the table: 6 legs x (a, b) x (x, y, z).
@@ -40,6 +42,7 @@ pub mod field {
     use super::{JOINT_COORDS, PROVENANCE_TAG_LEN};
     use crate::kinematics::LEGS;
     use crate::link::wire::{after, field, Field};
+    use crate::thermal::PARTS;
 
     /// Bytes of one `f64`.
     const F64: usize = 8;
@@ -87,8 +90,19 @@ pub mod field {
     pub const FAULT_DEBOUNCE: Field = after(&WARNING_DEBOUNCE, 2);
     /// u16: reserved, must be 0.
     pub const RESERVED: Field = after(&FAULT_DEBOUNCE, 2);
+    /// f32: thermal model, reference temperature (deg C) at which the geometry holds.
+    pub const THERMAL_REFERENCE: Field = after(&RESERVED, F32);
+    /// 4 x f32: thermal model, linear expansion coefficient of the rods, slider columns,
+    /// base plate, platform (1/K; `thermal::Part` order).
+    pub const THERMAL_EXPANSION: Field = after(&THERMAL_REFERENCE, PARTS * F32);
+    /// f32: thermal model, slider column length from its foot to the lower joint at
+    /// zero stroke (mm).
+    pub const THERMAL_COLUMN_LENGTH: Field = after(&THERMAL_EXPANSION, F32);
+    /// 24 x u8: thermal model, the sensor (0..8) governing each part of each leg,
+    /// leg-major, parts in `thermal::Part` order.
+    pub const THERMAL_SENSORS: Field = after(&THERMAL_COLUMN_LENGTH, LEGS * PARTS);
     /// u32: CRC-32/ISO-HDLC of every byte before it.
-    pub const CRC: Field = after(&RESERVED, 4);
+    pub const CRC: Field = after(&THERMAL_SENSORS, 4);
 }
 
 /// Bytes of the trailing CRC-32.
@@ -98,8 +112,8 @@ pub const TABLE_LEN: usize = field::CRC.end;
 /// Offset of the CRC-32 (it covers `0..TABLE_CRC_OFFSET`).
 pub const TABLE_CRC_OFFSET: usize = TABLE_LEN - TABLE_CRC_LEN;
 
-// The length field is a u16 and the documented layout is 516 bytes.
-const _: () = assert!(TABLE_LEN == 516 && TABLE_LEN <= u16::MAX as usize);
+// The length field is a u16 and the documented layout is 564 bytes.
+const _: () = assert!(TABLE_LEN == 564 && TABLE_LEN <= u16::MAX as usize);
 // The CRC is the last field, as the store and the upload path assume.
 const _: () = assert!(TABLE_CRC_OFFSET == field::CRC.start);
 
@@ -245,6 +259,8 @@ pub struct Table {
     pub workspace: WorkspaceLimits,
     /// Supervision thresholds.
     pub supervision: SupervisionThresholds,
+    /// Thermal model (issue 22; [`ThermalModel::NONE`]: no compensation).
+    pub thermal: ThermalModel,
 }
 
 /// Why bytes are not a table. Stable numeric codes for telemetry (family 0x04xx).
@@ -323,10 +339,12 @@ impl Table {
             stroke_limits,
             workspace,
             supervision: DEFAULT_SUPERVISION,
+            thermal: ThermalModel::NONE,
         }
     }
 
-    /// A table from geometry parameters, which must carry both limits.
+    /// A table from geometry parameters, which must carry both limits; no thermal
+    /// model ([`ThermalModel::NONE`]; set `thermal` for one).
     pub fn from_geometry(
         params: &GeometryParams,
         table_id: u32,
@@ -345,6 +363,7 @@ impl Table {
             stroke_limits,
             workspace,
             supervision,
+            thermal: ThermalModel::NONE,
         })
     }
 
@@ -428,6 +447,19 @@ impl Table {
         w.u16(s.fault_debounce_cycles)?;
         at(w, field::RESERVED)?;
         w.u16(0)?;
+        let th = &self.thermal;
+        at(w, field::THERMAL_REFERENCE)?;
+        w.f32(th.reference_c)?;
+        at(w, field::THERMAL_EXPANSION)?;
+        for a in &th.expansion_per_k {
+            w.f32(*a)?;
+        }
+        at(w, field::THERMAL_COLUMN_LENGTH)?;
+        w.f32(th.column_length_mm)?;
+        at(w, field::THERMAL_SENSORS)?;
+        for leg in &th.sensor_of {
+            w.put(leg)?;
+        }
         at(w, field::CRC)
     }
 
@@ -518,6 +550,17 @@ impl Table {
         if r.u16().ok_or(short)? != 0 {
             return Err(TableError::ReservedNotZero);
         }
+        let th = &mut t.thermal;
+        at(&r, field::THERMAL_REFERENCE)?;
+        th.reference_c = r.f32().ok_or(short)?;
+        for a in th.expansion_per_k.iter_mut() {
+            *a = r.f32().ok_or(short)?;
+        }
+        th.column_length_mm = r.f32().ok_or(short)?;
+        at(&r, field::THERMAL_SENSORS)?;
+        for leg in th.sensor_of.iter_mut() {
+            *leg = r.take::<PARTS>().ok_or(short)?;
+        }
         at(&r, field::CRC)?;
         Ok(t)
     }
@@ -551,6 +594,12 @@ const ZEROED_TABLE: Table = Table {
         stuck_detection_cycles: 0,
         warning_debounce_cycles: 0,
         fault_debounce_cycles: 0,
+    },
+    thermal: ThermalModel {
+        reference_c: 0.0,
+        expansion_per_k: [0.0; PARTS],
+        column_length_mm: 0.0,
+        sensor_of: [[0; PARTS]; LEGS],
     },
 };
 

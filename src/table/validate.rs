@@ -212,6 +212,12 @@ pub enum ValidationError {
     },
     /// The validation configuration itself is out of range (grid points).
     BadConfig,
+    /// The thermal model is out of range (detail: [`crate::thermal::ThermalModelError::code`],
+    /// 1 reference, 2 expansion, 3 column length, 4 sensor index).
+    Thermal {
+        /// The refused field.
+        field: u8,
+    },
 }
 
 impl ValidationError {
@@ -231,6 +237,7 @@ impl ValidationError {
             ValidationError::FkFailed { .. } => 0x041a,
             ValidationError::FkInaccurate { .. } => 0x041b,
             ValidationError::BadConfig => 0x041c,
+            ValidationError::Thermal { .. } => 0x041d,
         }
     }
 
@@ -252,6 +259,7 @@ impl ValidationError {
             }
             ValidationError::FkInaccurate { corner } => corner as u16,
             ValidationError::BadConfig => 0,
+            ValidationError::Thermal { field } => field as u16,
         }
     }
 }
@@ -631,6 +639,9 @@ impl ValidationState {
         }
         check_caps(t, cfg)?;
         check_supervision(&t.supervision)?;
+        t.thermal
+            .validate()
+            .map_err(|e| ValidationError::Thermal { field: e.code() })?;
         let points = cfg.grid_points_per_axis;
         if !(MIN_GRID_POINTS_PER_AXIS..=MAX_GRID_POINTS_PER_AXIS).contains(&points) {
             return Err(ValidationError::BadConfig);

@@ -451,6 +451,14 @@ pub fn failure_codes() -> Vec<FailureCode> {
             ValidationError::BadConfig,
             d(Compl, "validation configuration out of range (defect)", "0"),
         ),
+        (
+            ValidationError::Thermal { field: 0 },
+            d(
+                Compl,
+                "thermal model out of range",
+                "field: 1 reference, 2 expansion, 3 column length, 4 sensor",
+            ),
+        ),
     ] {
         push("VALIDATION", "validation", e.code(), format!("{e:?}"), doc);
     }

@@ -5,6 +5,15 @@ use serde::Serialize;
 use super::names::{hex4, uniform};
 use m2ctl::kinematics::{GeometryError, LEGS};
 use m2ctl::table::{Table, TableError, ValidationError, TABLE_LEN};
+use m2ctl::thermal as th;
+
+/// The validation's code and detail for a thermal model field (`thermal::ThermalModelError::code`).
+fn thermal_code(field: u8) -> String {
+    format!(
+        "{} detail {field}",
+        hex4(ValidationError::Thermal { field }.code())
+    )
+}
 
 /// One row of the table image's layout (docs/icd.md section 5; little-endian).
 #[derive(Clone, Debug, Serialize)]
@@ -262,6 +271,51 @@ pub fn table_image() -> Vec<TableImageRow> {
             "",
             format!("0 ({})", hex4(TableError::ReservedNotZero.code())),
             |_| 0u16.to_le_bytes().to_vec(),
+        ),
+        (
+            Ty::F32,
+            field::THERMAL_REFERENCE,
+            "thermal model: reference temperature of the geometry".into(),
+            "deg C",
+            format!(
+                "{}..{} ({})",
+                th::SENSOR_MIN_C,
+                th::SENSOR_MAX_C,
+                thermal_code(1)
+            ),
+            |t| t.thermal.reference_c.to_le_bytes().to_vec(),
+        ),
+        (
+            Ty::F32,
+            field::THERMAL_EXPANSION,
+            "thermal model: expansion coefficient of rods, slider columns, base plate, platform"
+                .into(),
+            "1/K",
+            format!("0..{:e} ({})", th::MAX_EXPANSION_PER_K, thermal_code(2)),
+            |t| {
+                t.thermal
+                    .expansion_per_k
+                    .iter()
+                    .flat_map(|a| a.to_le_bytes())
+                    .collect()
+            },
+        ),
+        (
+            Ty::F32,
+            field::THERMAL_COLUMN_LENGTH,
+            "thermal model: slider column length, foot to lower joint at zero stroke".into(),
+            "mm",
+            format!("0..{} ({})", th::MAX_COLUMN_LENGTH_MM, thermal_code(3)),
+            |t| t.thermal.column_length_mm.to_le_bytes().to_vec(),
+        ),
+        (
+            Ty::Bytes,
+            field::THERMAL_SENSORS,
+            "thermal model: sensor governing each part (leg-major; rod, column, base, platform)"
+                .into(),
+            "",
+            format!("0..{} ({})", th::TEMP_SENSORS - 1, thermal_code(4)),
+            |t| t.thermal.sensor_of.iter().flatten().copied().collect(),
         ),
         (
             Ty::U32,

@@ -320,6 +320,10 @@ pub fn validate(t: &Table, cfg: &ValidationConfig) -> Result<(), ValidationError
     let geom = working_geometry(t)?;
     check_caps(t, cfg)?;
     check_supervision(&t.supervision)?;
+    // Added with table format 2 (issue 22), after the reference was frozen.
+    t.thermal
+        .validate()
+        .map_err(|e| ValidationError::Thermal { field: e.code() })?;
     check_grid(t, &geom, cfg)?;
     check_fk_corners(t, &geom)?;
     Ok(())
