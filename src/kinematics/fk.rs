@@ -213,7 +213,8 @@ pub fn strokes_and_jacobian<T: Real>(
 }
 
 /// The largest step component in units of the step tolerances (dimensionless).
-#[inline(always)]
+/// Not inlined: used twice per iteration (about 100 bytes of flash less).
+#[inline(never)]
 fn step_in_tolerances<T: Real>(step: &[T; 6], cfg: &FkConfig<T>) -> T {
     let [x, y, z, a, b, g] = *step;
     let t = x.abs().max(y.abs()).max(z.abs());
