@@ -808,9 +808,11 @@ impl<'a> Validation<'a> {
 }
 
 /// The working geometry of `t` (not inlined: its f64 parameters are not on the stack
-/// during the other checks).
+/// during the other checks). The one derivation of a table's geometry in the flight
+/// code outside the controller's start (the worker's and the scrub's use it too: one
+/// copy of the f64 parameters' assembly).
 #[inline(never)]
-fn working_geometry(t: &Table) -> Result<Geometry<f32>, GeometryError> {
+pub fn working_geometry(t: &Table) -> Result<Geometry<f32>, GeometryError> {
     Geometry::<f32>::new(&t.geometry_params())
 }
 
