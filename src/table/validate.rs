@@ -120,7 +120,7 @@ impl ValidationConfig {
     pub const fn flight() -> Self {
         let g = nominal::prototype_with_flight_limits();
         Self {
-            reference: nominal::PROTOTYPE,
+            reference: GeometryParams::new(nominal::PROTOTYPE_LEGS, nominal::PROTOTYPE_P0_MM),
             max_coordinate_deviation_mm: DEFAULT_MAX_COORDINATE_DEVIATION_MM,
             max_rod_deviation_mm: DEFAULT_MAX_ROD_DEVIATION_MM,
             max_abs_stroke_limit_mm: nominal::STROKE_LIMIT_MM,
