@@ -179,8 +179,26 @@ impl<M: MechanismIo> Controller<M> {
                 Ok(Outcome::Done)
             }
             Command::CommitTable { crc32 } => self.commit_uploaded(crc32),
-            Command::ActivateTable { .. } | Command::SwitchBank | Command::RevertToNominal => {
-                self.select_table(&tc.command)
+            Command::ActivateTable { table_id, crc32 } => {
+                self.require_idle()?;
+                let p = self.tables.pending.ok_or(CommandError::NoPending)?;
+                if p.table_id != table_id || p.report.table_crc != crc32 {
+                    return Err(CommandError::PendingMismatch {
+                        pending_id: p.table_id,
+                    });
+                }
+                let params = self.intact_parameters()?;
+                self.start_job(JobRequest::ActivatePending(p.report, params))
+            }
+            Command::SwitchBank => {
+                self.require_idle()?;
+                let params = self.intact_parameters()?;
+                self.start_job(JobRequest::SwitchBank(params))
+            }
+            Command::RevertToNominal => {
+                self.require_idle()?;
+                let params = self.intact_parameters()?;
+                self.start_job(JobRequest::RevertToNominal(params))
             }
             // Time-based schedule (ST[11]) and time reports (ST[9]).
             Command::Schedule(ref op) => self.execute_schedule(op),
@@ -190,32 +208,6 @@ impl<M: MechanismIo> Controller<M> {
                 Ok(Outcome::Done)
             }
         }
-    }
-
-    /// TC[8,1] activate, switch bank, revert to nominal: a selection job, between
-    /// motions only, with the parameters in force (an activation names the pending
-    /// table first). One path for the three: their checks and the job request are in
-    /// the code once.
-    fn select_table(&mut self, command: &Command) -> Result<Outcome, CommandError> {
-        self.require_idle()?;
-        let pending = match *command {
-            Command::ActivateTable { table_id, crc32 } => {
-                let p = self.tables.pending.ok_or(CommandError::NoPending)?;
-                if p.table_id != table_id || p.report.table_crc != crc32 {
-                    return Err(CommandError::PendingMismatch {
-                        pending_id: p.table_id,
-                    });
-                }
-                Some(p.report)
-            }
-            _ => None,
-        };
-        let params = self.intact_parameters()?;
-        self.start_job(match (pending, command) {
-            (Some(report), _) => JobRequest::ActivatePending(report, params),
-            (None, Command::SwitchBank) => JobRequest::SwitchBank(params),
-            (None, _) => JobRequest::RevertToNominal(params),
-        })
     }
 
     /// TC[8,1] set parameters: applied between motions only, after they are persisted.
