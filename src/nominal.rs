@@ -35,37 +35,44 @@ const fn leg(a_mm: [f64; 3], b_mm: [f64; 3]) -> LegParams {
 }
 
 /// Nominal joint centres and home position, no limits (as in `geometry.toml`).
-pub const PROTOTYPE: GeometryParams = GeometryParams::new(
-    [
-        leg([67.8981, 61.7825, -134.1000], [103.3452, 35.5846, 85.7000]),
-        leg([19.5562, 89.6928, -134.1000], [-20.8554, 107.2919, 85.7000]),
-        leg([-87.4543, 27.9102, -134.1000], [-82.4898, 71.7073, 85.7000]),
-        leg(
-            [-87.4543, -27.9102, -134.1000],
-            [-82.4898, -71.7073, 85.7000],
-        ),
-        leg(
-            [19.5562, -89.6928, -134.1000],
-            [-20.8554, -107.2919, 85.7000],
-        ),
-        leg(
-            [67.8981, -61.7825, -134.1000],
-            [103.3452, -35.5846, 85.7000],
-        ),
-    ],
-    [0.0, 0.0, -150.0],
-);
+pub const PROTOTYPE: GeometryParams = GeometryParams::new(PROTOTYPE_LEGS, PROTOTYPE_P0_MM);
+
+/// [`PROTOTYPE`]'s legs. The flight code builds its geometries from this and
+/// [`PROTOTYPE_P0_MM`] (not from the whole [`PROTOTYPE`], whose empty limits would be
+/// 160 bytes of zeros in flash).
+pub const PROTOTYPE_LEGS: [LegParams; LEGS] = [
+    leg([67.8981, 61.7825, -134.1000], [103.3452, 35.5846, 85.7000]),
+    leg([19.5562, 89.6928, -134.1000], [-20.8554, 107.2919, 85.7000]),
+    leg([-87.4543, 27.9102, -134.1000], [-82.4898, 71.7073, 85.7000]),
+    leg(
+        [-87.4543, -27.9102, -134.1000],
+        [-82.4898, -71.7073, 85.7000],
+    ),
+    leg(
+        [19.5562, -89.6928, -134.1000],
+        [-20.8554, -107.2919, 85.7000],
+    ),
+    leg(
+        [67.8981, -61.7825, -134.1000],
+        [103.3452, -35.5846, 85.7000],
+    ),
+];
+
+/// [`PROTOTYPE`]'s home position of the pivot (mm, base frame).
+pub const PROTOTYPE_P0_MM: [f64; 3] = [0.0, 0.0, -150.0];
 
 /// The nominal geometry with the flight stroke and workspace limits.
 pub const fn prototype_with_flight_limits() -> GeometryParams {
-    let mut g = PROTOTYPE;
-    g.stroke_limits = Some(StrokeLimits {
-        min_mm: [-STROKE_LIMIT_MM; LEGS],
-        max_mm: [STROKE_LIMIT_MM; LEGS],
-    });
-    g.workspace = Some(WorkspaceLimits {
-        translation_mm: [WORKSPACE_TRANSLATION_MM; 3],
-        rotation_rad: [WORKSPACE_ROTATION_ARCSEC / crate::units::ARCSEC_PER_RAD; 3],
-    });
-    g
+    GeometryParams {
+        legs: PROTOTYPE_LEGS,
+        p0_mm: PROTOTYPE_P0_MM,
+        stroke_limits: Some(StrokeLimits {
+            min_mm: [-STROKE_LIMIT_MM; LEGS],
+            max_mm: [STROKE_LIMIT_MM; LEGS],
+        }),
+        workspace: Some(WorkspaceLimits {
+            translation_mm: [WORKSPACE_TRANSLATION_MM; 3],
+            rotation_rad: [WORKSPACE_ROTATION_ARCSEC / crate::units::ARCSEC_PER_RAD; 3],
+        }),
+    }
 }

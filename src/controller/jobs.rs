@@ -41,6 +41,7 @@ use crate::hw::MechanismIo;
 use crate::kinematics::{Geometry, GeometryError};
 use crate::link::tm::EventSeverity;
 use crate::supervision::{FaultFlags, SupervisionConfig};
+use crate::table::validate::working_geometry;
 use crate::table::{BootSource, CommitReport, Selection, StoreError, Table};
 
 /// The kinds of operator job (housekeeping `job` byte).
@@ -104,7 +105,7 @@ impl ScrubImage {
 /// line: the re-derived geometry is on the stack alone, not a whole `ActiveTable`).
 #[inline(never)]
 fn geometry_matches(a: &ActiveTable) -> bool {
-    Geometry::new(&a.table.geometry_params()).is_ok_and(|g| g == a.geom)
+    working_geometry(&a.table).is_ok_and(|g| g == a.geom)
 }
 
 /// What the controller asks of the worker. The messages carry whole tables by value
@@ -162,7 +163,7 @@ pub struct DerivedGeometry {
 #[inline(never)]
 pub fn derive_geometry(table: &Table) -> DerivedGeometry {
     DerivedGeometry {
-        geom: Geometry::new(&table.geometry_params()),
+        geom: working_geometry(table),
         crc32: table.crc32(),
     }
 }

@@ -213,7 +213,8 @@ pub fn strokes_and_jacobian<T: Real>(
 }
 
 /// The largest step component in units of the step tolerances (dimensionless).
-#[inline(always)]
+/// Not inlined: used twice per iteration (about 100 bytes of flash less).
+#[inline(never)]
 fn step_in_tolerances<T: Real>(step: &[T; 6], cfg: &FkConfig<T>) -> T {
     let [x, y, z, a, b, g] = *step;
     let t = x.abs().max(y.abs()).max(z.abs());
@@ -257,40 +258,50 @@ pub fn fk<T: Real>(
     // What the strokes evaluated at the top of the loop are for. One evaluation site:
     // the (inlined) leg evaluation is in the code once, not once per use.
     let mut phase = Phase::Start;
-    loop {
+    // One exit through `finish`: the residual of the last evaluation (its check and
+    // the solution are in the code once).
+    let r = loop {
         let r = residual_at(geom, strokes_mm, &p, &mut ev, iterations)?;
+        let mut reuse = None;
         match phase {
-            Phase::Final => return finish(p, &r, iterations, cfg),
+            Phase::Final => break r,
             Phase::AfterStep(step) => {
                 // `<=` is false for NaN: a NaN step never counts as converged.
                 if step_in_tolerances(&step, cfg) <= T::ONE {
-                    return finish(p, &r, iterations, cfg);
+                    break r;
                 }
                 // The next step, estimated with this factorization (see the module docs).
                 let next = lu.solve(&r);
                 let size = step_in_tolerances(&next, cfg);
                 if size <= negligible {
-                    return finish(p, &r, iterations, cfg);
+                    break r;
                 }
                 if size <= T::ONE {
-                    apply(&mut p, &next, iterations)?;
-                    phase = Phase::Final;
-                    continue;
+                    reuse = Some(next);
                 }
             }
             Phase::Start => {}
         }
-        if iterations >= cfg.max_iterations {
-            return Err(FkError::NotConverged { iterations });
-        }
-        if !lu.refactor(&jacobian(&ev), cfg.pivot_ratio) {
-            return Err(FkError::SingularJacobian { iterations });
-        }
-        let step = lu.solve(&r);
-        iterations += 1;
+        // One step applied per pass, in one place: the estimated one (then the final
+        // evaluation) or a fresh Newton step.
+        let (step, next_phase) = match reuse {
+            Some(next) => (next, Phase::Final),
+            None => {
+                if iterations >= cfg.max_iterations {
+                    return Err(FkError::NotConverged { iterations });
+                }
+                if !lu.refactor(&jacobian(&ev), cfg.pivot_ratio) {
+                    return Err(FkError::SingularJacobian { iterations });
+                }
+                let step = lu.solve(&r);
+                iterations += 1;
+                (step, Phase::AfterStep(step))
+            }
+        };
         apply(&mut p, &step, iterations)?;
-        phase = Phase::AfterStep(step);
-    }
+        phase = next_phase;
+    };
+    finish(p, &r, iterations, cfg)
 }
 
 /// The use of the strokes evaluated at the top of [`fk`]'s loop.

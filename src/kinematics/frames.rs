@@ -30,7 +30,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::linalg::{add3, mat_mul3, mat_vec3, sub3, transpose3};
+use super::linalg::{add3, mat_mul3, sub3};
 use super::pose::{Pose, RotationDelta};
 use super::real::Real;
 
@@ -95,12 +95,12 @@ impl<T: Real> Frames<T> {
         let (w, rotation_rad, moved) = match &self.user {
             None => (q, op.rotation_rad, u),
             Some(r_u) => {
-                let w = mat_mul3(&mat_mul3(r_u, &q), &transpose3(r_u));
-                (w, euler_of(&w), mat_vec3(r_u, &u))
+                let w = mat_mul3(&mat_mul3(r_u, &q), &tr3(r_u));
+                (w, euler_of(&w), mv3(r_u, &u))
             }
         };
         Pose {
-            translation_mm: sub3(&moved, &mat_vec3(&w, &self.pivot_mm.data.0[0])),
+            translation_mm: sub3(&moved, &mv3(&w, &self.pivot_mm.data.0[0])),
             rotation_rad,
         }
     }
@@ -111,13 +111,13 @@ impl<T: Real> Frames<T> {
             return *int;
         }
         let w = RotationDelta::new(&int.rotation_rad).w;
-        let moved = add3(&int.translation_mm, &mat_vec3(&w, &self.pivot_mm.data.0[0]));
+        let moved = add3(&int.translation_mm, &mv3(&w, &self.pivot_mm.data.0[0]));
         let (u, rotation_rad) = match &self.user {
             None => (moved, int.rotation_rad),
             Some(r_u) => {
-                let r_t = transpose3(r_u);
+                let r_t = tr3(r_u);
                 let q = mat_mul3(&mat_mul3(&r_t, &w), r_u);
-                (mat_vec3(&r_t, &moved), euler_of(&q))
+                (mv3(&r_t, &moved), euler_of(&q))
             }
         };
         Pose {
@@ -125,4 +125,17 @@ impl<T: Real> Frames<T> {
             rotation_rad,
         }
     }
+}
+
+/// [`super::linalg::mat_vec3`], out of line: the frame maps use it four times (not a
+/// hot path; the IK's copy stays inlined). Same operations, same bits.
+#[inline(never)]
+fn mv3<T: Real>(m: &nalgebra::Matrix3<T>, v: &[T; 3]) -> [T; 3] {
+    super::linalg::mat_vec3(m, v)
+}
+
+/// [`super::linalg::transpose3`], out of line (used twice by the frame maps).
+#[inline(never)]
+fn tr3<T: Real>(a: &nalgebra::Matrix3<T>) -> nalgebra::Matrix3<T> {
+    super::linalg::transpose3(a)
 }

