@@ -176,7 +176,7 @@ pub struct ActiveTable {
 impl ActiveTable {
     /// Derives the working geometry of `table`.
     pub fn new(table: Table, source: BootSource) -> Result<Self, GeometryError> {
-        let geom = Geometry::new(&table.geometry_params())?;
+        let geom = crate::table::validate::working_geometry(&table)?;
         Ok(Self {
             crc32: table.crc32(),
             table,

@@ -54,9 +54,12 @@ pub enum Default {
 pub struct ParamDef {
     /// Parameter ID (ST[20]).
     pub id: u16,
-    /// Name (mission database, ICD).
+    /// Name (mission database, ICD). Host builds only: the flight code never reads it
+    /// (the names and units with their pointers were 616 bytes of the flight image).
+    #[cfg(feature = "host")]
     pub name: &'static str,
-    /// Unit of the wire value.
+    /// Unit of the wire value. Host builds only, as `name`.
+    #[cfg(feature = "host")]
     pub unit: &'static str,
     /// Smallest accepted value.
     pub min: i32,
@@ -74,9 +77,14 @@ const fn p(
     max: i32,
     d: Default,
 ) -> ParamDef {
+    // The flight image keeps neither (see the fields).
+    #[cfg(not(feature = "host"))]
+    let _ = (name, unit);
     ParamDef {
         id,
+        #[cfg(feature = "host")]
         name,
+        #[cfg(feature = "host")]
         unit,
         min,
         max,
