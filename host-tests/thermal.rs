@@ -122,10 +122,16 @@ fn the_monitor_averages_flags_stuck_and_recovers() {
     }
     assert_eq!(m.fault(), None);
     assert!(m.celsius().is_some());
-    // Open: a fault at once.
-    m.update(adc::FULL_SCALE_COUNTS);
-    assert_eq!(m.fault(), Some(SensorFault::Open));
-    assert_eq!(m.celsius(), None);
+    // Open: a fault at once, and still open (not stuck) however long it stays so.
+    for _ in 0..2 * STUCK_SAMPLES {
+        m.update(adc::FULL_SCALE_COUNTS);
+        assert_eq!(m.fault(), Some(SensorFault::Open));
+        assert_eq!(m.celsius(), None);
+    }
+    for _ in 0..2 * STUCK_SAMPLES {
+        m.update(0);
+        assert_eq!(m.fault(), Some(SensorFault::Short));
+    }
 }
 
 /// Realistic coefficients: titanium rods, aluminium columns and plates, 60 mm columns;

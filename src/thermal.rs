@@ -192,10 +192,11 @@ impl SensorMonitor {
             self.run = 1;
             self.last_counts = counts;
         }
-        let reading = if self.run >= STUCK_SAMPLES {
-            Err(SensorFault::Stuck)
-        } else {
-            celsius_from_counts(counts)
+        // Open and short first: a failed sensor repeats its count (full scale, 0), and
+        // must keep reading as what it is, not become "stuck".
+        let reading = match celsius_from_counts(counts) {
+            Ok(_) if self.run >= STUCK_SAMPLES => Err(SensorFault::Stuck),
+            r => r,
         };
         match reading {
             Err(f) => {
