@@ -427,6 +427,16 @@ fn the_controller_holds_the_strokes_while_the_mirror_drifts() {
     assert!((t - (REFERENCE_C + 5.0)).abs() < 0.1);
 }
 
+/// A reading of every sensor per 100 ms (as `thermal::STUCK_SAMPLES` assumes): the
+/// step of the held-pose runs (s).
+const SENSOR_PERIOD_S: f64 = 0.1;
+/// The held pose is evaluated every this many steps (1 s: the temperatures change over
+/// minutes).
+const POSE_EVERY: u64 = 10;
+/// When the held-pose error starts to count (s): after the sensors' first mean
+/// (`MEAN_SAMPLES` readings) has been applied; before it no compensation exists.
+const FIRST_MEAN_S: f64 = 2.0;
+
 /// Compensation as the host emulates it: the table's thermal model with these
 /// coefficients, or none.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -450,7 +460,7 @@ fn held_error(
     duration_s: f64,
     seed: u64,
 ) -> (f64, f64) {
-    let dt_s = 1.0;
+    let dt_s = SENSOR_PERIOD_S;
     let g = truth(seed);
     let coef = Coefficients::drawn(seed);
     let cfg = ThermalConfig {
@@ -470,10 +480,14 @@ fn held_error(
     };
     let mut m = [SensorMonitor::default(); TEMP_SENSORS];
     let (mut um, mut arcsec) = (0.0f64, 0.0f64);
-    let mut t = 0.0;
-    while t < duration_s {
+    let mut step = 0u64;
+    loop {
         p.step(dt_s);
-        t += dt_s;
+        step += 1;
+        let t = step as f64 * dt_s;
+        if t > duration_s {
+            break;
+        }
         let c = p.read_temperature_counts();
         for ch in 0..TEMP_SENSORS {
             m[ch].update(c[ch]);
@@ -490,14 +504,23 @@ fn held_error(
                 p.command_strokes_mm(&s).unwrap();
             }
         }
-        let e = pose_error(&p.true_pose().unwrap(), pose);
-        if t < from_s {
+        if t < from_s || step % POSE_EVERY != 0 {
             continue;
         }
+        let e = pose_error(&p.true_pose().unwrap(), pose);
         um = um.max(e[0].hypot(e[1]).hypot(e[2]));
         arcsec = arcsec.max(e[3].hypot(e[4]).hypot(e[5]));
     }
     (um, arcsec)
+}
+
+/// Sensors with their noise (a live channel's count changes: a noiseless one at a
+/// steady temperature would read stuck) and no calibration offset.
+fn calibrated(seed: u64) -> SensorConfig {
+    SensorConfig {
+        offset_k: [0.0; TEMP_SENSORS],
+        ..SensorConfig::drawn(seed)
+    }
 }
 
 /// Poses the evidence holds: home and two off-home poses within the workspace.
@@ -512,7 +535,7 @@ fn held_poses() -> [Pose<f64>; 3] {
 #[test]
 fn compensation_with_the_true_coefficients_holds_a_pose_through_a_static_swing() {
     // The plant's exact physics and the firmware's first-order model agree: +5 K on
-    // every part, ideal sensors, the true coefficients in the model.
+    // every part, sensors without calibration offsets, the true coefficients.
     let profile = Profile {
         mean_c: REFERENCE_C + 5.0,
         ..Profile::REFERENCE
@@ -530,15 +553,17 @@ fn compensation_with_the_true_coefficients_holds_a_pose_through_a_static_swing()
         let (on_um, on_as) = held_error(
             profile,
             Compensation::True,
-            SensorConfig::IDEAL,
+            calibrated(4),
             &pose,
-            20.0,
+            FIRST_MEAN_S,
             40.0,
             4,
         );
         assert!(off_um > 1.0, "uncompensated {off_um} um");
+        // What remains is the sensors' noise (a count, 17 mK; the mean of 16, 4 mK):
+        // the first-order model's neglected terms are nanometres.
         assert!(
-            on_um < 0.05 && on_as < 0.05,
+            on_um < 0.1 && on_as < 0.1,
             "compensated {on_um} um {on_as} arcsec"
         );
     }
@@ -589,21 +614,36 @@ fn held_pose_error_over_a_thermal_swing() {
         ),
     ];
     let seeds = [1u64, 2, 3];
-    println!("held pose error, max over 2 orbits, 3 poses, mechanisms (seeds) {seeds:?}:");
-    println!("| case | off | on, nominal coefficients | on, true coefficients |");
-    println!("|---|---|---|---|");
+    println!(
+        "held pose error (translation norm / rotation norm), max over 2 orbits from \
+         {FIRST_MEAN_S} s, 3 poses, mechanisms (seeds) {seeds:?}:"
+    );
+    println!(
+        "| case | off | on, nominal coefficients | on, true coefficients | on, true \
+         coefficients, sensors without offsets |"
+    );
+    println!("|---|---|---|---|---|");
     for (name, profile) in cases {
         let mut cells = Vec::new();
-        for comp in [Compensation::Off, Compensation::Nominal, Compensation::True] {
+        for (comp, ideal) in [
+            (Compensation::Off, false),
+            (Compensation::Nominal, false),
+            (Compensation::True, false),
+            (Compensation::True, true),
+        ] {
             let (mut um, mut arcsec) = (0.0f64, 0.0f64);
             for seed in seeds {
                 for pose in held_poses() {
                     let (u, a) = held_error(
                         profile,
                         comp,
-                        SensorConfig::drawn(seed),
+                        if ideal {
+                            calibrated(seed)
+                        } else {
+                            SensorConfig::drawn(seed)
+                        },
                         &pose,
-                        0.0,
+                        FIRST_MEAN_S,
                         2.0 * ORBIT_S,
                         seed,
                     );
@@ -613,7 +653,7 @@ fn held_pose_error_over_a_thermal_swing() {
             }
             cells.push(format!("{um:.3} um / {arcsec:.3}\""));
         }
-        println!("| {name} | {} | {} | {} |", cells[0], cells[1], cells[2]);
+        println!("| {name} | {} |", cells.join(" | "));
     }
     for seed in seeds {
         let c = Coefficients::drawn(seed);

@@ -306,7 +306,9 @@ impl SensorConfig {
         }
     }
 
-    /// Perfect sensors: no noise, no offset (readings still rounded to a count).
+    /// Perfect sensors: no noise, no offset (readings still rounded to a count). A
+    /// steady temperature then repeats its count: the supervision's stuck check
+    /// (`thermal::STUCK_SAMPLES`) takes such a channel as stuck.
     pub const IDEAL: SensorConfig = SensorConfig {
         noise_counts: 0.0,
         offset_k: [0.0; TEMP_SENSORS],
