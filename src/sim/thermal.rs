@@ -354,7 +354,7 @@ impl ThermalConfig {
                 amplitude_k,
                 period_s,
             } => {
-                if !finite(amplitude_k) || !(period_s > 0.0 && finite(period_s)) {
+                if !(finite(amplitude_k) && period_s > 0.0 && finite(period_s)) {
                     return Err(ThermalConfigError::Profile);
                 }
             }
@@ -363,10 +363,11 @@ impl ThermalConfig {
                 period_s,
                 eclipse_s,
             } => {
-                if !finite(amplitude_k)
-                    || !(period_s > 0.0 && finite(period_s))
-                    || !(0.0..=period_s).contains(&eclipse_s)
-                {
+                let ok = finite(amplitude_k)
+                    && period_s > 0.0
+                    && finite(period_s)
+                    && (0.0..=period_s).contains(&eclipse_s);
+                if !ok {
                     return Err(ThermalConfigError::Profile);
                 }
             }
@@ -380,15 +381,17 @@ impl ThermalConfig {
             return Err(ThermalConfigError::Lag);
         }
         let c = &self.truth;
-        if !c.expansion_per_k.iter().all(|a| finite(*a))
-            || !(c.column_length_mm >= 0.0 && finite(c.column_length_mm))
-        {
+        let ok = c.expansion_per_k.iter().all(|a| finite(*a))
+            && c.column_length_mm >= 0.0
+            && finite(c.column_length_mm);
+        if !ok {
             return Err(ThermalConfigError::Coefficients);
         }
         let s = &self.sensors;
-        if !(s.noise_counts >= 0.0 && finite(s.noise_counts))
-            || !s.offset_k.iter().all(|o| finite(*o))
-        {
+        let ok = s.noise_counts >= 0.0
+            && finite(s.noise_counts)
+            && s.offset_k.iter().all(|o| finite(*o));
+        if !ok {
             return Err(ThermalConfigError::Sensors);
         }
         Ok(())
