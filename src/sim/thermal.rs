@@ -31,6 +31,13 @@
 //! temperature: the plant's default, which leaves it exactly as it was without a
 //! thermal side.
 //!
+//! Not modelled: the base plate's in-plane thermoelastic field under a gradient. A free
+//! plate with a linear temperature `T0 + g.x` is stress-free, but its points move by
+//! `alpha (T0 x + (g.x) x - |x|^2 g / 2)` about a fixed centre: the last term, which
+//! the thermal model (and so this plant) leaves out, is the same for every corner (the
+//! lower joints lie on one circle), a rigid shift of about 1 um for 2 K across the
+//! plate that depends on how the plate is held.
+//!
 //! # The true geometry at temperature
 //! Exactly the physics of [`crate::thermal`]'s module documentation, with the plant's
 //! own [`Coefficients`] (which the controller does not know): with `e = alpha (T -
@@ -465,7 +472,8 @@ impl PartTemperatures {
         }
     }
 
-    /// The temperature of `part` of `leg` (the platform is one part for every leg).
+    /// The temperature of `part` of `leg` (0-based, below `LEGS`; the platform is one
+    /// part for every leg).
     pub fn of(&self, leg: usize, part: Part) -> f64 {
         match part {
             Part::Rod => self.rod_c[leg],
@@ -475,8 +483,8 @@ impl PartTemperatures {
         }
     }
 
-    /// The temperature of the part sensor `channel` sits on ([`SENSOR_OF`]): the
-    /// columns, the platform, the base plate's centre.
+    /// The temperature of the part sensor `channel` (0-based, below [`TEMP_SENSORS`])
+    /// sits on ([`SENSOR_OF`]): the columns, the platform, the base plate's centre.
     pub fn at_sensor(&self, channel: usize) -> f64 {
         match channel {
             PLATFORM_SENSOR => self.platform_c,
