@@ -173,6 +173,21 @@ pub trait MechanismIo: StrokeEncoders + SliderDrives + EndOfTravel + EncoderWarn
 
 impl<T: StrokeEncoders + SliderDrives + EndOfTravel + EncoderWarnings + ?Sized> MechanismIo for T {}
 
+/// The mechanism's temperature sensors (issue 22): PT1000 resistance thermometers
+/// ([`crate::thermal::pt1000`]) read through a 16-bit ratiometric ADC
+/// ([`crate::thermal::adc`]). Not part of [`MechanismIo`]: housekeeping reads it, the
+/// control cycle does not need it.
+pub trait TemperatureInputs {
+    /// Reads every channel once, in ADC counts (0 to
+    /// [`crate::thermal::adc::FULL_SCALE_COUNTS`]; ratiometric, `counts = full scale * R
+    /// / (R + REFERENCE_OHM)` for a sensor of resistance `R`). Channel `i` is sensor `i`
+    /// of the thermal model (`crate::thermal::ThermalModel::sensor_of`, 0-based). An
+    /// open sensor reads full scale, a shorted one 0; convert with
+    /// [`crate::thermal::celsius_from_counts`] (deg C) and supervise with
+    /// [`crate::thermal::SensorMonitor`].
+    fn read_temperature_counts(&mut self) -> [u16; crate::thermal::TEMP_SENSORS];
+}
+
 /// Converts encoder counts to strokes (mm) in f32.
 pub fn counts_to_mm(counts: &[i32; LEGS]) -> [f32; LEGS] {
     // f32 holds integers exactly up to 2^24 counts (1.6 m of stroke), far beyond the slider.

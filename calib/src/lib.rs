@@ -7,6 +7,7 @@
 //! * [`tracker`]: laser-tracker campaigns, their files, robust fit and the study.
 //! * [`plan`], [`campaign`], [`eval`], [`report`], [`calib_cmd`]: calibration poses,
 //!   simulated campaigns, accuracy evaluation, plots and the `calibrate` command.
+//! * [`thermal`]: the thermal calibration campaign in simulation (issue 22).
 //!
 //! Everything needs `std`: the crate is empty without the `host` feature, so the
 //! workspace's one test command (`cargo test --features host`) selects it and a firmware
@@ -24,4 +25,5 @@ pub mod files;
 pub mod ikfk;
 pub mod plan;
 pub mod report;
+pub mod thermal;
 pub mod tracker;

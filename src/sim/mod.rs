@@ -6,6 +6,8 @@
 //!   target; everything is deterministic from a seed.
 //! * [`drive_train`]: the opt-in drive train between each drive and its slider
 //!   (microsteps, backlash, lead error, stiction, settling).
+//! * [`thermal`]: the parts' temperatures (an on-orbit profile with each part's lag),
+//!   the true geometry they give the mechanism, and the temperature sensors.
 //! * [`tracker`]: the measuring instruments: the idealised pose tracker and a laser
 //!   tracker measuring target balls in its own frame, with its noise model.
 //! * [`soak`]: the model-based soak: random operator/adversary sequences on the bench
@@ -28,6 +30,7 @@ pub mod drive_train;
 pub mod manufacturing;
 pub mod plant;
 pub mod soak;
+pub mod thermal;
 pub mod tracker;
 
 pub use bench::{Bench, BenchConfig};

@@ -19,6 +19,12 @@
 //! [`super::drive_train`]); the encoders and switches then see the slider, the drives
 //! report their own position.
 //!
+//! Temperatures: the parts' temperatures and the sensors reading them are
+//! [`super::thermal`]'s; by default every part stays at the reference temperature and
+//! the true geometry is exactly the one given ([`Plant::with_thermal`] sets a profile).
+//! The true pose follows the expanded mechanism; the encoders and switches see the
+//! sliders only, which temperatures do not move.
+//!
 //! The controller owns its hardware; the simulation's test bench must still advance the
 //! plant's time and inject faults. [`SharedPlant`] is that: a cheap handle onto one
 //! plant, one copy given to the controller as its drives and encoders, one kept by the
@@ -32,15 +38,17 @@ use rand_distr::{Distribution, Normal};
 use rand_pcg::Pcg64;
 
 use super::drive_train::{DriveTrain, DriveTrainConfig, DriveTrainError};
+use super::thermal::{Expanded, ThermalConfig, ThermalConfigError, ThermalField};
 use crate::hw::{
     DriveError, EncoderError, EncoderWarnings, EndOfTravel, SliderDrives, StrokeEncoders,
-    TravelSwitches,
+    TemperatureInputs, TravelSwitches,
 };
 use crate::kinematics::{
     fk, FkConfig, FkError, Geometry, GeometryError, GeometryParams, Pose, LEGS,
 };
 use crate::nominal::STROKE_LIMIT_MM;
 use crate::plant::{nearest_count, Sliders};
+use crate::thermal::TEMP_SENSORS;
 
 /// Plant settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -197,6 +205,10 @@ impl InjectedFault {
 #[derive(Clone, Debug)]
 pub struct Plant {
     truth: Geometry<f64>,
+    /// The true geometry's parameters at the reference temperature (what expands).
+    truth_params: GeometryParams,
+    /// The parts' temperatures and the temperature sensors.
+    thermal: ThermalField,
     cfg: PlantConfig,
     /// The drives: position = where each drive believes its slider is (mm).
     sliders: Sliders<f64>,
@@ -223,8 +235,12 @@ impl Plant {
         let mut g = *true_geometry;
         g.stroke_limits = None;
         g.workspace = None;
+        let thermal = ThermalField::new(ThermalConfig::at_reference(cfg.seed), &g)
+            .unwrap_or_else(|e| unreachable!("the reference thermal field is valid: {e:?}"));
         Ok(Self {
             truth: Geometry::new(&g)?,
+            truth_params: g,
+            thermal,
             cfg,
             sliders: Sliders::default(),
             rng: Pcg64::seed_from_u64(cfg.seed),
@@ -246,6 +262,36 @@ impl Plant {
     pub fn with_drive_train(mut self, cfg: DriveTrainConfig) -> Result<Self, DriveTrainError> {
         self.train = DriveTrain::new(cfg, &self.motor_mm())?;
         Ok(self)
+    }
+
+    /// This plant with the thermal side `cfg` ([`super::thermal`]) from now on (its
+    /// profile's time 0 is now). Refused if [`ThermalConfig::check`] refuses it or if
+    /// the mechanism expanded at the profile's start is not a mechanism (the plant is
+    /// then dropped: build another).
+    pub fn with_thermal(mut self, cfg: ThermalConfig) -> Result<Self, ThermalConfigError> {
+        let field = ThermalField::new(cfg, &self.truth_params)?;
+        if let Some(Err(_)) = field.expanded(&self.truth_params) {
+            return Err(ThermalConfigError::Geometry);
+        }
+        self.thermal = field;
+        Ok(self)
+    }
+
+    /// The thermal side: the parts' temperatures, the sensors.
+    pub fn thermal(&self) -> &ThermalField {
+        &self.thermal
+    }
+
+    /// The thermal side, to set temperatures or inject sensor failures.
+    pub fn thermal_mut(&mut self) -> &mut ThermalField {
+        &mut self.thermal
+    }
+
+    /// The true mechanism expanded at the parts' temperatures now ([`Expanded`]), `None`
+    /// while nothing has expanded ([`Plant::truth`] holds as it is); an error if the
+    /// temperatures make it no mechanism.
+    pub fn expanded_truth(&self) -> Option<Result<Expanded, GeometryError>> {
+        self.thermal.expanded(&self.truth_params)
     }
 
     /// The drive train.
@@ -328,6 +374,7 @@ impl Plant {
         self.sliders
             .step(max_step, |leg| jammed.get(leg).copied().unwrap_or(false));
         self.follow(dt_s.max(0.0));
+        self.thermal.advance(dt_s.max(0.0));
         self.time_s += dt_s.max(0.0);
     }
 
@@ -359,18 +406,31 @@ impl Plant {
         self.sliders.settled(|leg| self.jammed(leg)) && self.train.at_rest()
     }
 
-    /// The mirror's true pose: FK of the true geometry at the true strokes (f64).
+    /// The mirror's true pose: FK of the true geometry at the true strokes (f64), the
+    /// geometry expanded at the parts' temperatures ([`Plant::expanded_truth`]; an
+    /// expansion that is no mechanism reads as [`FkError::NonFinite`]).
     pub fn true_pose(&mut self) -> Result<Pose<f64>, FkError> {
         let cfg = FkConfig::<f64> {
             max_iterations: 20,
             ..FkConfig::default()
         };
-        let sol = fk(&self.truth, &self.strokes_mm(), &self.last_pose, &cfg)?;
+        let sol = match self.expanded_truth() {
+            None => fk(&self.truth, &self.strokes_mm(), &self.last_pose, &cfg)?,
+            Some(x) => {
+                let x = x.map_err(|_| FkError::NonFinite)?;
+                let geom = Geometry::new(&x.params).map_err(|_| FkError::NonFinite)?;
+                let mut s = self.strokes_mm();
+                for (s, c) in s.iter_mut().zip(x.stroke_origin_mm.iter()) {
+                    *s -= c;
+                }
+                fk(&geom, &s, &self.last_pose, &cfg)?
+            }
+        };
         self.last_pose = sol.pose;
         Ok(sol.pose)
     }
 
-    /// The true geometry.
+    /// The true geometry at the reference temperature.
     pub fn truth(&self) -> &Geometry<f64> {
         &self.truth
     }
@@ -430,6 +490,12 @@ impl StrokeEncoders for Plant {
             *o = frozen.unwrap_or(nearest_count(s + offset + noise));
         }
         Ok(out)
+    }
+}
+
+impl TemperatureInputs for Plant {
+    fn read_temperature_counts(&mut self) -> [u16; TEMP_SENSORS] {
+        self.thermal.read_counts()
     }
 }
 
@@ -530,6 +596,12 @@ impl SharedPlant {
 impl StrokeEncoders for SharedPlant {
     fn read_counts(&mut self) -> Result<[i32; LEGS], EncoderError> {
         self.0.borrow_mut().read_counts()
+    }
+}
+
+impl TemperatureInputs for SharedPlant {
+    fn read_temperature_counts(&mut self) -> [u16; TEMP_SENSORS] {
+        self.0.borrow_mut().read_temperature_counts()
     }
 }
 
