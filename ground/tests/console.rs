@@ -390,6 +390,39 @@ fn the_housekeeping_display_shows_every_leg_axis_and_flag() {
     }
     let missing: Vec<&String> = want.iter().filter(|p| !pvs.contains(*p)).collect();
     assert!(missing.is_empty(), "the display lacks {missing:?}");
+    // Every value is written in its alarm colour and framed when in alarm, and a
+    // calibrated number with the description's decimals.
+    let kinds = db.parameters();
+    let opi = files.get("displays/housekeeping.opi").unwrap();
+    let updates: Vec<&str> = opi
+        .split("<widget typeId=")
+        .filter(|w| w.contains("<widget_type>Text Update</widget_type>"))
+        .collect();
+    assert!(updates.len() > 50, "{} values", updates.len());
+    for w in &updates {
+        let tag = |t: &str| {
+            w.split(&format!("<{t}>"))
+                .nth(1)
+                .and_then(|r| r.split(&format!("</{t}>")).next())
+                .unwrap_or_default()
+                .to_string()
+        };
+        let pv = tag("pv_name");
+        assert_eq!(tag("forecolor_alarm_sensitive"), "true", "{pv}");
+        assert_eq!(tag("border_alarm_sensitive"), "true", "{pv}");
+        let name = db.unqualified(&pv).unwrap();
+        if let Some(ParameterKind::Float {
+            fraction_digits: Some(d),
+            ..
+        }) = kinds.get(name)
+        {
+            assert_eq!(
+                (tag("format_type"), tag("precision"), tag("show_units")),
+                ("1".into(), d.to_string(), "true".into()),
+                "{pv}: decimal format with {d} decimals and the unit"
+            );
+        }
+    }
     // The parameter table shows the same parameters, and the first list holds them all.
     let par: Value = serde_json::from_str(files.get("displays/housekeeping.par").unwrap()).unwrap();
     let par: BTreeSet<String> = par["parameters"]

@@ -507,7 +507,7 @@ pub enum Step {
         /// The text.
         text: String,
     },
-    /// Lists parameters' values (kept in the stack's log).
+    /// Lists parameters' values (shown below the step when it runs).
     Check {
         /// What for.
         comment: String,
@@ -839,9 +839,9 @@ pub fn calibration_stack(mdb: &Mdb) -> Result<Stack, String> {
          the centre, the corners of a cube of half-side {h} mm and six axis points at {d} mm, \
          each with the eight sign patterns of {r}\" about x, y, z). At each pose the stack waits \
          for the move's completion (every slider in position), verifies the FK pose within \
-         {tu} um / {ta}\" of the target and lists the encoder strokes and the pose: the \
-         campaign's strokes (the stack's log keeps them) for the tracker's measurement of that \
-         pose. Then back home. The plan's poses are the platform origin's in the base frame: \
+         {tu} um / {ta}\" of the target and lists the encoder strokes and the pose below the \
+         step: the campaign's strokes for the tracker's measurement of that pose (the `M2 legs` \
+         list's historical data exports them as CSV). Then back home. The plan's poses are the platform origin's in the base frame: \
          the stack runs only with the default frames (no on-board parameter set).",
         n = poses.len(),
         h = cfg.cube_half_mm.unwrap_or_default(),
