@@ -3,7 +3,9 @@
 #   the flight image m2fw in QEMU (UART0 on a Unix socket)
 #   <-> m2ground gateway (COBS frames <-> CCSDS packets, time correlation)
 #   <-> Yamcs 5.12 (PyPI fprime-yamcs-bundle jars; web UI http://localhost:8090)
-# with the mission database generated from m2ground mdb-json.
+# with the mission database generated from m2ground mdb-json, and the operators' console:
+# the housekeeping display and the command stacks served from yamcs/displays and
+# yamcs/stacks, the parameter lists of yamcs/lists created at start-up.
 #
 #   scripts/ground-segment.sh                 # bring it up; Ctrl-C stops everything
 #   scripts/ground-segment.sh --clean         # the same, after deleting the Yamcs archive
@@ -106,7 +108,9 @@ GW_USER=$(python3 "$ROOT/yamcs/tools/users.py" gateway)
   > "$W/logs/gateway.log" 2>&1 &
 pids+=($!)
 
-(cd "$W/yamcs" && exec java -cp "$LIB/*" org.yamcs.YamcsServer --etc-dir etc --data-dir data) \
+# The console's displays and stacks are served from the repository (yamcs/etc/yamcs.yaml,
+# buckets `displays` and `stacks`: ${env.M2_CONSOLE_DIR}/...).
+(cd "$W/yamcs" && M2_CONSOLE_DIR="$ROOT/yamcs" exec java -cp "$LIB/*" org.yamcs.YamcsServer --etc-dir etc --data-dir data) \
   > "$W/logs/yamcs.log" 2>&1 &
 pids+=($!)
 
@@ -124,6 +128,9 @@ EOF
   for p in "${pids[@]}"; do kill -0 "$p" 2>/dev/null || { echo "ground-segment: a process died; logs in $W/logs" >&2; tail -20 "$W"/logs/*.log >&2; exit 1; }; done
   sleep 1
 done
+# The console's parameter lists (yamcs/lists, generated from the mission database): created,
+# or updated to the shipped definition, at every start (the archive keeps lists).
+M2_YAMCS_URL="localhost:$HTTP_PORT" python3 "$ROOT/yamcs/tools/console.py" lists
 echo "ground-segment: up. Yamcs web UI http://localhost:$HTTP_PORT (instance m2; users in yamcs/etc/users.yaml); logs in $W/logs"
 
 if [ ${#cmd[@]} -gt 0 ]; then

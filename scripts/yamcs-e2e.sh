@@ -5,12 +5,16 @@
 # a move in um/arcsec with every verifier stage, a refused move, a table upload/commit/
 # activate, events with severities, sources and named words, number formats, critical
 # commands, alarms, users and roles: the observer refused (403), the operator not;
-# every Yamcs-encoded TC byte-identical to m2ground tc's), then takes
-# headless Chromium screenshots of the Yamcs pages with the housekeeping parameters and
-# the events (yamcs/tools/screenshot.py, Chromium over DevTools; the events page must
+# every Yamcs-encoded TC byte-identical to m2ground tc's; the console as start-up left
+# it: the parameter lists, the display and stack buckets, the table-upload stack run by
+# Yamcs web in headless Chromium against the controller, the housekeeping display drawn
+# with Yamcs' values: <target>/ground-segment/yamcs-{stack,display}.png), then takes
+# headless Chromium screenshots of the Yamcs pages with the housekeeping parameter list
+# and the events (yamcs/tools/screenshot.py, Chromium over DevTools; the events page must
 # show its rows and no error): <target>/ground-segment/yamcs-{housekeeping,events}.png.
 # Before: the work directory follows CARGO_TARGET_DIR. After: two more starts, the
-# archive kept, then --clean (yamcs/tools/archive_check.py).
+# archive kept, then --clean, each with the parameter lists once
+# (yamcs/tools/archive_check.py).
 # Needs scripts/setup.sh. About 2-3 minutes once built.
 set -euo pipefail
 cd "$(dirname "$0")/.."

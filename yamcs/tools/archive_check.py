@@ -5,7 +5,12 @@ runs it in a second and a third start after the end-to-end test):
     python3 yamcs/tools/archive_check.py kept    # the earlier run's events are still there
     python3 yamcs/tools/archive_check.py clean   # after --clean: only this start's
 
-Waits (the wall clock only bounds it) for this start's BOOT event, then counts.
+Waits (the wall clock only bounds it) for this start's BOOT event, then counts. In
+both, the parameter lists of yamcs/lists are there once each with their shipped
+patterns (scripts/ground-segment.sh creates or updates them at every start: the
+end-to-end test changed one, which the plain start must have put back); the list the
+end-to-end test made as an operator's own is still there after the plain start
+(start-up leaves other lists alone) and gone after --clean.
 """
 
 from __future__ import annotations
@@ -16,9 +21,13 @@ import time
 
 from yamcs.client import YamcsClient
 
+from console import shipped_lists, yamcs_lists
 from users import credentials
 
 URL = os.environ.get("M2_YAMCS_URL", "localhost:8090")
+# A list the end-to-end test (yamcs/tools/e2e.py, point 10) creates as an operator would.
+OWN_LIST = {"name": "e2e: an operator's own list", "description": "made by yamcs/tools/e2e.py",
+            "patterns": ["/M2/state", "/M2/cycle_counter"]}
 
 
 def main() -> int:
@@ -44,7 +53,20 @@ def main() -> int:
         what = "--clean started from an empty archive"
     print(f"  {'ok  ' if ok else 'FAIL'} {what}: {len(events)} events, {len(boots)} BOOT, "
           f"{len(refused)} MOVE_REFUSED")
-    return 0 if ok else 1
+    have: dict[str, list] = {}
+    for l in yamcs_lists("observer"):
+        have.setdefault(l["name"], []).append(l.get("patterns"))
+    shipped = shipped_lists()
+    wrong = [w["name"] for w in shipped if have.get(w["name"]) != [w["patterns"]]]
+    lists_ok = bool(shipped) and not wrong
+    print(f"  {'ok  ' if lists_ok else 'FAIL'} the {len(shipped)} parameter lists of yamcs/lists "
+          f"are there once each after a {'plain' if mode == 'kept' else '--clean'} start; "
+          f"wrong or missing: {wrong}")
+    own = have.get(OWN_LIST["name"], [])
+    own_ok = own == [OWN_LIST["patterns"]] if mode == "kept" else not own
+    print(f"  {'ok  ' if own_ok else 'FAIL'} the operator's own list "
+          f"{'kept as it was' if mode == 'kept' else 'gone with the archive'}: {own}")
+    return 0 if ok and lists_ok and own_ok else 1
 
 
 if __name__ == "__main__":

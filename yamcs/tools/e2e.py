@@ -19,7 +19,10 @@ Checks (each failure exits non-zero with the reason):
  8. link health: the gateway's counters and time-correlation residual are Yamcs
     parameters with the values the gateway has, their alarms as described;
  9. security: the operator (this test's user) commands; the observer reads but its
-    command is refused (HTTP 403) and reaches nothing; without a login nothing is served.
+    command is refused (HTTP 403) and reaches nothing; without a login nothing is served;
+10. the console, as scripts/ground-segment.sh set it up: the parameter lists, the
+    display and stack buckets, the names the stacks use, the table upload stack run by
+    Yamcs web against the controller, the display drawn with Yamcs' values.
 Prints the figures: commands sent, parameters seen, packets, timings.
 """
 
@@ -28,18 +31,22 @@ from __future__ import annotations
 import itertools
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
 import threading
 import time
-from datetime import timezone
+from datetime import datetime, timezone
 import urllib.error
 import urllib.request
 from pathlib import Path
 
 from yamcs.client import YamcsClient, YamcsError
 
+from archive_check import OWN_LIST
+from console import YAMCS as CONSOLE_DIR, request as console_request, shipped_lists, yamcs_lists
+from screenshot import Browser
 from users import basic_auth, credentials
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -231,6 +238,188 @@ def http_status(path: str, user: str | None, body: bytes | None = None) -> int:
             return r.status
     except urllib.error.HTTPError as e:
         return e.code
+
+
+# The housekeeping display's values that stay put while the controller is at rest (the
+# display is checked against what Yamcs has for them): identifiers, counts that change
+# only on events, the commanded poses.
+STABLE_AT_REST = ("active_table_id", "active_table_crc32", "pending_table_id", "boot_count")
+
+# Yamcs web's stack page: "done" once every step has run, "stopped" if the run ended
+# before (a command failed, a verification timed out), else null (running).
+STACK_RUN_STATE_JS = """(() => {
+  const seqs = Array.from(document.querySelectorAll('.entry > .in > .seq')).map(e => e.innerText.trim());
+  if (!seqs.length || seqs.some(t => t === '[*]:')) return null;
+  if (seqs.every(t => /^\\[\\d+\\]:$/.test(t))) return 'done';
+  const stop = document.querySelector('ya-page-icon-button[mattooltip="Stop current execution"] button');
+  return stop && stop.disabled && seqs.some(t => /^\\[\\d+\\]:$/.test(t)) ? 'stopped' : null;
+})()"""
+
+
+def console_checks(op: Operator) -> None:
+    """10. The operators' console, as scripts/ground-segment.sh set it up (nothing here
+    creates it): the parameter lists of yamcs/lists are in Yamcs, once each, and every
+    name they hold resolves to a Yamcs parameter; the buckets serve exactly the
+    repository's yamcs/displays and yamcs/stacks; every command and parameter a stack
+    names is Yamcs'; the table upload stack, run by Yamcs web (headless Chromium, as the
+    operator) against the controller in QEMU, sends its commands, each completing with
+    its three verification stages, passes its verification steps and leaves its table
+    running; the housekeeping display drawn by Yamcs web shows the values Yamcs has."""
+    print("10. console")
+    out_dir = Path(os.environ.get("M2_GROUND_DIR", "."))
+    origin = f"http://{URL}"
+
+    # 10a. Parameter lists.
+    shipped = shipped_lists()
+    have: dict[str, list] = {}
+    for l in yamcs_lists("observer"):
+        have.setdefault(l["name"], []).append(l)
+    wrong = [w["name"] for w in shipped
+             if [l.get("patterns") for l in have.get(w["name"], [])] != [w["patterns"]]]
+    check(len(shipped) >= 5 and not wrong,
+          f"{len(shipped)} parameter lists of yamcs/lists in Yamcs after start-up, once each: "
+          f"{[w['name'] for w in shipped]}; wrong or missing: {wrong}")
+    unresolved, names = [], 0
+    for w in shipped:
+        if not have.get(w["name"]):
+            continue
+        info = get_json(f"/api/parameter-lists/{INSTANCE}/lists/{have[w['name']][0]['id']}", "observer")
+        matched = {m.get("qualifiedName") for m in info.get("match", [])}
+        names += len(w["patterns"])
+        unresolved += [p for p in w["patterns"] if p not in matched]
+    check(names > 0 and not unresolved,
+          f"every name of the lists is a Yamcs parameter ({names} names); not: {unresolved[:5]}")
+    (out_dir / "plist_id").write_text(have.get(shipped[0]["name"], [{}])[0].get("id", ""))
+    # For the next start (yamcs/tools/archive_check.py kept): a list of the operator's own,
+    # which start-up must leave alone, and a shipped list changed, which it must put back.
+    console_request("POST", f"/api/parameter-lists/{INSTANCE}/lists", OWN_LIST)
+    changed = shipped[1]
+    console_request("PATCH", f"/api/parameter-lists/{INSTANCE}/lists/{have[changed['name']][0]['id']}",
+                    {"patternDefinition": {"patterns": OWN_LIST["patterns"]}})
+
+    # 10b. Buckets: the repository's folders.
+    for bucket in ("displays", "stacks"):
+        folder = CONSOLE_DIR / bucket
+        repo = {str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file()}
+        served = {o["name"] for o in
+                  get_json(f"/api/storage/buckets/{bucket}/objects", "observer").get("objects", [])}
+        check(bool(repo) and served == repo,
+              f"bucket {bucket} serves yamcs/{bucket}: {len(served)} files, e.g. {sorted(served)[:3]}; "
+              f"differ: {sorted(served ^ repo)[:4]}")
+
+    # Read-only: no role may write the buckets (a procedure changes in the repository).
+    refused = {user: http_status(f"/api/storage/buckets/stacks/objects/e2e.ycs", user, b"{}")
+               for user in ("operator", "observer")}
+    check(set(refused.values()) == {403}, f"nobody may write the stacks bucket: HTTP {refused}")
+
+    # 10c. What the stacks name.
+    stack_files = sorted((CONSOLE_DIR / "stacks").rglob("*.ycs"))
+    commands, parameters = set(), set()
+    for f in stack_files:
+        for step in json.loads(f.read_text())["steps"]:
+            if step["type"] == "command":
+                commands.add(step["name"])
+            for c in step.get("condition", []) + step.get("parameters", []):
+                parameters.add(c["parameter"])
+    missing = [c for c in sorted(commands) if http_status(f"/api/mdb/{INSTANCE}/commands{c}", "observer") != 200]
+    missing += [p for p in sorted(parameters)
+                if http_status(f"/api/mdb/{INSTANCE}/parameters{p}", "observer") != 200]
+    check(len(stack_files) >= 3 and not missing,
+          f"the {len(commands)} commands and {len(parameters)} parameters of the {len(stack_files)} "
+          f"stacks are Yamcs'; not: {missing}")
+
+    # 10d. The table upload stack, run by Yamcs web against the controller.
+    stack = json.loads((CONSOLE_DIR / "stacks" / "table-upload.ycs").read_text())
+    want = [s["name"] for s in stack["steps"] if s["type"] == "command"]
+    activate = next(s for s in stack["steps"] if s["type"] == "command" and s["name"].endswith("/ACTIVATE_TABLE"))
+    table_id = next(a["value"] for a in activate["arguments"] if a["name"] == "table_id")
+    before = op.hk_after(op.newest_obt()).value("active_table_id").eng_value
+    with Browser("1500x1300") as b:
+        b.login("operator", origin)
+        b.open(f"{origin}/procedures/stacks/files/table-upload.ycs?c={INSTANCE}__{PROCESSOR}")
+        loaded = b.wait_for("document.querySelectorAll('.entry').length", 30.0)
+        t0 = datetime.now(timezone.utc)
+        time.sleep(2.0)  # the page's parameter subscription delivers the verified values
+        clicked = b.click('ya-page-icon-button[mattooltip="Run all from selected step"] button')
+        state = b.wait_for(STACK_RUN_STATE_JS, 240.0)
+        b.dismiss_banners()
+        time.sleep(1.0)
+        b.shot(str(out_dir / "yamcs-stack.png"))
+        errors = b.eval("Array.from(document.querySelectorAll('.entry .out .body.err'))"
+                        ".map(e => e.innerText)") or []
+    run_s = (datetime.now(timezone.utc) - t0).total_seconds()
+    figures["table upload stack in Yamcs web (s)"] = round(run_s, 1)
+    check(loaded == len(stack["steps"]) and clicked and state == "done" and not errors,
+          f"Yamcs web ran the table-upload stack: {loaded} steps, run {state} in {run_s:.0f} s; "
+          f"errors {errors}")
+
+    def history():
+        h = list(op.client.get_archive(INSTANCE).list_command_history(start=t0))
+        return h if len(h) >= len(want) and all(c.is_complete() for c in h) else None
+    try:
+        hist = op.wait("the stack's commands in the command history", history, 30.0)
+    except TimeoutError:
+        hist = list(op.client.get_archive(INSTANCE).list_command_history(start=t0))
+
+    def stages(c):
+        return {s: getattr(c.acknowledgments.get(s) or c.acknowledgments.get("Verifier_" + s), "status", "missing")
+                for s in STAGES}
+    seen = [(c.name.rsplit("/", 1)[-1], c.username, stages(c)) for c in hist]
+    check([c.name for c in hist] == want
+          and all(c.is_success() and c.username == "operator" for c in hist)
+          and all(all(v == "OK" for v in st.values()) for _, _, st in seen),
+          f"the stack's {len(want)} commands sent by the operator, each with Acceptance, Start, "
+          f"Completion OK: {[(n, ''.join(v[0] for v in st.values())) for n, _, st in seen]}")
+    hk = op.hk_after(op.newest_obt())
+    running = hk.value("active_table_id").eng_value
+    check(before != table_id and running == table_id,
+          f"running table {before} before the stack, {running} after (the stack's table: {table_id})")
+
+    # 10e. The housekeeping display, drawn by Yamcs web (on a canvas: the texts drawn
+    # are recorded) with the values Yamcs has for its parameters.
+    mdb_json = json.loads(subprocess.run([M2GROUND, "mdb-json"], check=True, capture_output=True,
+                                         text=True).stdout)
+    digits = {f["name"]: f["fraction_digits"] for p in mdb_json["telemetry"] for f in p["fields"]
+              if f.get("fraction_digits") is not None}
+    pvs = re.findall(r"<pv_name>([^<]+)</pv_name>", (CONSOLE_DIR / "displays" / "housekeeping.opi").read_text())
+    expected = {}
+    for p in pvs:
+        name = p.rsplit("/", 1)[-1]
+        ev = get_json(f"/api/processors/{INSTANCE}/{PROCESSOR}/parameters{p}", "observer").get("engValue", {})
+        if ev.get("type") == "ENUMERATED":
+            expected[name] = ev["stringValue"]
+        elif name in STABLE_AT_REST:
+            expected[name] = str(ev.get("uint64Value", ev.get("uint32Value", ev.get("sint32Value"))))
+        elif name.startswith("pose_cmd") and "doubleValue" in ev:
+            expected[name] = f"{ev['doubleValue']:.{digits[name]}f}"
+    with Browser("1700x1100") as b:
+        b.login("observer", origin)
+        b.open(f"{origin}/telemetry/displays/files/housekeeping.opi?c={INSTANCE}__{PROCESSOR}")
+        time.sleep(8.0)
+        b.drawn(reset=True)
+        time.sleep(4.0)  # at least two housekeeping reports redraw every value
+        drawn = b.drawn()
+        b.dismiss_banners()
+        time.sleep(1.0)
+        b.shot(str(out_dir / "yamcs-display.png"))
+        page_errors = [e for e in b.errors if "property" in e.lower() or "widget" in e.lower()]
+        b.open(f"{origin}/telemetry/displays/files/housekeeping.par?c={INSTANCE}__{PROCESSOR}")
+        time.sleep(8.0)
+        table_text = b.text()
+    drawn = [d.replace("\xa0", " ") for d in drawn]
+    absent = {k: v for k, v in expected.items() if not any(v in d for d in drawn)}
+    check(len(pvs) > 50 and len(expected) >= 15 and not absent and not page_errors,
+          f"the housekeeping display ({len(pvs)} parameters) drawn with Yamcs' values of {len(expected)} "
+          f"(e.g. state {expected.get('state')}, table {expected.get('active_table_id')}, "
+          f"x {expected.get('pose_cmd_op_x')}); not drawn: {absent}; renderer errors: {page_errors[:3]}")
+    # The parameter table shows engineering values without the number format (-20 for
+    # -20.000 um): its enumerated and integer values are compared, and every name.
+    absent = {k: v for k, v in expected.items() if not k.startswith("pose_cmd") and v not in table_text}
+    unnamed = [p for p in pvs if p not in table_text]
+    check(not absent and not unnamed,
+          f"its parameter table (housekeeping.par) lists the {len(pvs)} parameters with the same values; "
+          f"not: {absent}, {unnamed[:3]}")
+
 
 
 def main() -> int:
@@ -661,22 +850,9 @@ def main() -> int:
           f"without a login: reads {anon}, command {anon_cmd} (401)")
     figures["security (observer command, anonymous)"] = (status, anon_cmd)
 
-    # A parameter list of the housekeeping for the web UI (and its screenshot).
-    body = json.dumps({
-        "name": "M2 housekeeping",
-        "description": "Pose from FK, commanded pose, encoders, state, table, flags",
-        "patterns": ["/M2/state", "/M2/pose_fk_*", "/M2/pose_cmd_*", "/M2/encoder_leg*",
-                     "/M2/active_table_*", "/M2/last_failure_code", "/M2/refusal_bits",
-                     "/M2/refusal_bits_x_outside_workspace", "/M2/fault_flags", "/M2/cycle_counter",
-                     "/M2/tc_accepted", "/M2/tc_rejected"],
-    }).encode()
-    req = urllib.request.Request(f"http://{URL}/api/parameter-lists/{INSTANCE}/lists", data=body,
-                                 headers={"Content-Type": "application/json",
-                                          "Authorization": basic_auth("operator")}, method="POST")
-    info = json.load(urllib.request.urlopen(req, timeout=10))
-    out_dir = Path(os.environ.get("M2_GROUND_DIR", "."))
-    (out_dir / "plist_id").write_text(info["id"])
-    check(bool(info.get("id")), f"parameter list for the web UI: {info['id']}")
+    # 10. The console (docs/ground-segment.md, "The console"): what scripts/ground-segment.sh
+    # set up without this test: the parameter lists, the display and the stacks.
+    console_checks(op)
 
     # Figures.
     links = {l.name: l for l in op.client.list_links(INSTANCE)}

@@ -32,12 +32,15 @@
 //! * `enumerations`, `bit_fields`, `failure_codes`, `events`: the vocabularies;
 //! * `table_image`: the parameter table image's layout;
 //! * `link_health`: the gateway's counters and time-correlation quality as parameters;
+//! * `console`: the operators' console Yamcs serves (display, parameter lists, command
+//!   stacks), every name looked up here;
 //! * `fields`, `names`: field constructors, labels and number formats;
 //! * `codec`: encoding and decoding by the description (what Yamcs does with the XTCE).
 
 mod alarms;
 mod bit_fields;
 mod codec;
+mod console;
 mod enumerations;
 mod events;
 mod failure_codes;
@@ -52,6 +55,15 @@ mod telemetry;
 pub use alarms::alarms;
 use bit_fields::leg_mask_bits;
 pub use bit_fields::{bank_status_flags, fault_flag_bits, fault_flags_doc, refusal_bits, FlagDoc};
+pub use console::{
+    bit_parameter_name, calibration_stack, clear_fault_stack, console_files, display_par,
+    housekeeping_display, parameter_lists, recovery_stroke_um, stacks, switch_recovery_stack,
+    table_upload_stack, upload_stack_table, Argument, Cell, Comparison, ConsoleFile, Display,
+    DisplayRow, Lit, ParameterKind, ParameterList, Section, Stack, Step, SwitchEnd,
+    ARRIVAL_TOLERANCE_ARCSEC, ARRIVAL_TOLERANCE_UM, DISPLAYS_DIR, LISTS_FILE,
+    RECOVERY_STOP_DISTANCES, STACKS_DIR, STACK_ADVANCEMENT, UPLOAD_STACK_TABLE_ID,
+    VERIFY_TIMEOUT_MS,
+};
 use enumerations::{
     banks, boot_sources, controller_states, memory_ids, parameter_ids, time_report_rates,
 };
