@@ -207,7 +207,27 @@ class Operator:
             out[s] = a.status if a else "missing"
             if a and a.status == "OK" and a.time and cmd.generation_time:
                 self.stage_times[s].append((a.time - cmd.generation_time).total_seconds())
-        return out
+        return self.race_checked(cmd, out)
+
+    def race_checked(self, cmd, stages: dict[str, str]) -> dict[str, str]:
+        """A stage Yamcs shows CANCELLED although the controller's success report of that
+        stage is archived counts as OK, and is counted as a figure. Yamcs 5.12's PUS
+        verifier matches a report against the sent sequence count, a command-history
+        attribute published asynchronously; a report arriving before it is not matched,
+        and the stage is cancelled when the command completes (seen once in three e2e
+        runs on a loaded host, at MOVE_ABSOLUTE's acceptance). The controller's property,
+        its report with the command's request ID, is what is checked then."""
+        seq = (getattr(cmd, "attributes", None) or {}).get("ccsds-seqcount")
+        for stage, subtype in zip(STAGES, (1, 3, 7)):
+            if stages.get(stage) == "CANCELLED" and seq is not None:
+                try:
+                    self.report(seq, subtype, timeout=5.0)
+                except TimeoutError:
+                    continue
+                stages[stage] = "OK"
+                races = figures.setdefault("Yamcs verifier races (stage shown CANCELLED, report archived)", [])
+                races.append(f"{cmd.name.rsplit('/', 1)[-1]} seq {seq} {stage}")
+        return stages
 
 
 def same_bytes(op: Operator, cmd, reference_args: list[str], index: int = 0) -> bool:
@@ -362,8 +382,8 @@ def console_checks(op: Operator) -> None:
         hist = list(op.client.get_archive(INSTANCE).list_command_history(start=t0))
 
     def stages(c):
-        return {s: getattr(c.acknowledgments.get(s) or c.acknowledgments.get("Verifier_" + s), "status", "missing")
-                for s in STAGES}
+        return op.race_checked(c, {s: getattr(c.acknowledgments.get(s) or c.acknowledgments.get("Verifier_" + s),
+                                              "status", "missing") for s in STAGES})
     seen = [(c.name.rsplit("/", 1)[-1], c.username, stages(c)) for c in hist]
     check([c.name for c in hist] == want
           and all(c.is_success() and c.username == "operator" for c in hist)
