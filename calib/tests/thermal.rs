@@ -34,6 +34,20 @@ fn campaign(
     campaign_in(seed, tracker, default_states())
 }
 
+/// The campaign of `seed` fitted (column length held at the nominal one), and the
+/// plant's true parameters in the fit's order.
+fn fitted(seed: u64, tracker: PoseTracker) -> (m2calib::thermal::ThermalFit, [f64; PARAMS]) {
+    let (coef, meas) = campaign(seed, tracker);
+    let f = fit(
+        &PROTOTYPE,
+        &meas,
+        &tracker,
+        Coefficients::NOMINAL.column_length_mm,
+    )
+    .unwrap();
+    (f, params_of(&coef))
+}
+
 fn campaign_in(
     seed: u64,
     tracker: PoseTracker,
@@ -64,15 +78,7 @@ fn campaign_in(
 fn the_fit_recovers_the_true_coefficients_within_its_uncertainty() {
     let tracker = PoseTracker::PAPER;
     for seed in [1u64, 2, 3] {
-        let (coef, meas) = campaign(seed, tracker);
-        let f = fit(
-            &PROTOTYPE,
-            &meas,
-            &tracker,
-            Coefficients::NOMINAL.column_length_mm,
-        )
-        .unwrap();
-        let truth = params_of(&coef);
+        let (f, truth) = fitted(seed, tracker);
         for i in 0..PARAMS {
             let z = (f.estimate[i] - truth[i]) / f.sigma[i];
             eprintln!(
@@ -142,15 +148,7 @@ fn thermal_fit_uncertainty_by_instrument() {
         ("paper (0.1 um, 0.1\")", PoseTracker::PAPER),
         ("realistic pose (5 um, 1\")", PoseTracker::REALISTIC),
     ] {
-        let (coef, meas) = campaign(1, tracker);
-        let f = fit(
-            &PROTOTYPE,
-            &meas,
-            &tracker,
-            Coefficients::NOMINAL.column_length_mm,
-        )
-        .unwrap();
-        let truth = params_of(&coef);
+        let (f, truth) = fitted(1, tracker);
         let rel: Vec<String> = (0..PARAMS)
             .map(|i| {
                 format!(

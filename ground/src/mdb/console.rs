@@ -662,6 +662,19 @@ impl<'a> StackBuilder<'a> {
         Ok(())
     }
 
+    /// The fault clear and its check, the last steps of every recovery: CLEAR_FAULT, then
+    /// at rest with no fault latched.
+    fn clear_fault(&mut self) -> Result<(), String> {
+        self.command("CLEAR_FAULT", &[], "clears the latched fault")?;
+        self.verify(
+            "no fault latched, at rest: moves are accepted again",
+            &[
+                ("state", "eq", json!("IDLE")),
+                ("fault_flags", "eq", json!(0)),
+            ],
+        )
+    }
+
     /// A verification step; each comparison's value must be one the parameter can take
     /// (a label of its enumeration, a boolean, a number) and its operator one Yamcs web
     /// applies to it as meant (no text comparison of a calibrated number).
@@ -1011,14 +1024,7 @@ pub fn switch_recovery_stack(mdb: &Mdb, leg: usize, end: SwitchEnd) -> Result<St
         &format!("leg {leg}'s {} switch released", end.word()),
         &[(&switch, "eq", json!(false))],
     )?;
-    s.command("CLEAR_FAULT", &[], "clears the latched fault")?;
-    s.verify(
-        "no fault latched, at rest: moves are accepted again",
-        &[
-            ("state", "eq", json!("IDLE")),
-            ("fault_flags", "eq", json!(0)),
-        ],
-    )?;
+    s.clear_fault()?;
     s.text(&format!(
         "Recovered: leg {leg} is {stroke} um off the switch; the next move starts from there. \
          Command it away from the switch.",
@@ -1050,14 +1056,7 @@ pub fn clear_fault_stack(mdb: &Mdb) -> Result<Stack, String> {
     listed.extend((1..=legs).map(|k| format!("encoder_leg{k}")));
     s.check("the fault", &listed)?;
     s.verify("faulted", &[("state", "eq", json!("FAULTED"))])?;
-    s.command("CLEAR_FAULT", &[], "clears the latched fault")?;
-    s.verify(
-        "no fault latched, at rest: moves are accepted again",
-        &[
-            ("state", "eq", json!("IDLE")),
-            ("fault_flags", "eq", json!(0)),
-        ],
-    )?;
+    s.clear_fault()?;
     Ok(s.finish("recovery/clear-fault.ycs"))
 }
 
