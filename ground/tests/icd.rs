@@ -354,3 +354,25 @@ fn housekeeping_offsets_in_the_prose_are_the_codes() {
     );
     assert!(checked >= 14, "{checked} offsets checked");
 }
+
+/// The table's length and the chunk ranges the ICD's prose states are the code's
+/// (the e2e's refused chunk was once left at the length of table format 1).
+#[test]
+fn the_table_figures_in_the_prose_are_the_codes() {
+    use m2ctl::link::command::TABLE_CHUNK_MAX_LEN;
+    use m2ctl::table::TABLE_LEN;
+    let text = icd().split_whitespace().collect::<Vec<_>>().join(" ");
+    let crc_start = TABLE_LEN - 4;
+    for phrase in [
+        format!("### The table image ({TABLE_LEN} bytes"),
+        format!(
+            "a table chunk offset 0..{} with 1..{TABLE_CHUNK_MAX_LEN} bytes",
+            TABLE_LEN - 1
+        ),
+        format!("A chunk outside 0..{TABLE_LEN} is refused (0x050E)"),
+        format!("(offset + length ≤ {TABLE_LEN}; 0x050E)"),
+        format!("the CRC-32 of bytes 0..{crc_start} (= the u32 at {crc_start}..{TABLE_LEN})"),
+    ] {
+        assert!(text.contains(&phrase), "docs/icd.md lacks: {phrase}");
+    }
+}

@@ -699,7 +699,11 @@ def main() -> int:
     check(hk.value("state").eng_value == "IDLE" and "state" not in active_alarms(),
           f"no alarm on the state while IDLE (active: {sorted(active_alarms())})")
     # A chunk that would end past the table: the link refuses it (acceptance fails).
-    cmd = op.command("LOAD_TABLE_CHUNK", {"offset": 515, "data": bytes(4)})
+    # Its offset is the table's last byte as the mission database gives it (the
+    # offset argument's range), so the check follows the table's length.
+    load_chunk = next(tc for tc in mdb_json["telecommands"] if tc["name"] == "LOAD_TABLE_CHUNK")
+    last_byte = int(next(f for f in load_chunk["fields"] if f["name"] == "offset")["meaning"]["range"][1])
+    cmd = op.command("LOAD_TABLE_CHUNK", {"offset": last_byte, "data": bytes(4)})
     check(op.stages(cmd)["Acceptance"] == "NOK", f"chunk past the table refused at acceptance ({cmd.error})")
     rejected = op.hk_after(op.done(cmd, subtype=2).obt).value("tc_rejected").eng_value
     try:
