@@ -50,6 +50,13 @@ fn microstep_and_full_step_come_from_the_drive_constants() {
     assert_eq!(r.microstep_um, drive_microstep_um());
     assert_eq!(r.full_step_um, drive_full_step_um());
     assert_eq!(r.lead_error_period_mm, drive_screw_lead_mm());
+    // The fine positioning counts its corrections in the same microstep (derived from
+    // the same constants, in f32).
+    let fine_um = f64::from(m2ctl::motion::fine::MICROSTEP_MM) * 1e3;
+    assert!(
+        (fine_um / drive_microstep_um() - 1.0).abs() < 1e-7,
+        "{fine_um}"
+    );
     // Every realistic default on, and accepted.
     DriveTrainConfig::realistic().check().unwrap();
     assert!(r.backlash_um > 0.0 && r.lead_error_um > 0.0 && r.microstep_error_um > 0.0);
@@ -473,8 +480,19 @@ const STUDY_ARCSEC: f64 = 60.0;
 /// In-position figures of the issue (um, arcsec).
 const GOOD_UM: f64 = 0.1;
 const GOOD_ARCSEC: f64 = 0.2;
-/// Seed of the study's targets.
+/// Seed of the study's targets (`M2_STUDY_SEED=n` runs the study on another set:
+/// [`study_seed`]).
 const STUDY_SEED: u64 = 0x21_d21e;
+
+/// The study's seed: [`STUDY_SEED`], or `M2_STUDY_SEED` if set (a decimal number).
+fn study_seed() -> u64 {
+    std::env::var("M2_STUDY_SEED")
+        .map(|v| {
+            v.parse()
+                .unwrap_or_else(|e| panic!("M2_STUDY_SEED={v}: {e}"))
+        })
+        .unwrap_or(STUDY_SEED)
+}
 /// Most cycles a move may take (a 2 mm stroke at 0.5 mm/s is 4,000).
 const MOVE_CYCLES: u32 = 60_000;
 
@@ -522,7 +540,7 @@ fn study(train: DriveTrainConfig, params: &[(u16, i32)]) -> Row {
         let reps = r.command(&Command::SetParameters(set), MOVE_CYCLES);
         assert_eq!(reps.last(), Some(&Verification::CompletionSuccess));
     }
-    let mut rng = TestRng(STUDY_SEED);
+    let mut rng = TestRng(study_seed());
     let mut row = Row {
         max_slider_um: 0.0,
         sliders_good: 0,
@@ -755,15 +773,15 @@ fn time_to_in_position(size_um: f64, n: usize) -> (Vec<(u32, u32)>, usize) {
 /// Issue 21's second figure: time to "in position" for 1 um, 10 um and 1 mm moves
 /// against the path time, realistic drive train, default parameters.
 /// Run with `cargo test --features host --test drive_train time_to_in_position --
-/// --ignored --nocapture`.
+/// --ignored --nocapture` (`M2_TIME_MOVES=n`: n moves of each size instead of 20).
 #[test]
 #[ignore = "a benchmark: run by hand, it prints issue 21's time-to-in-position table"]
 fn time_to_in_position_study() {
-    const MOVES: usize = 20;
+    let moves: usize = std::env::var("M2_TIME_MOVES").map_or(20, |v| v.parse().unwrap());
     println!("| move | path time, mean / max | time to in position, mean / max | after the path, mean / max | not in position (0x070F) |");
     println!("|---|---|---|---|---|");
     for size_um in [1.0, 10.0, 1000.0] {
-        let (runs, failed) = time_to_in_position(size_um, MOVES);
+        let (runs, failed) = time_to_in_position(size_um, moves);
         let stats = |v: Vec<u32>| {
             (
                 f64::from(v.iter().sum::<u32>()) / v.len().max(1) as f64,
@@ -774,7 +792,7 @@ fn time_to_in_position_study() {
         let (cm, cx) = stats(runs.iter().map(|(_, c)| *c).collect());
         let (am, ax) = stats(runs.iter().map(|(p, c)| c - p).collect());
         println!(
-            "| {size_um} um ({MOVES} moves) | {pm:.0} / {px} ms | {cm:.0} / {cx} ms | {am:.0} / {ax} ms | {failed} |"
+            "| {size_um} um ({moves} moves) | {pm:.0} / {px} ms | {cm:.0} / {cx} ms | {am:.0} / {ax} ms | {failed} |"
         );
     }
 }

@@ -15,26 +15,33 @@
 //!   mean within `tol - count/2` puts the true slider within `tol` of its setpoint.
 //!   Only then is the move's completion success reported.
 //! * **Corrections.** Whenever the sliders have been at rest for the dwell (they had it
-//!   to settle) and some leg is not in position, every such leg's drive command is
-//!   corrected by its encoder error, at most [`MAX_CORRECTIONS`] times per move, each
-//!   correction at most [`MAX_CORRECTION_MM`] per leg, the drive never further than that
-//!   from the setpoint, and never beyond the stroke limits.
-//!   A correction is a ramp within the coordinated-move speed and acceleration limits
-//!   (the output stage checks it like any command).
+//!   to settle; after a return, below, for two dwells) and some leg is not in position,
+//!   every such leg's drive command is corrected, at most [`MAX_CORRECTIONS`] times per
+//!   move, the drive never further than [`MAX_CORRECTION_MM`] from the setpoint and
+//!   never beyond the stroke limits. A correction is a ramp within the coordinated-move
+//!   speed and acceleration limits (the output stage checks it like any command).
 //! * **Anti-backlash: final approach from one side.** Each leg's final approach is in
 //!   the direction of its last commanded motion before the fine positioning (the path's
-//!   direction at its end): there the backlash gap is already taken up, so a correction
-//!   in that direction moves the slider by what the drive moves. The drive train leaves
-//!   each slider short of its setpoint in that direction (half the gap and the friction
-//!   lag), so almost every correction is one. A slider found beyond its setpoint (an
-//!   overshoot) is not corrected back through the gap by its error (which would lose the
-//!   unknown backlash): it is moved back past the setpoint by [`RETREAT_MM`] more, and
-//!   approached again from the same side by the next corrections. Chosen by measurement
-//!   (docs/decisions.md, "Fine positioning"): with the realistic drive train a
-//!   correction opposite to the approach moved the slider by its error less the 3.2 um
-//!   of backlash and break-away, so correcting by the error converged only after several
-//!   corrections and a measured compensation would need the backlash of every leg kept
-//!   and re-measured; the one-sided approach needs neither.
+//!   direction at its end, a reversal counting once it exceeds [`TURN_MM`]): there the
+//!   backlash gap is taken up, so a correction in that direction moves the slider by
+//!   what the drive moves. The drive train leaves each slider short of its setpoint in
+//!   that direction (half the gap and the friction lag), so almost every correction is
+//!   one: **whole microsteps** ([`MICROSTEP_MM`]) from the one the drive stands on, as
+//!   many as cannot carry the slider past the far edge of the band ([`GAIN`]), so the
+//!   last one lands in it. The first such correction adds how far the command stood
+//!   behind its furthest point in that direction (a reversal smaller than the turn left
+//!   the gap there). A slider found beyond its setpoint (an overshoot) is not corrected
+//!   back through the gap by its error (which would lose the unknown backlash): it is
+//!   **retreated** past the setpoint by [`RETREAT_MM`] more, and the next correction
+//!   **returns** it by as much, which takes the gap up on the approach side again with
+//!   the drive the overshoot short of where it was. A leg still out at the
+//!   [`LATE_CORRECTION`] is retreated and returned too (its gap may not be where the
+//!   tracked direction says). Chosen by measurement (docs/decisions.md, "Fine
+//!   positioning"): with the realistic drive train a correction opposite to the approach
+//!   moved the slider by its error less the 3.2 um of backlash and break-away, so
+//!   correcting by the error converged only after several corrections and a measured
+//!   compensation would need the backlash of every leg kept and re-measured; the
+//!   one-sided approach needs neither.
 //! * **Timeout.** A move not in position [`TIMEOUT_CYCLES`] after its path ended ends
 //!   with a completion failure 0x070F naming the legs out of tolerance.
 //!
@@ -50,42 +57,63 @@ const HALF_COUNT_MM: f32 = (0.5 * ENCODER_MM_PER_COUNT) as f32;
 
 /// Most corrections per move.
 pub const MAX_CORRECTIONS: u8 = 16;
-/// Largest correction of one leg (mm, 20 um), and the farthest the corrections of a move
-/// may take a leg's drive from its setpoint in all: four times the following-error
-/// warning threshold, beyond what any drive train leaves behind a path (a slider
-/// further off is a fault for the supervision, not a task for the fine positioning). A
-/// jammed slider thus leaves its drive at most this far beyond its setpoint, where the
-/// slider goes should the jam free.
+/// The farthest the corrections of a move may take a leg's drive from its setpoint
+/// (mm, 20 um): four times the following-error warning threshold, beyond what any drive
+/// train leaves behind a path (a slider further off is a fault for the supervision, not
+/// a task for the fine positioning). A jammed slider thus leaves its drive at most this
+/// far beyond its setpoint, where the slider goes should the jam free.
 pub const MAX_CORRECTION_MM: f32 = 0.02;
 /// How far past its setpoint, against its final approach, an overshot slider is moved
-/// back (mm, 5 um): more than the realistic backlash and break-away (3.2 um), so one
-/// retreat usually suffices; more retreats follow if not.
+/// back, and then returned (mm, 5 um, 64 microsteps): more than the realistic backlash
+/// and break-away (3.2 um), so that the retreat moves the slider and the return takes
+/// the gap up again.
 pub const RETREAT_MM: f32 = 0.005;
-/// Share of a leg's error a correction toward its approach side moves the drive: less
-/// than 1, so that a drive train that moves the slider more than the drive (the
-/// microstep nonlinearity's slope, up to 18 % with the realistic defaults) does not
-/// overshoot, which would cost a retreat and a new approach.
+/// Share of a leg's error (plus the in-position band) a correction toward its approach
+/// side may move the drive: less than 1, so that a drive train that moves the slider
+/// more than the drive (the microstep nonlinearity's slope, up to 18 % with the
+/// realistic defaults) does not carry it past the far edge of the band, which would cost
+/// a retreat and a new approach.
 pub const GAIN: f32 = 0.85;
-/// Corrections after which a leg still not in position is retreated and approached
-/// again once (whatever its error's side): it may be in the backlash gap, where
-/// corrections by its error creep (a reversal smaller than [`TURN_MM`] left the gap on
-/// the old side).
-pub const LATE_CORRECTIONS: u8 = 4;
+// A leg out of position is out by more than the band, at least half a count (the least
+// tolerance is a count: `controller::params`), so a correction toward the approach side
+// is at least one microstep.
+const _: () = assert!(GAIN * 2.0 * HALF_COUNT_MM >= MICROSTEP_MM);
+/// The drives' microstep (mm of stroke), from the drive constants of [`crate::nominal`]
+/// (64 microsteps of a 200-step motor on a 1 mm lead: 0.078 um). The drives stand on
+/// whole microsteps (the step/direction drivers round a setpoint to the nearest one), so
+/// a correction toward the approach side is a whole number of microsteps from where the
+/// drive stands: rounded the drive's way, a fraction of a microstep would move it by one
+/// more or one less, as much as the in-position band.
+pub const MICROSTEP_MM: f32 = (crate::nominal::DRIVE_LEAD_SCREW_PITCH_NM as f64
+    * crate::nominal::DRIVE_GEAR_SCREW_REVS as f64
+    / (crate::nominal::DRIVE_FULL_STEPS_PER_REV as f64
+        * crate::nominal::DRIVE_MICROSTEPS_PER_STEP as f64
+        * crate::nominal::DRIVE_GEAR_MOTOR_REVS as f64)
+    / crate::units::NM_PER_MM) as f32;
+/// The correction at which a leg still out of position toward its approach side is
+/// retreated and returned ([`RETREAT_MM`]) as if it had overshot: its backlash gap may
+/// not be taken up on the approach side (at power-on the gaps are anywhere; after a
+/// missed step or a stroke in recovery the tracked direction may not be the gap's), and
+/// corrections toward the approach would then creep through the gap a microstep or two
+/// at a time. The return takes the gap up.
+pub const LATE_CORRECTION: u8 = 8;
 /// Cycles after the path's end by which a move must be in position (5 s): more than
-/// [`MAX_CORRECTIONS`] dwells of the longest dwell (`controller::params`, 200 cycles)
-/// plus the corrections themselves (a 20 um correction takes about 0.3 s at the default
-/// acceleration limit).
+/// [`MAX_CORRECTIONS`] dwells of the longest dwell (`controller::params`, 200 cycles);
+/// at the default dwell (20 cycles) [`MAX_CORRECTIONS`] corrections with a retreat and
+/// a return every other one (0.15 s each at the default acceleration limit) take
+/// about 3 s.
 pub const TIMEOUT_CYCLES: u32 = 5_000;
 
 /// How far a leg's command must turn back from its furthest point before its last
-/// direction counts as reversed (mm, 1 um; [`Approach::track`]): far above the f32
-/// dither of a leg that hardly moves (nm). (A smaller reversal may have left the
-/// backlash gap on the old side; the corrections then creep through it, and a move of
-/// about a micrometre may end in 0x070F: docs/decisions.md, "Fine positioning".)
-pub const TURN_MM: f32 = 0.001;
-
-/// Every leg (bits 0..5).
-const ALL_LEGS: u8 = (1u8 << LEGS) - 1;
+/// direction counts as reversed (mm, 2 um; [`Approach::track`]): far above the f32
+/// dither of a leg that hardly moves (nm), and more than half the realistic backlash
+/// and the friction lag (1.6 um), so that a slider whose command turned back further is
+/// short of its setpoint in the new direction by 0.4 um at least: its corrections then
+/// take up the rest of the gap in one or two (closer to 1.6 um, a microstep at a time
+/// through most of the gap). A smaller reversal leaves the approach as it was, the
+/// command behind its furthest point by the reversal: the first correction toward the
+/// approach takes that up first ([`Fine::correct`]).
+pub const TURN_MM: f32 = 0.002;
 
 /// The legs whose encoder (mm) reads within `tolerance_mm` of their setpoint (mm); none
 /// without a reading. (Housekeeping's `in_position_legs` gives each single reading half
@@ -114,6 +142,16 @@ pub fn in_position_legs(
 /// count) reads a count either side as the encoder's noise has it.
 pub fn single_reading_tolerance_mm(tolerance_mm: f32) -> f32 {
     tolerance_mm + HALF_COUNT_MM
+}
+
+/// The drive command (mm) nearest to `mm` on a whole microstep ([`MICROSTEP_MM`], from
+/// zero stroke, as the drives count them). Rounded by adding and taking off 1.5 2^23:
+/// f32 has no fraction at that magnitude, so the sum is rounded to a whole number
+/// (exact for any stroke: 2^22 microsteps are 328 mm; a tie goes to the even one, where
+/// the drives round away from zero, a microstep apart at worst and only there).
+fn on_microstep(mm: f32) -> f32 {
+    const ROUND: f32 = 1.5 * (1u32 << 23) as f32;
+    (mm / MICROSTEP_MM + ROUND - ROUND) * MICROSTEP_MM
 }
 
 /// What the fine positioning does after a cycle at rest ([`Fine::at_rest`]).
@@ -166,6 +204,11 @@ impl Approach {
     }
 }
 
+/// Bit of [`Fine`]'s `returning` (beside the legs' bits 0..5): the sliders must stay at
+/// rest for a second dwell before the next decision, set by a return ([`RETREAT_MM`]),
+/// after which a slider settles from micrometres away.
+const LONG_SETTLE: u8 = 0x80;
+
 /// The fine positioning of one move (module documentation).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Fine {
@@ -185,11 +228,14 @@ pub struct Fine {
     /// Sum of the window's readings less `rest_ref_mm` (mm): their mean is the reading
     /// the rule and a correction use (averaging the encoder's noise and flicker).
     rest_sum_mm: [f32; LEGS],
-    /// The correction under way: strokes it starts from and its change (mm).
+    /// The correction under way: strokes it starts from and its change (mm). Before the
+    /// first correction: each leg's furthest command in its approach direction
+    /// ([`Approach`]), where the backlash gap was last taken up.
     from_mm: [f32; LEGS],
     delta_mm: [f32; LEGS],
-    /// Legs retreated by the late rule ([`LATE_CORRECTIONS`]).
-    retreated: u8,
+    /// Legs the last correction retreated: the next one returns them ([`RETREAT_MM`]);
+    /// and [`LONG_SETTLE`].
+    returning: u8,
 }
 
 impl Fine {
@@ -202,19 +248,20 @@ impl Fine {
             corrections: 0,
             since: 0,
             began: now,
-            rest_ref_mm: target_mm,
+            rest_ref_mm: [0.0; LEGS],
             rest_sum_mm: [0.0; LEGS],
-            from_mm: target_mm,
+            from_mm: approach.turn_mm,
             delta_mm: [0.0; LEGS],
-            retreated: 0,
+            returning: 0,
         }
     }
 
     /// One control cycle `now` at rest (no correction under way), with this cycle's
     /// encoder reading (mm; `None`: none), the in-position tolerance (mm) and dwell
-    /// (cycles): in position, or a correction due, once the sliders have stayed within
-    /// twice the tolerance of where they were for the dwell (module documentation; twice,
-    /// so that a reading flickering between two counts is at rest).
+    /// (cycles; 0 acts as 1): in position, or a correction due, once the sliders have
+    /// stayed within twice the tolerance of where they were for the dwell (module
+    /// documentation; twice, so that a reading flickering between two counts is at
+    /// rest).
     pub fn at_rest(
         &mut self,
         now: u32,
@@ -222,16 +269,17 @@ impl Fine {
         tolerance_mm: f32,
         dwell_cycles: u16,
     ) -> FineStep {
-        let dwell = dwell_cycles.max(1);
         if let Some(enc) = encoders_mm {
             let moved = enc
                 .iter()
                 .zip(self.rest_ref_mm.iter())
                 .any(|(e, r)| !((*e - *r).abs() <= 2.0 * tolerance_mm));
-            if moved || self.since == 0 {
+            if moved {
+                self.since = 0;
+            }
+            if self.since == 0 {
                 self.rest_ref_mm = *enc;
                 self.rest_sum_mm = [0.0; LEGS];
-                self.since = 0;
             }
             for ((s, e), r) in self
                 .rest_sum_mm
@@ -243,8 +291,13 @@ impl Fine {
             }
             self.since = self.since.saturating_add(1);
         }
-        let out = ALL_LEGS & !self.settled_in_position(tolerance_mm);
-        let at_rest = encoders_mm.is_some() && self.since >= dwell;
+        let out = self.out_of(tolerance_mm - HALF_COUNT_MM);
+        let at_rest = encoders_mm.is_some() && self.since >= dwell_cycles;
+        if at_rest && self.returning & LONG_SETTLE != 0 {
+            self.returning &= !LONG_SETTLE;
+            self.since = 0;
+            return FineStep::Wait;
+        }
         if at_rest && out == 0 {
             return FineStep::InPosition;
         }
@@ -257,9 +310,10 @@ impl Fine {
         FineStep::Wait
     }
 
-    /// The mean reading of each leg over the rest window (mm).
+    /// The mean reading of each leg over the rest window (mm; NaN before its first
+    /// reading: no leg in position).
     fn mean_mm(&self) -> [f32; LEGS] {
-        let n = f32::from(self.since.max(1));
+        let n = f32::from(self.since);
         let mut mean = self.rest_ref_mm;
         for (m, s) in mean.iter_mut().zip(self.rest_sum_mm.iter()) {
             *m += *s / n;
@@ -267,21 +321,19 @@ impl Fine {
         mean
     }
 
-    /// The legs whose mean reading over the rest window is within `tolerance_mm` less
-    /// half a count of the setpoint.
-    fn settled_in_position(&self, tolerance_mm: f32) -> u8 {
-        in_position_legs(
-            &self.target_mm,
-            Some(&self.mean_mm()),
-            tolerance_mm - HALF_COUNT_MM,
-        )
+    /// The legs whose mean reading over the rest window is not within `band_mm` of the
+    /// setpoint.
+    fn out_of(&self, band_mm: f32) -> u8 {
+        !in_position_legs(&self.target_mm, Some(&self.mean_mm()), band_mm)
+            & crate::supervision::ALL_LEGS
     }
 
     /// Plans a correction of every leg not in position (its mean reading over the rest
-    /// window not within `tolerance_mm` less half a count: module documentation) from the strokes the drives hold
-    /// `held_mm`, within `[min_mm, max_mm]`, and its ramp within `speed_mm_per_s` and
-    /// `accel_mm_per_s2`. Counts as a correction even when the limits leave nothing to
-    /// move (the ramp is then immediate).
+    /// window not within `tolerance_mm` less half a count: module documentation) from
+    /// the strokes the drives hold `held_mm`, within `[min_mm, max_mm]`, and its ramp
+    /// within `speed_mm_per_s` and `accel_mm_per_s2`. Counts as a correction even when
+    /// the limits leave nothing to move (the ramp then holds the strokes for a cycle or
+    /// two).
     pub fn correct(
         &mut self,
         held_mm: &[f32; LEGS],
@@ -295,9 +347,8 @@ impl Fine {
         let mean = self.mean_mm();
         let band = tolerance_mm - HALF_COUNT_MM;
         self.since = 0;
-        self.from_mm = *held_mm;
         let mut largest = 0.0f32;
-        for (i, (d, ((((t, e), h), lo), hi))) in self
+        for (i, (d, (((((t, e), h), lo), hi), f))) in self
             .delta_mm
             .iter_mut()
             .zip(
@@ -306,35 +357,50 @@ impl Fine {
                     .zip(mean.iter())
                     .zip(held_mm.iter())
                     .zip(min_mm.iter())
-                    .zip(max_mm.iter()),
+                    .zip(max_mm.iter())
+                    .zip(self.from_mm.iter_mut()),
             )
             .enumerate()
         {
             let err = *t - *e;
-            *d = 0.0;
-            if !(err.abs() > band) {
-                continue;
-            }
             let bit = 1u8 << i;
-            let up = self.approach_up & bit != 0;
-            // Late, once per leg: as if overshot (it may be in the gap).
-            let late = self.corrections > LATE_CORRECTIONS && self.retreated & bit == 0;
-            if late {
-                self.retreated |= bit;
-            }
-            // Toward the approach side: by the error. Against it (an overshoot): back
-            // past the setpoint, to approach again.
-            let step = if (err > 0.0) == up && !late {
-                GAIN * err
-            } else if up {
-                err - RETREAT_MM
+            // +1 toward the approach side.
+            let toward = if self.approach_up & bit != 0 {
+                1.0f32
             } else {
-                err + RETREAT_MM
+                -1.0
             };
-            // Constant bounds: `clamp` cannot panic. The run-time bounds below take `max`
-            // then `min` (`clamp` panics on bounds out of order or NaN).
-            let step = step.clamp(-MAX_CORRECTION_MM, MAX_CORRECTION_MM);
-            *d = (*h + step)
+            // Before the first correction `from_mm` holds the legs' furthest commands
+            // in their approach direction ([`Fine::begin`]): the gap a reversal smaller
+            // than [`TURN_MM`] left, which the first correction toward the approach
+            // takes up first.
+            let behind = if self.corrections == 1 { *f - *h } else { 0.0 };
+            *f = *h;
+            // The drive's new command, from the microstep it stands on (the drive rounds
+            // the command's fraction of a microstep as it rounded the held one's).
+            let step = if self.returning & bit != 0 {
+                // The return after a retreat: the gap taken up on the approach side
+                // again, the drive the overshoot (in whole microsteps, at least one as
+                // the overshoot is more than half of one) short of where it stood before
+                // the retreat.
+                self.returning = (self.returning & !bit) | LONG_SETTLE;
+                toward * RETREAT_MM
+            } else if !(err.abs() > band) {
+                *d = 0.0;
+                continue;
+            } else if err * toward > 0.0 && self.corrections != LATE_CORRECTION {
+                // Toward the approach side: whole microsteps, as many as cannot carry the
+                // slider past the band's far edge (at least one: [`GAIN`]), plus the gap.
+                let steps = (GAIN * (err.abs() + band) / MICROSTEP_MM) as i32;
+                behind + toward * MICROSTEP_MM * steps as f32
+            } else {
+                // An overshoot (or a leg still out at the late correction): back past the
+                // setpoint; the next correction returns.
+                self.returning |= bit;
+                err - toward * RETREAT_MM
+            };
+            // `max` then `min`, not `clamp` (which panics on bounds out of order or NaN).
+            *d = (on_microstep(*h) + step)
                 .max(*t - MAX_CORRECTION_MM)
                 .min(*t + MAX_CORRECTION_MM)
                 .max(*lo)
@@ -342,16 +408,14 @@ impl Fine {
                 - *h;
             largest = largest.max(d.abs());
         }
-        if !(largest > 0.0) {
-            return Ok(Ramp::immediate());
-        }
-        Ramp::plan(
-            LIMIT_USE_FRACTION * speed_mm_per_s / largest,
-            LIMIT_USE_FRACTION * accel_mm_per_s2 / largest,
-        )
+        // Nothing to move (every leg at a limit): the rates are infinite, a ramp of a
+        // cycle or two that commands the held strokes.
+        let share = LIMIT_USE_FRACTION / largest;
+        Ramp::plan(share * speed_mm_per_s, share * accel_mm_per_s2)
     }
 
-    /// The drive command of the correction under way at ramp progress `progress` (0..1).
+    /// The drive command of the correction under way at ramp progress `progress` (0..1)
+    /// (before the first correction there is none, and the controller commands nothing).
     pub fn setpoint(&self, progress: f32) -> [f32; LEGS] {
         let mut out = self.from_mm;
         for (o, d) in out.iter_mut().zip(self.delta_mm.iter()) {
@@ -369,6 +433,7 @@ impl Fine {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::supervision::ALL_LEGS;
 
     const TOL: f32 = 1e-4;
 
@@ -447,17 +512,42 @@ mod tests {
         );
     }
 
+    /// An approach whose legs 1, 3, 5 last moved up, 2, 4, 6 down (by 10 um, more than
+    /// the turn), all ending at `at_mm`: nothing left behind.
+    fn alternate(at_mm: f32) -> Approach {
+        let mut a = Approach::new([at_mm; LEGS]);
+        let d = 0.01;
+        a.track(&[
+            at_mm - d,
+            at_mm + d,
+            at_mm - d,
+            at_mm + d,
+            at_mm - d,
+            at_mm + d,
+        ]);
+        a.track(&[at_mm; LEGS]);
+        assert_eq!(a.last_up, 0b01_0101);
+        a
+    }
+
+    #[test]
+    fn the_microstep_is_the_drives() {
+        // 1 mm lead, 200 full steps, 64 microsteps, direct drive: 1/12,800 mm.
+        assert!((f64::from(MICROSTEP_MM) * 12_800.0 - 1.0).abs() < 1e-7);
+        assert_eq!(on_microstep(3.4 * MICROSTEP_MM), 3.0 * MICROSTEP_MM);
+        assert_eq!(on_microstep(-3.6 * MICROSTEP_MM), -4.0 * MICROSTEP_MM);
+    }
+
     #[test]
     fn a_correction_approaches_from_one_side_is_bounded_and_stays_within_the_stroke() {
-        let mut a = Approach::new([0.0; LEGS]);
-        // Legs 1, 3, 5 last moved up, 2, 4, 6 down.
-        a.track(&[1.0, -1.0, 1.0, -1.0, 1.0, -1.0]);
-        let mut f = Fine::begin([1.0; LEGS], &a, 0);
-        let held = [1.0f32; LEGS];
-        // Leg 1 short (below, approach up): corrected by its error. Leg 2 short (above,
-        // approach down): by its error. Leg 3 overshot (above, approach up): back past
-        // by the retreat. Leg 4 overshot (below, approach down). Leg 5 far off: bounded.
-        // Leg 6 in tolerance: untouched.
+        // The drives stand 0.3 microsteps off a whole one (as after a path, which ended
+        // there).
+        let held = [1.0f32 + 0.3 * MICROSTEP_MM; LEGS];
+        let mut f = Fine::begin([1.0; LEGS], &alternate(held[0]), 0);
+        // Leg 1 short (below, approach up): corrected toward the approach. Leg 2 short
+        // (above, approach down): likewise. Leg 3 overshot (above, approach up): back
+        // past by the retreat. Leg 4 overshot (below, approach down). Leg 5 far off:
+        // bounded. Leg 6 in tolerance: untouched.
         let enc = [0.998, 1.002, 1.002, 0.998, 0.9, 1.00004];
         // The reading a correction uses is the mean over the rest window.
         let mut noisy = enc;
@@ -468,26 +558,75 @@ mod tests {
         let hi = [1.0 + 0.01; LEGS];
         let ramp = f.correct(&held, TOL, &[-5.0; LEGS], &hi, 0.2, 1.0).unwrap();
         let end = f.setpoint(1.0);
-        let d: Vec<f32> = end.iter().zip(held).map(|(e, h)| e - h).collect();
-        let close = |a: f32, b: f32| (a - b).abs() < 1e-6;
-        assert!(close(d[0], GAIN * 0.002), "{d:?}");
-        assert!(close(d[1], -GAIN * 0.002), "{d:?}");
-        assert!(close(d[2], -0.002 - RETREAT_MM), "{d:?}");
-        assert!(close(d[3], 0.002 + RETREAT_MM), "{d:?}");
-        assert!(
-            close(d[4], 0.01),
-            "the stroke limit, inside the bound: {d:?}"
-        );
-        assert_eq!(d[5], 0.0);
+        // In microsteps from the one the drive stands on (1 mm = 12,800).
+        let steps: Vec<f32> = end.iter().map(|e| (e - 1.0) / MICROSTEP_MM).collect();
+        let close = |a: f32, b: f32| (a - b).abs() < 1e-2;
+        // 2 um short, band 0.05 um: floor(0.85 (2 + 0.05) / 0.078125) = 22 microsteps,
+        // at most 0.85 of the error and the band: the slider cannot pass the band.
+        assert!(close(steps[0], 22.0), "{steps:?}");
+        assert!(close(steps[1], -22.0), "{steps:?}");
+        // Overshot 2 um: 2 um (25.6 microsteps, rounded by the drive) and 5 um back.
+        assert!(close(steps[2], -25.6 - 64.0), "{steps:?}");
+        assert!(close(steps[3], 25.6 + 64.0), "{steps:?}");
+        // The stroke limit, inside the 20 um bound.
+        assert!((end[4] - 1.01).abs() < 1e-6, "{end:?}");
+        assert_eq!(end[5], held[5]);
         assert_eq!(f.setpoint(0.0), held);
         assert!(ramp.end_cycle() > 2);
+        // The next correction returns the retreated legs by the retreat from the
+        // microstep they stand on: the gap taken up on the approach side again, the drive
+        // the overshoot in whole microsteps (25.6 -> 26) short of where it was.
+        let held = end;
+        let enc = [1.0, 1.0, 0.995, 1.005, 1.0, 1.0];
+        assert_eq!(f.at_rest(3, Some(&enc), TOL, 2), FineStep::Wait);
+        assert_eq!(f.at_rest(4, Some(&enc), TOL, 2), FineStep::Correct);
+        f.correct(&held, TOL, &[-5.0; LEGS], &hi, 0.2, 1.0).unwrap();
+        let end = f.setpoint(1.0);
+        let steps: Vec<f32> = end.iter().map(|e| (e - 1.0) / MICROSTEP_MM).collect();
+        assert!(close(steps[2], -26.0), "{steps:?}");
+        assert!(close(steps[3], 26.0), "{steps:?}");
+        // After a return the sliders settle for a second dwell before the next decision.
+        let enc = [1.0, 1.0, 0.998, 1.002, 1.0, 1.0];
+        for c in 5..8 {
+            assert_eq!(f.at_rest(c, Some(&enc), TOL, 2), FineStep::Wait, "{c}");
+        }
+        assert_eq!(f.at_rest(8, Some(&enc), TOL, 2), FineStep::Correct);
         // The bound itself.
-        let mut a = Approach::new([0.0; LEGS]);
-        a.track(&[1.0; LEGS]);
-        let mut g = Fine::begin([0.0; LEGS], &a, 0);
+        let mut g = Fine::begin([0.0; LEGS], &alternate(0.0), 0);
         assert_eq!(g.at_rest(1, Some(&[-1.0; LEGS]), TOL, 1), FineStep::Correct);
         g.correct(&[0.0; LEGS], TOL, &[-5.0; LEGS], &[5.0; LEGS], 0.2, 1.0)
             .unwrap();
-        assert!(g.setpoint(1.0).iter().all(|v| close(*v, MAX_CORRECTION_MM)));
+        assert!(g
+            .setpoint(1.0)
+            .iter()
+            .all(|v| (v.abs() - MAX_CORRECTION_MM).abs() < 1e-6));
+    }
+
+    #[test]
+    fn the_first_correction_takes_up_the_gap_a_small_reversal_left() {
+        // Every leg moved up to 1.0015 mm, then back 1.5 um (less than the turn) to its
+        // setpoint 1 mm: still approaching from below, the command 1.5 um behind where
+        // the gap was taken up.
+        let mut a = Approach::new([0.9; LEGS]);
+        a.track(&[1.0015; LEGS]);
+        a.track(&[1.0; LEGS]);
+        assert_eq!(a.last_up, ALL_LEGS);
+        let mut f = Fine::begin([1.0; LEGS], &a, 0);
+        // The slider did not move back (in the gap): 1 um short of the setpoint.
+        let short = [0.999; LEGS];
+        assert_eq!(f.at_rest(1, Some(&short), TOL, 1), FineStep::Correct);
+        f.correct(&[1.0; LEGS], TOL, &[-5.0; LEGS], &[5.0; LEGS], 0.2, 1.0)
+            .unwrap();
+        // 1.5 um of gap, and floor(0.85 (1 + 0.05) / 0.078125) = 11 microsteps.
+        let d = f.setpoint(1.0)[0] - 1.0;
+        assert!((d - (0.0015 + 11.0 * MICROSTEP_MM)).abs() < 1e-6, "{d}");
+        // The next correction from there: the error alone, from the microstep the drive
+        // stands on (the 1.5 um are 19.2 microsteps: it stands 0.2 below the command).
+        assert_eq!(f.at_rest(2, Some(&short), TOL, 1), FineStep::Correct);
+        let held = f.setpoint(1.0);
+        f.correct(&held, TOL, &[-5.0; LEGS], &[5.0; LEGS], 0.2, 1.0)
+            .unwrap();
+        let d = f.setpoint(1.0)[0] - held[0];
+        assert!((d - 10.8 * MICROSTEP_MM).abs() < 1e-6, "{d}");
     }
 }

@@ -50,8 +50,8 @@ use crate::units::{MM_PER_UM, NM_PER_MM, UM_PER_MM};
 
 /// The slider drives' mechanics, the same constants the second board's step/direction
 /// drives are configured with (`board::netduinoplus2::STEPPERS`; both take them from
-/// [`crate::nominal`]): a 1 mm lead screw, 200-step motors, 16 microsteps, direct drive,
-/// so 3,200 microsteps per mm (0.3125 um) and 5 um per full step. The microstep, full step
+/// [`crate::nominal`]): a 1 mm lead screw, 200-step motors, 64 microsteps, direct drive,
+/// so 12,800 microsteps per mm (0.078 um) and 5 um per full step. The microstep, full step
 /// and screw lead of [`LegDriveTrain::realistic`] are derived from it with the driver's
 /// own arithmetic ([`StepperConfig::microsteps_per_mm`]). The pulse rate, travel limit
 /// and pin levels are placeholders: the simulation uses none of them.
@@ -209,7 +209,8 @@ impl LegDriveTrain {
     }
 }
 
-/// The microstep of [`DRIVE_STEPPERS`] (um of slider travel): 0.3125 um.
+/// The microstep of [`DRIVE_STEPPERS`] (um of slider travel): 0.078125 um (the fine
+/// positioning's `motion::fine::MICROSTEP_MM`, from the same constants).
 pub fn drive_microstep_um() -> f64 {
     UM_PER_MM / DRIVE_STEPPERS.microsteps_per_mm()
 }

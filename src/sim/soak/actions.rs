@@ -117,12 +117,12 @@ impl<C: Choices> Soak<C> {
             0..=4 => {
                 let p = self.pose();
                 let rid = self.send(&Command::MoveAbsolute(p));
-                self.moves.push(rid);
+                self.sent_move(rid);
             }
             5 | 6 => {
                 let d = self.small_delta();
                 let rid = self.send(&Command::MoveRelative(d));
-                self.moves.push(rid);
+                self.sent_move(rid);
             }
             7 => {
                 self.send(&Command::Stop);
@@ -222,6 +222,20 @@ impl<C: Choices> Soak<C> {
                 }
             }
             _ => self.power_cut(),
+        }
+    }
+
+    /// A coordinated move sent: its completion is checked (invariant 11); sent while
+    /// idle, it may be watched to its end ([`super::WATCH_ONE_IN`], not by a fuzz
+    /// input: [`Choices::watches_moves`]).
+    fn sent_move(&mut self, rid: RequestId) {
+        self.moves.push(rid);
+        if self.rng.watches_moves()
+            && self.r.ctl.state() == State::Idle
+            && self.below(super::WATCH_ONE_IN) == 0
+        {
+            self.watching = Some(rid);
+            self.moves_watched += 1;
         }
     }
 

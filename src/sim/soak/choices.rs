@@ -9,6 +9,13 @@ pub trait Choices {
     fn exhausted(&self) -> bool {
         false
     }
+    /// Whether the soak may let a coordinated move run to its end with no other action
+    /// meanwhile ([`super::WATCH_ONE_IN`]): yes for the seeded soak, which runs for a
+    /// while; not for a fuzz input, whose few decisions should each act (a watched move
+    /// takes thousands of cycles).
+    fn watches_moves(&self) -> bool {
+        true
+    }
 }
 
 /// Deterministic xorshift64* generator (the soak test's source).
@@ -47,5 +54,8 @@ impl Choices for ByteChoices<'_> {
     }
     fn exhausted(&self) -> bool {
         self.at >= self.bytes.len()
+    }
+    fn watches_moves(&self) -> bool {
+        false
     }
 }

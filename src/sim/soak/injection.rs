@@ -146,6 +146,7 @@ impl<C: Choices> Soak<C> {
         // (or the one being written) may run after the reboot.
         self.check_reports(true);
         self.moves.clear();
+        self.watching = None;
         let candidates = std::mem::take(&mut self.selecting);
         let in_writes = !self.r.flash_mut().is_powered();
         if in_writes {

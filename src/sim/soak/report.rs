@@ -34,6 +34,8 @@ pub struct SoakFigures {
     pub repairs: u64,
     /// Coordinated moves whose completion success invariant 11 checked.
     pub moves_in_position: u64,
+    /// Coordinated moves watched to their end ([`super::WATCH_ONE_IN`]).
+    pub moves_watched: u64,
     /// Invariant violations.
     pub violations: u64,
 }
@@ -100,6 +102,7 @@ impl<C: Choices> Soak<C> {
             upsets: self.upsets,
             repairs: self.repairs,
             moves_in_position: self.moves_in_position,
+            moves_watched: self.moves_watched,
             violations: self.violations.len() as u64,
         }
     }
