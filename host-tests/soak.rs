@@ -15,6 +15,8 @@ const DEFAULT_SOAK_SECONDS: u64 = 20;
 /// Longest quiet gap between two actions (cycles): keeps the 115,200 baud downlink from
 /// saturating (a saturated link is a different test).
 const MAX_GAP_CYCLES: usize = 300;
+/// Fewest move completions the soak must have checked in position (invariant 11).
+const MIN_MOVES_IN_POSITION: u64 = 5;
 /// Cycles to let the last telecommands finish.
 const DRAIN_CYCLES: u32 = 30_000;
 
@@ -90,6 +92,14 @@ fn soak_holds_the_operator_contract_every_cycle() {
     assert!(
         f.upsets > 0 && f.repairs > 0,
         "the adversary never upset RAM, or no upset was repaired: {f:?}"
+    );
+    // Invariant 11 (no completion success while a true slider is out of position) must
+    // have been exercised: about 25 completions watched per default run on an idle
+    // machine; a fifth of that speed still watches 5.
+    assert!(
+        f.moves_in_position >= MIN_MOVES_IN_POSITION,
+        "the soak watched {} move completions, fewer than {MIN_MOVES_IN_POSITION}: {f:?}",
+        f.moves_in_position
     );
     assert!(
         f.switch_trips > 0 && f.blocked_motion_cycles > 0,

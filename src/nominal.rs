@@ -16,8 +16,8 @@ pub const STROKE_LIMIT_MM: f64 = 5.0;
 /// The prototype's slider drives, one per leg: the lead of the lead screw (nm of slider
 /// travel per screw revolution). With [`DRIVE_FULL_STEPS_PER_REV`],
 /// [`DRIVE_MICROSTEPS_PER_STEP`] and the gear ([`DRIVE_GEAR_MOTOR_REVS`] motor turns per
-/// [`DRIVE_GEAR_SCREW_REVS`] screw turns) it fixes the microstep: 1 mm / (200 * 16) =
-/// 0.3125 um of stroke. The second board's step/direction drives
+/// [`DRIVE_GEAR_SCREW_REVS`] screw turns) it fixes the microstep: 1 mm / (200 * 64) =
+/// 0.078 um of stroke (`motion::fine::MICROSTEP_MM`). The second board's step/direction drives
 /// (`board::netduinoplus2::STEPPERS`) and the simulated drive train
 /// (`sim::drive_train::DRIVE_STEPPERS`) both take these.
 pub const DRIVE_LEAD_SCREW_PITCH_NM: u32 = 1_000_000;

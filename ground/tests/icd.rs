@@ -376,3 +376,38 @@ fn the_table_figures_in_the_prose_are_the_codes() {
         assert!(text.contains(&phrase), "docs/icd.md lacks: {phrase}");
     }
 }
+
+/// The fine positioning's figures in section 3's prose are `motion::fine`'s constants.
+#[test]
+fn the_fine_positioning_figures_in_the_prose_are_the_codes() {
+    use m2ctl::motion::fine::{
+        LATE_CORRECTION, MAX_CORRECTIONS, MAX_CORRECTION_MM, MICROSTEP_MM, RETREAT_MM,
+        TIMEOUT_CYCLES, TURN_MM,
+    };
+    use m2ctl::timing::CONTROL_RATE_HZ;
+    let um = |mm: f32| format!("{}", (f64::from(mm) * 1e3 * 1e3).round() / 1e3);
+    let text = icd().split_whitespace().collect::<Vec<_>>().join(" ");
+    for phrase in [
+        format!("at most {MAX_CORRECTIONS} corrections per move"),
+        format!(
+            "at most {} um per leg from its setpoint",
+            um(MAX_CORRECTION_MM)
+        ),
+        format!("a reversal counts once it exceeds {} um", um(TURN_MM)),
+        format!("whole microsteps of its drive ({} um)", um(MICROSTEP_MM)),
+        format!(
+            "is moved {} um back past it and returned by as much",
+            um(RETREAT_MM)
+        ),
+        format!("as is one still not in position at the {LATE_CORRECTION}th correction"),
+        format!(
+            "A move not in position {} s after its path ends with TM[1,8] 0x070F",
+            TIMEOUT_CYCLES / CONTROL_RATE_HZ
+        ),
+    ] {
+        assert!(
+            text.contains(&phrase),
+            "docs/icd.md section 3 lacks: {phrase}"
+        );
+    }
+}
