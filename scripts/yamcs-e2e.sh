@@ -4,7 +4,8 @@
 # yamcs/tools/e2e.py through yamcs-client (ping, housekeeping with units and UTC time,
 # a move in um/arcsec with every verifier stage, a refused move, a table upload/commit/
 # activate, events with severities, sources and named words, number formats, critical
-# commands, alarms, users and roles: the observer refused (403), the operator not;
+# commands, transmission constraints (a command held during a move), alarms and the
+# derived following error, users and roles: the observer refused (403), the operator not;
 # every Yamcs-encoded TC byte-identical to m2ground tc's; the console as start-up left
 # it: the parameter lists, the display and stack buckets, the table-upload stack run by
 # Yamcs web in headless Chromium against the controller, the housekeeping display drawn

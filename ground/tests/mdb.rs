@@ -1056,3 +1056,150 @@ fn link_health_parameters_are_described_once_with_alarms_on_the_error_counters()
         matches!(r.alarm, Some(mdb::AlarmRule::Above { limit, .. }) if limit == TCO_RESIDUAL_ALARM_MS)
     );
 }
+
+/// A controller state to send a telecommand in (the transmission-constraint test).
+#[derive(Clone, Copy, Debug)]
+enum Situation {
+    /// A 1 mm move under way.
+    Moving,
+    /// A fault latched (a corrupted encoder frame), its cause gone.
+    Faulted,
+    /// Idle, a table job (revert to nominal) running.
+    Job,
+}
+
+/// A bench in `s`.
+fn bench_in(s: Situation) -> m2ctl::sim::Bench {
+    use m2ctl::controller::State;
+    use m2ctl::sim::{Bench, InjectedFault};
+    let mut r = Bench::new();
+    r.run(2);
+    match s {
+        Situation::Moving => {
+            r.send(&Command::MoveAbsolute(WirePose::from_array([
+                1_000_000, 0, 0, 0, 0, 0,
+            ])));
+            for _ in 0..20 {
+                if r.ctl.state() == State::Moving {
+                    break;
+                }
+                r.tick();
+            }
+            assert_eq!(r.ctl.state(), State::Moving);
+        }
+        Situation::Faulted => {
+            r.plant
+                .with(|p| p.inject(InjectedFault::EncoderCorrupted { leg: 0 }));
+            for _ in 0..50 {
+                if r.ctl.state() == State::Faulted {
+                    break;
+                }
+                r.tick();
+            }
+            r.plant.with(|p| p.clear_faults());
+            r.run(2);
+            assert_eq!(r.ctl.state(), State::Faulted);
+        }
+        Situation::Job => {
+            r.send(&Command::RevertToNominal);
+            assert!(r.ctl.housekeeping().job != 0, "no job running");
+        }
+    }
+    r
+}
+
+/// Every telecommand's transmission constraint is exactly where the controller refuses
+/// it for its state: sent while moving, while faulted and while a table job runs, on
+/// the simulated bench, it is refused with 0x0702 (busy), 0x0701 (faulted) or 0x070D
+/// (job) if and only if its constraint excludes that state.
+#[test]
+fn transmission_constraints_are_where_the_controller_refuses() {
+    use m2ctl::controller::State;
+    const STATE_REFUSALS: [u16; 3] = [0x0701, 0x0702, 0x070D];
+    let label = |s: State| mdb::upper_snake(&format!("{s:?}"));
+    let mut constrained = 0;
+    for tc in mdb().telecommands {
+        let command = (tc.build)(&arg_sets(&tc)[0]).unwrap_or_else(|e| panic!("{}: {e}", tc.name));
+        for s in [Situation::Moving, Situation::Faulted, Situation::Job] {
+            let excluded = tc.constraint.as_ref().is_some_and(|c| match s {
+                Situation::Moving => !c.states.contains(&label(State::Moving)),
+                Situation::Faulted => !c.states.contains(&label(State::Faulted)),
+                Situation::Job => c.no_job,
+            });
+            let mut r = bench_in(s);
+            let rid = r.send(&command);
+            r.run(5);
+            let reports = r.st.reports(rid);
+            let refused = reports.iter().any(|v| {
+                matches!(v, Verification::StartFailure { code, .. }
+                    | Verification::CompletionFailure { code, .. } if STATE_REFUSALS.contains(code))
+            });
+            assert_eq!(
+                refused, excluded,
+                "{} in {s:?}: constraint {:?}, reports {reports:?}",
+                tc.name, tc.constraint
+            );
+        }
+        if let Some(c) = &tc.constraint {
+            constrained += 1;
+            assert!(c.timeout_s > 0.0 && !c.why.is_empty(), "{}: {c:?}", tc.name);
+        }
+    }
+    assert_eq!(constrained, 9, "constrained telecommands");
+}
+
+/// The derived parameters' inputs are housekeeping fields in the derived unit, and the
+/// following error's alarm levels are the controller's default thresholds.
+#[test]
+fn derived_parameters_come_from_housekeeping_in_their_unit() {
+    use m2ctl::table::DEFAULT_SUPERVISION;
+    let m = mdb();
+    let hk = &m
+        .telemetry
+        .iter()
+        .find(|p| p.name == "housekeeping")
+        .unwrap()
+        .fields;
+    for d in &m.derived {
+        assert!(!d.largest_difference_of.is_empty() && d.min_violations >= 1);
+        for (a, b) in &d.largest_difference_of {
+            for name in [a, b] {
+                let f = hk
+                    .iter()
+                    .find(|f| &f.name == name)
+                    .unwrap_or_else(|| panic!("{}: no housekeeping field {name}", d.name));
+                assert!(
+                    matches!(f.meaning, Meaning::Number { unit: Some(u), .. } if u == d.unit),
+                    "{}: {name} is {:?}",
+                    d.name,
+                    f.meaning
+                );
+            }
+        }
+        assert!(
+            hk.iter().all(|f| f.name != d.name),
+            "{} is a TM field",
+            d.name
+        );
+    }
+    let fe = m
+        .derived
+        .iter()
+        .find(|d| d.name == "following_error_max")
+        .unwrap();
+    assert_eq!(fe.largest_difference_of.len(), m2ctl::kinematics::LEGS);
+    let um = |mm: f32| f64::from(mm) * 1e3;
+    assert_eq!(
+        fe.above,
+        vec![
+            (
+                "WARNING",
+                um(DEFAULT_SUPERVISION.following_error_warning_mm).round()
+            ),
+            (
+                "CRITICAL",
+                um(DEFAULT_SUPERVISION.following_error_fault_mm).round()
+            ),
+        ]
+    );
+}

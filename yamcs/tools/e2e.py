@@ -674,6 +674,25 @@ def main() -> int:
         elif level not in ("NONE", "NORMAL"):
             wrong.append((tc["name"], got))
     check(len(sig) >= 6 and not wrong, f"critical commands in Yamcs: {sig}; wrong: {wrong[:3]}")
+    # Transmission constraints: exactly the description's, on state and job.
+    constrained, wrong = {}, []
+    for tc in mdb_json["telecommands"]:
+        got = api("commands/M2/" + tc["name"]).get("constraint", [])
+        c = tc.get("constraint")
+        if c is None:
+            if got:
+                wrong.append((tc["name"], got))
+            continue
+        expr = got[0].get("expression", "") if len(got) == 1 else ""
+        timeout_ms = int(got[0].get("timeout", 0)) if len(got) == 1 else None
+        ok = (all(label in expr for label in c["states"]) and ("job" in expr) == c["no_job"]
+              and "state" in expr and timeout_ms == int(c["timeout_s"] * 1000))
+        constrained[tc["name"]] = expr
+        if not ok:
+            wrong.append((tc["name"], got))
+    check(len(constrained) >= 9 and not wrong,
+          f"{len(constrained)} commands with their transmission constraint in Yamcs "
+          f"(MOVE_ABSOLUTE: {constrained.get('MOVE_ABSOLUTE')}); wrong: {wrong[:3]}")
 
     # 6c. Alarms: the description's alarms as Yamcs serves them; none on the state while
     # IDLE; a telecommand the link refuses raises tc_rejected's alarm.
@@ -712,7 +731,45 @@ def main() -> int:
         alarm = None
     check(rejected > 0 and alarm is not None and alarm.get("severity") == "WATCH",
           f"tc_rejected = {rejected} raises a WATCH alarm: {alarm and {k: alarm.get(k) for k in ('severity', 'type', 'violations')}}")
+    # The derived following error: Yamcs' algorithm output equals the largest
+    # |commanded stroke - encoder| of the same housekeeping report; its alarm as described.
+    derived = {d["name"]: d for d in mdb_json["derived"]}
+    fe = derived["following_error_max"]
+    got = api("parameters/M2/following_error_max").get("type", {}).get("defaultAlarm", {})
+    levels = {(r.get("level"), r.get("maxInclusive")) for r in got.get("staticAlarmRanges", [])}
+    check(levels == {(lvl, lim) for lvl, lim in fe["above"]} and got.get("minViolations") == fe["min_violations"],
+          f"following_error_max's alarm in Yamcs: {sorted(levels)}, debounce {got.get('minViolations')} reports")
+    hk = op.hk_after(op.newest_obt())
+    want = max(abs(hk.value(a).eng_value - hk.value(b).eng_value) for a, b in fe["largest_difference_of"])
+    have = hk.value("following_error_max").eng_value
+    check(abs(have - want) < 1e-9, f"following_error_max = {have:.4f} um = max |stroke_cmd - encoder| "
+          f"of the same report ({want:.4f} um)")
     figures["active alarms"] = {k: v.get("severity") for k, v in active_alarms().items()}
+
+    # 6d. A transmission constraint holds a command until the controller can take it: a
+    # SET_PARAMETER sent while a 1 mm move runs waits in Yamcs for housekeeping to show
+    # IDLE, then is accepted and completes (the controller would refuse it while moving,
+    # 0x0702): its acceptance report comes after the move's completion report.
+    print("6d. transmission constraint")
+    long_move = op.conn.issue(NS + "MOVE_ABSOLUTE", args={"x": 1000.0, "y": 0, "z": 0, "rx": 0, "ry": 0, "rz": 0})
+    op.sent += 1
+    seq = long_move.attributes.get("ccsds-seqcount") if long_move.attributes else None
+    seq = seq if seq is not None else op.wait("the move's sequence count",
+                                              lambda: long_move.attributes.get("ccsds-seqcount"), 15.0)
+    started = op.report(seq, 3)
+    moving = op.hk_after(started.obt).value("state").eng_value
+    cmd = op.command("SET_PARAMETER", {"parameter_id": "PIVOT_Z", "value": 250_000_000}, timeout=60)
+    # (yamcs-client's acknowledgments leave the constraint stage out: its attributes.)
+    tc_stage = cmd.attributes.get("TransmissionConstraints_Status")
+    move_done = op.report(seq, 7, timeout=60)
+    accepted = op.report(cmd.attributes.get("ccsds-seqcount"), 1)
+    check(moving == "MOVING" and cmd.is_success() and tc_stage == "OK"
+          and accepted.obt > move_done.obt,
+          f"SET_PARAMETER sent while {moving}: held by Yamcs (constraint {tc_stage}), "
+          f"accepted at OBT {accepted.obt / 65536:.3f} s after the move completed at {move_done.obt / 65536:.3f} s "
+          f"({cmd.error or 'OK'})")
+    figures["held by the constraint (s, OBT of the acceptance - the move's completion)"] = round(
+        (accepted.obt - move_done.obt) / 65536, 3)
 
     # 7. Time: CUC 4+2 decoded and correlated to UTC (checked last, when the QEMU
     # controller's clock has settled).

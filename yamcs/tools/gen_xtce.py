@@ -20,6 +20,7 @@ from pathlib import Path
 
 from yamcs.pymdb import (
     AcceptedVerifier,
+    Algorithm,
     AggregateDataType,
     AlarmLevel,
     AlgorithmCheck,
@@ -48,11 +49,13 @@ from yamcs.pymdb import (
     IntegerEncodingScheme,
     IntegerMember,
     IntegerParameter,
+    OutputParameter,
     ParameterEntry,
     ParameterValue,
     Polynomial,
     System,
     ThresholdAlarm,
+    TransmissionConstraint,
     UnnamedJavaAlgorithm,
     all_of,
     any_of,
@@ -118,6 +121,40 @@ class Generator:
                 raise ValueError(f"{name}: a link-health parameter named like a TM field")
             self.params[name] = param
 
+    # ------------------------------------------------------------------ derived
+
+    def derived(self):
+        """Parameters Yamcs derives from each housekeeping report: a JavaScript algorithm
+        (Yamcs' default engine) per parameter, its inputs the housekeeping fields, with
+        the parameter's alarm."""
+        s = self.system
+        for d in self.mdb["derived"]:
+            name = d["name"]
+            if name in self.params:
+                raise ValueError(f"{name}: a derived parameter named like another parameter")
+            alarm = ThresholdAlarm(**{f"{level.lower()}_high": limit for level, limit in d["above"]},
+                                   minimum_violations=d["min_violations"])
+            out = FloatParameter(s, name, bits=64, units=d["unit"], data_source=DataSource.DERIVED,
+                                 short_description=d["description"], alarm=alarm)
+            self.params[name] = out
+            self.number_formats[name] = d["fraction_digits"]
+            inputs, terms = [], []
+            for i, (a, b) in enumerate(d["largest_difference_of"]):
+                for var, field in ((f"a{i}", a), (f"b{i}", b)):
+                    if field not in self.params:
+                        raise ValueError(f"{name}: input {field} is not a telemetry parameter")
+                    inputs.append(InputParameter(self.params[field], name=var, required=True))
+                terms.append(f"Math.abs(a{i}.value - b{i}.value)")
+            Algorithm(
+                s,
+                f"{name}_algorithm",
+                language="JavaScript",
+                text=f"out.value = Math.max({', '.join(terms)});",
+                inputs=inputs,
+                outputs=[OutputParameter(out, name="out")],
+                short_description=d["description"],
+            )
+
     # ------------------------------------------------------------------ telemetry
 
     def choices(self, enumeration: str):
@@ -179,6 +216,16 @@ class Generator:
             raise ValueError(f"{name}: unknown meaning {kind}")
         self.params[name] = p
         return p
+
+    def constraint(self, c):
+        """The description's transmission constraint as pymdb's (None: none)."""
+        if c is None:
+            return None
+        state = self.params["state"]
+        states = [eq(state, label) for label in c["states"]]
+        allowed = states[0] if len(states) == 1 else any_of(*states)
+        expr = all_of(allowed, eq(self.params["job"], 0)) if c["no_job"] else allowed
+        return TransmissionConstraint(expr, timeout=c["timeout_s"])
 
     def alarm(self, name: str):
         """The description's alarm of a parameter, as pymdb's alarm (None: none)."""
@@ -532,6 +579,9 @@ class Generator:
                 # Critical: Yamcs asks the operator to confirm, with the reason.
                 level=CommandLevel.CRITICAL if tc.get("critical") else CommandLevel.NORMAL,
                 warning_message=tc.get("critical"),
+                # Sent only in the states the controller takes it in (Yamcs holds it
+                # until housekeeping shows one, at most the timeout).
+                constraint=self.constraint(tc.get("constraint")),
                 short_description=f"TC[{tc['service']},{tc['subtype']}]"
                 + (f" function 0x{tc['function_id']:04x}" if tc["function_id"] is not None else "")
                 + f": {tc['description']}",
@@ -597,6 +647,7 @@ def main(argv: list[str]) -> int:
     g = Generator(mdb)
     g.telemetry()
     g.link_health()
+    g.derived()
     g.commands()
     missing = set(g.alarms) - g.alarmed
     if missing:

@@ -2,7 +2,7 @@
 //! at which level (Yamcs levels WATCH, WARNING, DISTRESS, CRITICAL, SEVERE).
 
 use super::names::upper_snake;
-use super::{AlarmRule, ParameterAlarm};
+use super::{AlarmRule, DerivedParameter, ParameterAlarm};
 use m2ctl::controller::State;
 
 /// Yamcs' alarm level of a controller state (exhaustive: a new state does not compile
@@ -66,4 +66,41 @@ pub fn alarms() -> Vec<ParameterAlarm> {
             "telecommands were refused by the link since boot",
         ),
     ]
+}
+
+/// Parameters Yamcs derives from each housekeeping report, with their alarms.
+///
+/// `following_error_max`: the largest difference between a leg's commanded (or held)
+/// stroke and its encoder reading in the same report, in um. The controller supervises
+/// the same quantity every control cycle against the active table's thresholds and
+/// latches its own warning and fault; the ground's alarm shows it to the operator at the
+/// thresholds' defaults (`table::DEFAULT_SUPERVISION`: 5 and 50 um),
+/// debounced over two reports: one report caught in a backlash reversal (a few um for
+/// a few cycles) is not an alarm.
+pub fn derived() -> Vec<DerivedParameter> {
+    use m2ctl::kinematics::LEGS;
+    use m2ctl::table::DEFAULT_SUPERVISION;
+    use m2ctl::units::UM_PER_MM;
+    let um = |mm: f32| (f64::from(mm) * UM_PER_MM).round();
+    vec![DerivedParameter {
+        name: "following_error_max",
+        unit: super::UNIT_UM,
+        description: format!(
+            "largest |commanded stroke - encoder reading| over legs 1..{LEGS} in one \
+             housekeeping report (um; Yamcs algorithm)"
+        ),
+        fraction_digits: 3,
+        largest_difference_of: (1..=LEGS)
+            .map(|i| (format!("stroke_cmd_leg{i}"), format!("encoder_leg{i}")))
+            .collect(),
+        above: vec![
+            (
+                "WARNING",
+                um(DEFAULT_SUPERVISION.following_error_warning_mm),
+            ),
+            ("CRITICAL", um(DEFAULT_SUPERVISION.following_error_fault_mm)),
+        ],
+        min_violations: 2,
+        why: "a slider lags its command: the controller warns, then faults, at its thresholds",
+    }]
 }

@@ -52,7 +52,7 @@ mod table_image;
 mod telecommands;
 mod telemetry;
 
-pub use alarms::alarms;
+pub use alarms::{alarms, derived};
 use bit_fields::leg_mask_bits;
 pub use bit_fields::{bank_status_flags, fault_flag_bits, fault_flags_doc, refusal_bits, FlagDoc};
 pub use console::{
@@ -279,9 +279,27 @@ pub struct Telecommand {
     /// Why it is critical (Yamcs significance CRITICAL: the operator confirms it);
     /// `None`: a normal telecommand.
     pub critical: Option<&'static str>,
+    /// The controller state in which it is sent (a Yamcs transmission constraint: Yamcs
+    /// holds it until housekeeping shows that state, at most the constraint's timeout);
+    /// `None`: sent at once.
+    pub constraint: Option<Constraint>,
     /// Raw arguments -> flight command.
     #[serde(skip)]
     pub build: BuildFn,
+}
+
+/// When a telecommand may be sent: the states in which the controller does not refuse it
+/// for its state (a Yamcs transmission constraint on housekeeping's `state` and `job`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Constraint {
+    /// Labels of the `controller_state` enumeration it is sent in.
+    pub states: Vec<String>,
+    /// Sent only while no table job runs (`job` = 0).
+    pub no_job: bool,
+    /// How long Yamcs waits for the constraint before it fails the command (s).
+    pub timeout_s: f64,
+    /// The controller's refusal it spares the operator.
+    pub why: &'static str,
 }
 
 /// One TM packet type.
@@ -487,6 +505,31 @@ pub struct Mdb {
     pub alarms: Vec<ParameterAlarm>,
     /// The gateway's link-health parameters (Yamcs local parameters, with their alarms).
     pub link_health: Vec<LinkHealthParameter>,
+    /// Parameters Yamcs derives from housekeeping (algorithms), with their alarms.
+    pub derived: Vec<DerivedParameter>,
+}
+
+/// A parameter Yamcs computes from the fields of one housekeeping report (a Yamcs
+/// algorithm triggered by the report): the largest absolute difference of pairs of
+/// fields, in their engineering unit.
+#[derive(Clone, Debug, Serialize)]
+pub struct DerivedParameter {
+    /// Name (lower snake case, unique among parameters).
+    pub name: &'static str,
+    /// Engineering unit (the pairs' unit).
+    pub unit: &'static str,
+    /// What it is.
+    pub description: String,
+    /// Decimals it is shown with.
+    pub fraction_digits: u32,
+    /// `max_i |a_i - b_i|` over these `(a, b)` housekeeping field pairs.
+    pub largest_difference_of: Vec<(String, String)>,
+    /// In alarm at each `(level, limit)` when above the limit (engineering units).
+    pub above: Vec<(&'static str, f64)>,
+    /// Consecutive values in alarm before it is raised (debounce).
+    pub min_violations: u32,
+    /// Why it matters to the operator.
+    pub why: &'static str,
 }
 
 /// When Yamcs raises an alarm on a parameter.
@@ -611,5 +654,6 @@ pub fn mdb() -> Mdb {
         table_image: table_image(),
         alarms: alarms(),
         link_health: link_health(),
+        derived: derived(),
     }
 }

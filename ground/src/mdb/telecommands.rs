@@ -6,10 +6,11 @@ use super::fields::{
 };
 use super::names::upper_snake;
 use super::{
-    ArgValue, BuildFn, Field, Meaning, Telecommand, Wire, CUC_COARSE_BYTES, CUC_FINE_BYTES,
-    MOVE_COMPLETION_S, QUICK_COMPLETION_S, UNIT_UM,
+    ArgValue, BuildFn, Constraint, Field, Meaning, Telecommand, Wire, CUC_COARSE_BYTES,
+    CUC_FINE_BYTES, MOVE_COMPLETION_S, QUICK_COMPLETION_S, UNIT_UM,
 };
 use m2ctl::controller::params::PARAMETERS;
+use m2ctl::controller::State;
 use m2ctl::kinematics::LEGS;
 use m2ctl::link::command::{
     FunctionId, MemoryId, ParameterIds, ParameterValues, TableChunk, WirePose, FUNCTION_ID_LEN,
@@ -153,6 +154,7 @@ fn schedule_telecommands() -> Vec<Telecommand> {
      -> Telecommand {
         Telecommand {
             critical: None,
+            constraint: None,
             name: name.into(),
             service: service::SCHEDULING,
             subtype: sub,
@@ -223,6 +225,7 @@ fn schedule_telecommands() -> Vec<Telecommand> {
     vec![
         Telecommand {
             critical: None,
+            constraint: None,
             name: "SET_TIME_REPORT_RATE".into(),
             service: service::TIME,
             subtype: subtype::SET_TIME_REPORT_RATE,
@@ -532,6 +535,7 @@ pub(super) fn telecommands() -> Vec<Telecommand> {
     let mut v = vec![
         Telecommand {
             critical: None,
+            constraint: None,
             name: "PING".into(),
             service: service::TEST,
             subtype: subtype::PING,
@@ -545,6 +549,7 @@ pub(super) fn telecommands() -> Vec<Telecommand> {
         },
         Telecommand {
             critical: None,
+            constraint: None,
             name: "HOUSEKEEPING_ONE_SHOT".into(),
             service: service::HOUSEKEEPING,
             subtype: subtype::HK_ONE_SHOT,
@@ -562,6 +567,7 @@ pub(super) fn telecommands() -> Vec<Telecommand> {
         },
         Telecommand {
             critical: None,
+            constraint: None,
             name: "LOAD_TABLE_CHUNK".into(),
             service: service::MEMORY,
             subtype: subtype::MEMORY_LOAD,
@@ -608,6 +614,7 @@ pub(super) fn telecommands() -> Vec<Telecommand> {
         },
         Telecommand {
             critical: None,
+            constraint: None,
             name: "DUMP_TABLE".into(),
             service: service::MEMORY,
             subtype: subtype::MEMORY_DUMP,
@@ -641,6 +648,7 @@ pub(super) fn telecommands() -> Vec<Telecommand> {
         let d = function_args(f);
         v.push(Telecommand {
             critical: None,
+            constraint: None,
             name: upper_snake(&format!("{f:?}")),
             service: service::FUNCTION,
             subtype: subtype::PERFORM_FUNCTION,
@@ -656,6 +664,7 @@ pub(super) fn telecommands() -> Vec<Telecommand> {
     v.extend([
         Telecommand {
             critical: None,
+            constraint: None,
             name: "REPORT_PARAMETER".into(),
             service: service::PARAMETER,
             subtype: subtype::PARAMETER_REPORT_REQUEST,
@@ -686,6 +695,7 @@ pub(super) fn telecommands() -> Vec<Telecommand> {
         },
         Telecommand {
             critical: None,
+            constraint: None,
             name: "SET_PARAMETER".into(),
             service: service::PARAMETER,
             subtype: subtype::PARAMETER_SET,
@@ -720,8 +730,42 @@ pub(super) fn telecommands() -> Vec<Telecommand> {
     v.extend(schedule_telecommands());
     for tc in &mut v {
         tc.critical = critical_reason(&tc.name);
+        tc.constraint = constraint(&tc.name);
     }
     v
+}
+
+/// How long Yamcs holds a constrained telecommand for its state before failing it (s):
+/// longer than a typical move (a 1 mm move takes about 6 s, its fine positioning at
+/// most 5 s more) and a table job, short enough that an operator is told soon.
+const CONSTRAINT_TIMEOUT_S: f64 = 15.0;
+
+/// The state a telecommand is sent in (`None`: any). The controller refuses the same
+/// telecommands in the other states (0x0702 busy, 0x070D a table job runs, 0x0701 a
+/// fault latched); `ground/tests/mdb.rs` checks each one against the controller on the
+/// simulated bench. Yamcs sees the state one housekeeping report late at worst, so the
+/// controller's own refusal stays the rule; the constraint spares the operator a
+/// refusal (and holds a command sent during a move until the move ends).
+fn constraint(name: &str) -> Option<Constraint> {
+    let label = |s: State| upper_snake(&format!("{s:?}"));
+    let (states, why) = match name {
+        "MOVE_ABSOLUTE" | "MOVE_RELATIVE" => (
+            vec![label(State::Idle)],
+            "refused while moving (0x0702), a table job runs (0x070D) or a fault is latched (0x0701)",
+        ),
+        "CLEAR_FAULT" | "DIRECT_STROKE" | "COMMIT_TABLE" | "ACTIVATE_TABLE" | "SWITCH_BANK"
+        | "REVERT_TO_NOMINAL" | "SET_PARAMETER" => (
+            vec![label(State::Idle), label(State::Faulted)],
+            "refused while moving (0x0702) or while a table job runs (0x070D)",
+        ),
+        _ => return None,
+    };
+    Some(Constraint {
+        states,
+        no_job: true,
+        timeout_s: CONSTRAINT_TIMEOUT_S,
+        why,
+    })
 }
 
 /// Why a telecommand is critical (Yamcs asks the operator to confirm it), `None` for a
