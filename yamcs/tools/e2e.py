@@ -43,6 +43,7 @@ import urllib.request
 from pathlib import Path
 
 from yamcs.client import YamcsClient, YamcsError
+from yamcs.client.core.exceptions import TimeoutError as YamcsTimeout
 
 from archive_check import OWN_LIST
 from console import YAMCS as CONSOLE_DIR, request as console_request, shipped_lists, yamcs_lists
@@ -191,7 +192,9 @@ class Operator:
         self.sent += 1
         try:
             cmd.await_complete(timeout=timeout)
-        except TimeoutError:
+        except (TimeoutError, YamcsTimeout):
+            # Yamcs never completed it (its verifier may have missed a report): the
+            # checks look at the controller's reports by request ID.
             pass
         return cmd
 
@@ -210,23 +213,34 @@ class Operator:
         return self.race_checked(cmd, out)
 
     def race_checked(self, cmd, stages: dict[str, str]) -> dict[str, str]:
-        """A stage Yamcs shows CANCELLED although the controller's success report of that
-        stage is archived counts as OK, and is counted as a figure. Yamcs 5.12's PUS
-        verifier matches a report against the sent sequence count, a command-history
-        attribute published asynchronously; a report arriving before it is not matched,
-        and the stage is cancelled when the command completes (seen once in three e2e
-        runs on a loaded host, at MOVE_ABSOLUTE's acceptance). The controller's property,
-        its report with the command's request ID, is what is checked then."""
+        """A stage Yamcs left undecided (CANCELLED, pending or missing) although the
+        controller's report of that stage is archived counts as that report says (success
+        OK, failure NOK), and is counted as a figure. Yamcs 5.12's PUS verifier matches a
+        report against the sent sequence count, a command-history attribute published
+        asynchronously; a report arriving before it is not matched, and the stage is
+        cancelled when the command completes or never decided (seen once in three e2e
+        runs on a loaded host, at MOVE_ABSOLUTE's acceptance, and once at a refused table
+        chunk's acceptance, when the command never completed in Yamcs). The
+        controller's property, its report with the command's request ID, is what is
+        checked then."""
         seq = (getattr(cmd, "attributes", None) or {}).get("ccsds-seqcount")
-        for stage, subtype in zip(STAGES, (1, 3, 7)):
-            if stages.get(stage) == "CANCELLED" and seq is not None:
+        for stage, ok_subtype in zip(STAGES, (1, 3, 7)):
+            if seq is None or stages.get(stage) == "NOK":
+                break  # nothing after a failed stage
+            if stages.get(stage) == "OK":
+                continue
+            # The stage's success report, or its failure report (subtype + 1).
+            for subtype, status in ((ok_subtype, "OK"), (ok_subtype + 1, "NOK")):
                 try:
                     self.report(seq, subtype, timeout=5.0)
                 except TimeoutError:
                     continue
-                stages[stage] = "OK"
-                races = figures.setdefault("Yamcs verifier races (stage shown CANCELLED, report archived)", [])
-                races.append(f"{cmd.name.rsplit('/', 1)[-1]} seq {seq} {stage}")
+                races = figures.setdefault(
+                    "Yamcs verifier races (stage not decided by Yamcs, controller's report archived)", [])
+                races.append(f"{cmd.name.rsplit('/', 1)[-1]} seq {seq} {stage} "
+                             f"{stages.get(stage)} -> {status}")
+                stages[stage] = status
+                break
         return stages
 
 
