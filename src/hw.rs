@@ -165,18 +165,27 @@ pub trait EndOfTravel {
     fn read_switches(&mut self) -> TravelSwitches;
 }
 
-/// Everything the controller reads and commands of one mechanism, every control cycle:
-/// the encoders and their warnings, the drives, the end-of-travel switches. The
-/// controller is generic over it; anything with the four parts has it (drivers on a
-/// board, the simulated plant, a board's slider model).
-pub trait MechanismIo: StrokeEncoders + SliderDrives + EndOfTravel + EncoderWarnings {}
+/// Everything the controller reads and commands of one mechanism: every control cycle
+/// the encoders and their warnings, the drives, the end-of-travel switches; every
+/// [`crate::timing::TEMPERATURE_PERIOD_CYCLES`] the temperature sensors. The controller
+/// is generic over it; anything with the five parts has it (drivers on a board, the
+/// simulated plant, a board's slider model).
+pub trait MechanismIo:
+    StrokeEncoders + SliderDrives + EndOfTravel + EncoderWarnings + TemperatureInputs
+{
+}
 
-impl<T: StrokeEncoders + SliderDrives + EndOfTravel + EncoderWarnings + ?Sized> MechanismIo for T {}
+impl<
+        T: StrokeEncoders + SliderDrives + EndOfTravel + EncoderWarnings + TemperatureInputs + ?Sized,
+    > MechanismIo for T
+{
+}
 
 /// The mechanism's temperature sensors (issue 22): PT1000 resistance thermometers
 /// ([`crate::thermal::pt1000`]) read through a 16-bit ratiometric ADC
-/// ([`crate::thermal::adc`]). Not part of [`MechanismIo`]: housekeeping reads it, the
-/// control cycle does not need it.
+/// ([`crate::thermal::adc`]). Part of [`MechanismIo`]: the controller reads every
+/// channel once per [`crate::timing::TEMPERATURE_PERIOD_CYCLES`] and supervises each
+/// ([`crate::thermal::SensorBank`]).
 pub trait TemperatureInputs {
     /// Reads every channel once, in ADC counts (0 to
     /// [`crate::thermal::adc::FULL_SCALE_COUNTS`]; ratiometric, `counts = full scale * R
@@ -186,6 +195,18 @@ pub trait TemperatureInputs {
     /// [`crate::thermal::celsius_from_counts`] (deg C) and supervise with
     /// [`crate::thermal::SensorMonitor`].
     fn read_temperature_counts(&mut self) -> [u16; crate::thermal::TEMP_SENSORS];
+}
+
+/// The drivers' mechanism ([`crate::drivers::Mechanism`]: the Netduino Plus 2's, a
+/// host rig's) has no ADC driver yet: every channel reads the fixed
+/// [`crate::thermal::adc::COUNTS_NEAR_20_C`] (19.99 deg C). The supervision takes a
+/// channel that repeats one count as stuck (`thermal::STUCK_SAMPLES` readings, 6.4 s),
+/// so housekeeping reports these sensors stuck: no temperature is claimed that was not
+/// measured.
+impl<E, D, S> TemperatureInputs for crate::drivers::Mechanism<E, D, S> {
+    fn read_temperature_counts(&mut self) -> [u16; crate::thermal::TEMP_SENSORS] {
+        [crate::thermal::adc::COUNTS_NEAR_20_C; crate::thermal::TEMP_SENSORS]
+    }
 }
 
 /// Converts encoder counts to strokes (mm) in f32.

@@ -80,6 +80,11 @@ pub mod adc {
     /// count is about 0.017 K around room temperature (58 counts per kelvin).
     pub const REFERENCE_OHM: f64 = 1000.0;
 
+    /// The count just below a sensor at 20 deg C (the nominal thermal model's reference;
+    /// ideally 33,996.48 counts, so 19.992 deg C): the fixed reading of a board whose
+    /// temperature inputs are not wired (`crate::hw::TemperatureInputs`).
+    pub const COUNTS_NEAR_20_C: u16 = 33_996;
+
     /// The ideal (unrounded) reading of a sensor of resistance `r_ohm`.
     pub fn counts_of_resistance(r_ohm: f64) -> f64 {
         f64::from(FULL_SCALE_COUNTS) * r_ohm / (r_ohm + REFERENCE_OHM)
@@ -112,6 +117,16 @@ impl SensorFault {
             SensorFault::Short => 1,
             SensorFault::Open => 2,
             SensorFault::Stuck => 3,
+        }
+    }
+
+    /// From the stable code (`None` for 0, healthy, and unknown codes).
+    pub const fn from_code(code: u8) -> Option<SensorFault> {
+        match code {
+            1 => Some(SensorFault::Short),
+            2 => Some(SensorFault::Open),
+            3 => Some(SensorFault::Stuck),
+            _ => None,
         }
     }
 }
@@ -165,7 +180,9 @@ pub const STUCK_SAMPLES: u16 = 64;
 /// 0.017 K; the mean of 16 is below 5 mK).
 pub const MEAN_SAMPLES: u16 = 16;
 
-/// One sensor's supervision: the stuck check and the running mean.
+/// One sensor's supervision: the stuck check and the running mean. Its default (nothing
+/// read yet) is all zero bytes, so a controller built in place zeroes it instead of
+/// writing it field by field (the boot stack: `Controller::unstarted_in`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SensorMonitor {
     /// The last count read.
@@ -176,11 +193,13 @@ pub struct SensorMonitor {
     sum_c: f32,
     /// Readings in the current window.
     n: u16,
-    /// The last complete window's mean (deg C), `None` before the first.
-    mean_c: Option<f32>,
-    /// The sensor's fault, if any (a fault ends only with a reading that is healthy
-    /// again; the window restarts then).
-    fault: Option<SensorFault>,
+    /// The last complete window's mean (deg C), valid when `has_mean`.
+    mean_c: f32,
+    /// A window has completed since the last fault (or since the start).
+    has_mean: bool,
+    /// The sensor's fault, [`SensorFault::code`], 0 when healthy (a fault ends only with
+    /// a reading that is healthy again; the window restarts then).
+    fault_code: u8,
 }
 
 impl SensorMonitor {
@@ -200,17 +219,18 @@ impl SensorMonitor {
         };
         match reading {
             Err(f) => {
-                self.fault = Some(f);
+                self.fault_code = f.code();
                 self.sum_c = 0.0;
                 self.n = 0;
-                self.mean_c = None;
+                self.has_mean = false;
             }
             Ok(t) => {
-                self.fault = None;
+                self.fault_code = 0;
                 self.sum_c += t;
                 self.n += 1;
                 if self.n >= MEAN_SAMPLES {
-                    self.mean_c = Some(self.sum_c / f32::from(self.n));
+                    self.mean_c = self.sum_c / f32::from(self.n);
+                    self.has_mean = true;
                     self.sum_c = 0.0;
                     self.n = 0;
                 }
@@ -221,15 +241,92 @@ impl SensorMonitor {
     /// The sensor's temperature (deg C): the last window's mean, `None` while faulty or
     /// before a first window is complete.
     pub fn celsius(&self) -> Option<f32> {
-        match self.fault {
-            Some(_) => None,
-            None => self.mean_c,
+        if self.fault_code == 0 && self.has_mean {
+            Some(self.mean_c)
+        } else {
+            None
         }
     }
 
     /// The sensor's fault, if any.
     pub fn fault(&self) -> Option<SensorFault> {
-        self.fault
+        SensorFault::from_code(self.fault_code)
+    }
+
+    /// The sensor's fault code ([`SensorFault::code`]; 0 when healthy).
+    pub fn fault_code(&self) -> u8 {
+        self.fault_code
+    }
+}
+
+/// A temperature in housekeeping ([`SensorBank::centi_celsius`]) when the sensor has
+/// none: faulty, or before its first complete mean ([`MEAN_SAMPLES`] readings).
+pub const NO_TEMPERATURE: i16 = i16::MIN;
+
+/// Bits per sensor of the health word ([`SensorBank::health_word`]).
+pub const HEALTH_BITS_PER_SENSOR: u32 = 2;
+
+/// Every sensor's supervision ([`SensorMonitor`]), as the controller keeps it: one
+/// reading of every channel per [`crate::timing::TEMPERATURE_PERIOD_CYCLES`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SensorBank {
+    monitors: [SensorMonitor; TEMP_SENSORS],
+}
+
+impl SensorBank {
+    /// Takes one reading of every channel (channel `i` is sensor `i`).
+    pub fn update(&mut self, counts: &[u16; TEMP_SENSORS]) {
+        for (m, c) in self.monitors.iter_mut().zip(counts.iter()) {
+            m.update(*c);
+        }
+    }
+
+    /// Each sensor's mean (deg C; [`SensorMonitor::celsius`]).
+    pub fn celsius(&self) -> [Option<f32>; TEMP_SENSORS] {
+        self.monitors.map(|m| m.celsius())
+    }
+
+    /// Each sensor's mean in hundredths of a degree Celsius (0.01 K), rounded to the
+    /// nearest, or [`NO_TEMPERATURE`]. The sensors' range (-60 to +100 deg C) fits an
+    /// i16 (-6,000 to 10,000).
+    pub fn centi_celsius(&self) -> [i16; TEMP_SENSORS] {
+        self.monitors.map(|m| match m.celsius() {
+            Some(t) => centi_celsius(t),
+            None => NO_TEMPERATURE,
+        })
+    }
+
+    /// Sensors with a fault (bit i = sensor i).
+    pub fn faulty(&self) -> u8 {
+        let mut mask = 0u8;
+        for (i, m) in self.monitors.iter().enumerate() {
+            if m.fault_code() != 0 {
+                mask |= 1u8.wrapping_shl(i as u32);
+            }
+        }
+        mask
+    }
+
+    /// The health word: [`HEALTH_BITS_PER_SENSOR`] bits per sensor, sensor i at bit
+    /// `2 i`: 0 healthy, else [`SensorFault::code`] (1 short, 2 open, 3 stuck).
+    pub fn health_word(&self) -> u16 {
+        let mut word = 0u16;
+        for (i, m) in self.monitors.iter().enumerate() {
+            let code = u16::from(m.fault_code());
+            word |= code.wrapping_shl(HEALTH_BITS_PER_SENSOR * i as u32);
+        }
+        word
+    }
+}
+
+/// `t_c` (deg C) in hundredths of a degree, rounded half away from zero (saturating).
+fn centi_celsius(t_c: f32) -> i16 {
+    let x = t_c * 100.0;
+    // `as` truncates toward zero and saturates (NaN to 0).
+    if x < 0.0 {
+        (x - 0.5) as i16
+    } else {
+        (x + 0.5) as i16
     }
 }
 

@@ -19,6 +19,11 @@ pub const HK_PERIOD_CYCLES: u32 = CONTROL_RATE_HZ;
 /// second (cycles).
 pub const SCRUB_PERIOD_CYCLES: u32 = CONTROL_RATE_HZ;
 
+/// Temperature sensors (`hw::TemperatureInputs`): every channel read once per 100 ms
+/// (cycles), the rate `thermal::STUCK_SAMPLES` and `thermal::MEAN_SAMPLES` are sized
+/// for (a stuck channel found in 6.4 s, a mean every 1.6 s).
+pub const TEMPERATURE_PERIOD_CYCLES: u32 = CONTROL_RATE_HZ / 10;
+
 /// Microseconds since boot of control cycle `cycle` (the telemetry clock).
 pub const fn cycle_to_us(cycle: u64) -> u64 {
     cycle * CYCLE_US as u64
@@ -26,3 +31,5 @@ pub const fn cycle_to_us(cycle: u64) -> u64 {
 
 // The period must divide a second exactly, so that the derived rates are exact.
 const _: () = assert!(US_PER_S % CYCLE_US == 0);
+// ... and 100 ms a whole number of cycles.
+const _: () = assert!(CONTROL_RATE_HZ % 10 == 0);

@@ -8,10 +8,17 @@
 //! read (the controller reads them once per control cycle), at most
 //! [`MODEL_SLIDER_SPEED_MM_PER_S`] times the period; the encoders report the nearest
 //! count of [`crate::hw::ENCODER_MM_PER_COUNT`]. Its drives never fault.
+//!
+//! Temperatures: QEMU models no ADC behind the PT1000s either; every channel reads a
+//! sensor at 20 deg C (the nominal thermal model's reference) with one count of noise,
+//! alternately [`COUNTS_NEAR_20_C`] and one count more (a mean of 20.000 deg C to 1 mK,
+//! and a live channel to the stuck check, as a real sensor's noise makes it).
 
 use crate::hw::{DriveError, EncoderError, SliderDrives, StrokeEncoders};
 use crate::kinematics::LEGS;
 use crate::plant::{nearest_count_f32, Sliders};
+use crate::thermal::adc::COUNTS_NEAR_20_C;
+use crate::thermal::TEMP_SENSORS;
 use crate::timing::CYCLE_S;
 
 /// Speed of the model's sliders (mm/s): faster than the flight motion limits, so the
@@ -23,6 +30,8 @@ pub const MODEL_SLIDER_SPEED_MM_PER_S: f32 = 1.0;
 pub struct QemuSliders {
     sliders: Sliders<f32>,
     max_step_mm: f32,
+    /// The temperature channels' one count of noise: this read's.
+    temperature_dither: u16,
 }
 
 impl QemuSliders {
@@ -31,6 +40,7 @@ impl QemuSliders {
         Self {
             sliders: Sliders::default(),
             max_step_mm: MODEL_SLIDER_SPEED_MM_PER_S * CYCLE_S,
+            temperature_dither: 0,
         }
     }
 }
@@ -72,5 +82,15 @@ impl crate::hw::EndOfTravel for QemuSliders {
 impl crate::hw::EncoderWarnings for QemuSliders {
     fn warning_legs(&self) -> u8 {
         self.sliders.warning_legs()
+    }
+}
+
+const _: () = assert!(COUNTS_NEAR_20_C % 2 == 0);
+
+impl crate::hw::TemperatureInputs for QemuSliders {
+    fn read_temperature_counts(&mut self) -> [u16; TEMP_SENSORS] {
+        self.temperature_dither ^= 1;
+        // COUNTS_NEAR_20_C is even: `|` adds the count.
+        [COUNTS_NEAR_20_C | self.temperature_dither; TEMP_SENSORS]
     }
 }

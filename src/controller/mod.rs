@@ -28,7 +28,9 @@
 //!    ([`SliderDrives`]), or a direct-stroke move; at rest the drives are polled. A
 //!    leg whose end-of-travel switch is active (or unreadable) is never commanded
 //!    further toward it, from the cycle the switch is seen to the end of that motion;
-//! 5. periodic work: housekeeping every `hk_period` cycles (a parameter, default
+//! 5. periodic work: the temperature sensors every [`TEMPERATURE_PERIOD_CYCLES`] (one
+//!    reading of every channel, supervised: [`crate::thermal::SensorBank`]),
+//!    housekeeping every `hk_period` cycles (a parameter, default
 //!    [`crate::timing::HK_PERIOD_CYCLES`]), a RAM-scrub snapshot every
 //!    [`SCRUB_PERIOD_CYCLES`];
 //! 6. the state event if the state changed.
@@ -77,7 +79,8 @@ use crate::motion::MotionLimits;
 use crate::supervision::{CycleInputs, FaultFlags, Supervisor};
 use crate::table::upload::UploadBuffer;
 use crate::table::{BootReport, BootSource, CommitReport, Table};
-use crate::timing::{cycle_to_us, SCRUB_PERIOD_CYCLES};
+use crate::thermal::SensorBank;
+use crate::timing::{cycle_to_us, SCRUB_PERIOD_CYCLES, TEMPERATURE_PERIOD_CYCLES};
 
 pub use crate::worker::Worker;
 pub use error::CommandError;
@@ -215,6 +218,8 @@ pub struct Controller<M> {
     motion: parts::MotionPart,
     /// Control-cycle overruns.
     deadline: parts::DeadlineMonitor,
+    /// The temperature sensors' supervision and means.
+    temperatures: SensorBank,
     /// Telecommand counters and the telecommand still owed a report.
     ledger: parts::TcLedger,
     /// What was last reported by event.
@@ -294,6 +299,7 @@ impl<M: MechanismIo> Controller<M> {
                 approach: crate::motion::fine::Approach::new([0.0; LEGS]),
             },
             deadline: parts::DeadlineMonitor::default(),
+            temperatures: SensorBank::default(),
             ledger: parts::TcLedger::default(),
             reporting: parts::Reporting {
                 state: State::Idle,
@@ -517,6 +523,9 @@ impl<M: MechanismIo> Controller<M> {
         // 4. Motion.
         self.step_motion();
         // 5. Periodic work.
+        if self.cycle % TEMPERATURE_PERIOD_CYCLES == 0 {
+            self.read_temperatures();
+        }
         if self.cycle % self.settings.ops.hk_period_cycles.max(1) == 0 {
             self.queue_housekeeping();
         }
@@ -526,6 +535,14 @@ impl<M: MechanismIo> Controller<M> {
         // 6. State.
         self.publish_state();
         self.cycle = self.cycle.wrapping_add(1);
+    }
+
+    /// Reads every temperature channel once and supervises it. Not inlined: the cycle's
+    /// frame does not grow by the reading.
+    #[inline(never)]
+    fn read_temperatures(&mut self) {
+        let counts = self.mech.read_temperature_counts();
+        self.temperatures.update(&counts);
     }
 
     /// Queues the scrub snapshot of the running configuration for the worker. Not
@@ -790,6 +807,11 @@ impl<M: MechanismIo> Controller<M> {
     /// The strokes commanded to (or held by) the drives (mm).
     pub fn strokes_commanded_mm(&self) -> [f32; LEGS] {
         self.motion.strokes_mm
+    }
+
+    /// The temperature sensors' supervision: each sensor's mean and health.
+    pub fn temperatures(&self) -> &SensorBank {
+        &self.temperatures
     }
 
     /// The end-of-travel switches and reference sensors as read in the last cycle.

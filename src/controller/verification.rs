@@ -116,10 +116,21 @@ impl<M: MechanismIo> Controller<M> {
         if let Some((code, _)) = report.failure() {
             self.ledger.last_failure_code = code;
         }
-        self.tm
-            .push(self.cycle, TmRecord::Verification { request_id, report });
+        self.push_verification(request_id, report);
         // A released schedule activity's failure is also an event (ST[11]).
         self.note_scheduled_report(request_id, &report);
+    }
+
+    /// Queues the TM[1,x] record. Out of line: the record (a [`TmRecord`], ~390 bytes)
+    /// is built in this frame, which is gone when [`Controller::verify`] goes on to the
+    /// event that may follow (whose frame holds a record of its own). Inlined, both
+    /// records were on the stack at once, on the deepest path of the control task and
+    /// of the link service (flight image, `scripts/stack-depth.py`: `verify` 424 bytes
+    /// above `event` 400).
+    #[inline(never)]
+    fn push_verification(&mut self, request_id: RequestId, report: Verification) {
+        self.tm
+            .push(self.cycle, TmRecord::Verification { request_id, report });
     }
 
     /// Acceptance of a decoded telecommand: TM[1,1] if its flags ask.

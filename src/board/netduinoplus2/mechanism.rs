@@ -61,7 +61,8 @@ pub type Drives =
 /// The eighteen switch inputs.
 pub type Switches = TravelSwitchInputs<AnyPin<Input>>;
 /// Encoders, drives and switches behind the `hw` traits: what the controller drives on
-/// this board.
+/// this board. Its temperature inputs are the drivers' mechanism's fixed reading
+/// (`hw`: no ADC driver yet; housekeeping reports the sensors stuck).
 pub type Sliders = DriverMechanism<Encoders, Drives, Switches>;
 /// An output pin of the harness.
 pub(super) type OutPin = AnyPin<Output<PushPull>>;
