@@ -197,18 +197,6 @@ pub trait TemperatureInputs {
     fn read_temperature_counts(&mut self) -> [u16; crate::thermal::TEMP_SENSORS];
 }
 
-/// The drivers' mechanism ([`crate::drivers::Mechanism`]: the Netduino Plus 2's, a
-/// host rig's) has no ADC driver yet: every channel reads the fixed
-/// [`crate::thermal::adc::COUNTS_NEAR_20_C`] (19.99 deg C). The supervision takes a
-/// channel that repeats one count as stuck (`thermal::STUCK_SAMPLES` readings, 6.4 s),
-/// so housekeeping reports these sensors stuck: no temperature is claimed that was not
-/// measured.
-impl<E, D, S> TemperatureInputs for crate::drivers::Mechanism<E, D, S> {
-    fn read_temperature_counts(&mut self) -> [u16; crate::thermal::TEMP_SENSORS] {
-        [crate::thermal::adc::COUNTS_NEAR_20_C; crate::thermal::TEMP_SENSORS]
-    }
-}
-
 /// Converts encoder counts to strokes (mm) in f32.
 pub fn counts_to_mm(counts: &[i32; LEGS]) -> [f32; LEGS] {
     // f32 holds integers exactly up to 2^24 counts (1.6 m of stroke), far beyond the slider.

@@ -111,7 +111,7 @@ pub enum SensorFault {
 }
 
 impl SensorFault {
-    /// Stable code (2 bits per sensor in housekeeping; 0 is healthy).
+    /// Stable code (0 is healthy; housekeeping reports each fault as a sensor mask).
     pub const fn code(self) -> u8 {
         match self {
             SensorFault::Short => 1,
@@ -259,12 +259,13 @@ impl SensorMonitor {
     }
 }
 
-/// A temperature in housekeeping ([`SensorBank::centi_celsius`]) when the sensor has
-/// none: faulty, or before its first complete mean ([`MEAN_SAMPLES`] readings).
-pub const NO_TEMPERATURE: i16 = i16::MIN;
+/// A temperature in housekeeping ([`SensorBank::centi_kelvin`]) when the sensor has
+/// none: faulty, or before its first complete mean ([`MEAN_SAMPLES`] readings). 0 K is
+/// no temperature a sensor can read.
+pub const NO_TEMPERATURE: u16 = 0;
 
-/// Bits per sensor of the health word ([`SensorBank::health_word`]).
-pub const HEALTH_BITS_PER_SENSOR: u32 = 2;
+/// 0 deg C in hundredths of a kelvin.
+pub const ZERO_CELSIUS_CENTI_K: f32 = 27_315.0;
 
 /// Every sensor's supervision ([`SensorMonitor`]), as the controller keeps it: one
 /// reading of every channel per [`crate::timing::TEMPERATURE_PERIOD_CYCLES`].
@@ -286,47 +287,35 @@ impl SensorBank {
         self.monitors.map(|m| m.celsius())
     }
 
-    /// Each sensor's mean in hundredths of a degree Celsius (0.01 K), rounded to the
-    /// nearest, or [`NO_TEMPERATURE`]. The sensors' range (-60 to +100 deg C) fits an
-    /// i16 (-6,000 to 10,000).
-    pub fn centi_celsius(&self) -> [i16; TEMP_SENSORS] {
+    /// Each sensor's mean in hundredths of a kelvin (0.01 K; `T / K * 100`), rounded to
+    /// the nearest, or [`NO_TEMPERATURE`]: an unsigned 16-bit word holds every
+    /// temperature from 0 to 655.35 K, the sensors' range (-60 to +100 deg C) as 21,315
+    /// to 37,315.
+    pub fn centi_kelvin(&self) -> [u16; TEMP_SENSORS] {
         self.monitors.map(|m| match m.celsius() {
-            Some(t) => centi_celsius(t),
+            // Positive over the sensors' range: `as` truncates, so + 0.5 rounds (and
+            // saturates; NaN, which a mean never is, would give NO_TEMPERATURE).
+            Some(t) => (t * 100.0 + ZERO_CELSIUS_CENTI_K + 0.5) as u16,
             None => NO_TEMPERATURE,
         })
     }
 
-    /// Sensors with a fault (bit i = sensor i).
-    pub fn faulty(&self) -> u8 {
+    /// Sensors with fault `fault` now (bit i = sensor i).
+    pub fn with_fault(&self, fault: SensorFault) -> u8 {
         let mut mask = 0u8;
         for (i, m) in self.monitors.iter().enumerate() {
-            if m.fault_code() != 0 {
+            if m.fault_code() == fault.code() {
                 mask |= 1u8.wrapping_shl(i as u32);
             }
         }
         mask
     }
 
-    /// The health word: [`HEALTH_BITS_PER_SENSOR`] bits per sensor, sensor i at bit
-    /// `2 i`: 0 healthy, else [`SensorFault::code`] (1 short, 2 open, 3 stuck).
-    pub fn health_word(&self) -> u16 {
-        let mut word = 0u16;
-        for (i, m) in self.monitors.iter().enumerate() {
-            let code = u16::from(m.fault_code());
-            word |= code.wrapping_shl(HEALTH_BITS_PER_SENSOR * i as u32);
-        }
-        word
-    }
-}
-
-/// `t_c` (deg C) in hundredths of a degree, rounded half away from zero (saturating).
-fn centi_celsius(t_c: f32) -> i16 {
-    let x = t_c * 100.0;
-    // `as` truncates toward zero and saturates (NaN to 0).
-    if x < 0.0 {
-        (x - 0.5) as i16
-    } else {
-        (x + 0.5) as i16
+    /// Sensors with any fault now (bit i = sensor i).
+    pub fn faulty(&self) -> u8 {
+        self.with_fault(SensorFault::Short)
+            | self.with_fault(SensorFault::Open)
+            | self.with_fault(SensorFault::Stuck)
     }
 }
 

@@ -23,6 +23,11 @@ pub const SCRUB_PERIOD_CYCLES: u32 = CONTROL_RATE_HZ;
 /// (cycles), the rate `thermal::STUCK_SAMPLES` and `thermal::MEAN_SAMPLES` are sized
 /// for (a stuck channel found in 6.4 s, a mean every 1.6 s).
 pub const TEMPERATURE_PERIOD_CYCLES: u32 = CONTROL_RATE_HZ / 10;
+/// The cycle within each [`TEMPERATURE_PERIOD_CYCLES`] the sensors are read on: half a
+/// period after the cycles that are whole seconds, where the default housekeeping
+/// report and the scrub fall (reading on those cycles too made the largest control
+/// cycle 17,719 instructions instead of 16,550: `scripts/bench.sh`).
+pub const TEMPERATURE_PHASE_CYCLES: u32 = TEMPERATURE_PERIOD_CYCLES / 2;
 
 /// Microseconds since boot of control cycle `cycle` (the telemetry clock).
 pub const fn cycle_to_us(cycle: u64) -> u64 {

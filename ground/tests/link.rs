@@ -12,7 +12,7 @@ mod common;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use m2ctl::link::command::{TABLE_CHUNK_MAX_LEN, WIRE_POSE_LEN};
-use m2ctl::link::framing::{max_frame_len, DEFRAMER_BUFFER_LEN};
+use m2ctl::link::framing::{max_cobs_len, max_frame_len, DEFRAMER_BUFFER_LEN};
 use m2ctl::link::hk::HK_REPORT_LEN;
 use m2ctl::link::schedule::{ActivityBlock, ObtOffset, RequestIdList, ScheduleCommand};
 use m2ctl::link::tc::{TcHeader, MIN_TC_PACKET_LEN};
@@ -121,7 +121,8 @@ fn fix_crc(p: &mut [u8]) {
 }
 
 fn deframe_all(bytes: &[u8]) -> Vec<Result<Vec<u8>, FrameError>> {
-    let mut d: Deframer = Deframer::new();
+    // Sized for telemetry, the longer direction (the default is the telecommands').
+    let mut d: Deframer<{ max_cobs_len(m2ctl::link::MAX_TM_PACKET_LEN) }> = Deframer::new();
     let mut out = Vec::new();
     for &b in bytes {
         if let Some(r) = d.push_byte(b) {
@@ -414,6 +415,10 @@ fn sample_hk() -> Housekeeping {
         reference_legs: 0b00_0100,
         switch_unreadable_legs: 0b01_0000,
         in_position_legs: 0b01_0110,
+        temperatures_centi_k: [29_315, 29_316, 0, 29_400, 21_315, 37_315, 29_315, 1],
+        sensors_open: 0b0000_0100,
+        sensors_short: 0,
+        sensors_stuck: 0b1000_0000,
     }
 }
 
@@ -1675,14 +1680,14 @@ fn emitters_refuse_oversized_source_data_as_before() {
         Err(EmitError::BufferTooSmall)
     );
     assert!(w.emit_schedule_summary(t, &entries[..16], &mut buf).is_ok());
-    // The largest source data is the housekeeping report's 235 bytes: a count and 39
-    // entries of 6 bytes fit, 40 do not.
-    let values = vec![(1u16, -1i32); 40];
+    // The largest source data is the housekeeping report's 254 bytes: a count and 42
+    // entries of 6 bytes fit, 43 do not.
+    let values = vec![(1u16, -1i32); 43];
     assert_eq!(
         w.emit_parameter_report(t, &values, &mut buf),
         Err(EmitError::BufferTooSmall)
     );
-    assert!(w.emit_parameter_report(t, &values[..39], &mut buf).is_ok());
+    assert!(w.emit_parameter_report(t, &values[..42], &mut buf).is_ok());
     assert_eq!(
         w.emit_table_dump_chunk(t, MemoryId::ActiveTable, 0, &[7; 129], &mut buf),
         Err(EmitError::BadChunk)

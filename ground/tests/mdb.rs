@@ -289,6 +289,12 @@ fn distinct_housekeeping() -> Housekeeping {
         reference_legs: 0b01_0001,
         switch_unreadable_legs: 0b00_0110,
         in_position_legs: 0b10_1101,
+        temperatures_centi_k: [
+            29_301, 29_402, 29_503, 29_604, 29_705, 29_806, 29_907, 30_008,
+        ],
+        sensors_open: 0b0000_0011,
+        sensors_short: 0b0011_0000,
+        sensors_stuck: 0b1100_0000,
     }
 }
 

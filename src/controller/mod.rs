@@ -28,7 +28,8 @@
 //!    ([`SliderDrives`]), or a direct-stroke move; at rest the drives are polled. A
 //!    leg whose end-of-travel switch is active (or unreadable) is never commanded
 //!    further toward it, from the cycle the switch is seen to the end of that motion;
-//! 5. periodic work: the temperature sensors every [`TEMPERATURE_PERIOD_CYCLES`] (one
+//! 5. periodic work: the temperature sensors every [`TEMPERATURE_PERIOD_CYCLES`] (at
+//!    [`TEMPERATURE_PHASE_CYCLES`] within it, apart from the whole seconds; one
 //!    reading of every channel, supervised: [`crate::thermal::SensorBank`]),
 //!    housekeeping every `hk_period` cycles (a parameter, default
 //!    [`crate::timing::HK_PERIOD_CYCLES`]), a RAM-scrub snapshot every
@@ -79,8 +80,10 @@ use crate::motion::MotionLimits;
 use crate::supervision::{CycleInputs, FaultFlags, Supervisor};
 use crate::table::upload::UploadBuffer;
 use crate::table::{BootReport, BootSource, CommitReport, Table};
-use crate::thermal::SensorBank;
-use crate::timing::{cycle_to_us, SCRUB_PERIOD_CYCLES, TEMPERATURE_PERIOD_CYCLES};
+use crate::thermal::{SensorBank, SensorFault};
+use crate::timing::{
+    cycle_to_us, SCRUB_PERIOD_CYCLES, TEMPERATURE_PERIOD_CYCLES, TEMPERATURE_PHASE_CYCLES,
+};
 
 pub use crate::worker::Worker;
 pub use error::CommandError;
@@ -306,6 +309,7 @@ impl<M: MechanismIo> Controller<M> {
                 warnings: FaultFlags::empty(),
                 boot_event_sent: false,
                 params_ignored_at_boot: 0,
+                sensors_faulty: 0,
             },
             jobs: jobs::JobLane::new(),
             reset: ResetInfo::default(),
@@ -523,7 +527,7 @@ impl<M: MechanismIo> Controller<M> {
         // 4. Motion.
         self.step_motion();
         // 5. Periodic work.
-        if self.cycle % TEMPERATURE_PERIOD_CYCLES == 0 {
+        if self.cycle % TEMPERATURE_PERIOD_CYCLES == TEMPERATURE_PHASE_CYCLES {
             self.read_temperatures();
         }
         if self.cycle % self.settings.ops.hk_period_cycles.max(1) == 0 {
@@ -543,6 +547,21 @@ impl<M: MechanismIo> Controller<M> {
     fn read_temperatures(&mut self) {
         let counts = self.mech.read_temperature_counts();
         self.temperatures.update(&counts);
+        // Event 0x0050 when a sensor the thermal model uses becomes faulty.
+        let t = &self.temperatures;
+        let faulty = t.faulty() & self.tables.active.table.thermal.sensors_used();
+        let new = faulty & !self.reporting.sensors_faulty;
+        self.reporting.sensors_faulty = faulty;
+        if new != 0 {
+            let every = u32::from(t.with_fault(SensorFault::Open))
+                | u32::from(t.with_fault(SensorFault::Short)) << event::SENSOR_SHORT_SHIFT
+                | u32::from(t.with_fault(SensorFault::Stuck)) << event::SENSOR_STUCK_SHIFT;
+            self.event(
+                EventSeverity::Low,
+                event::SENSOR_FAULT,
+                [u32::from(new), every],
+            );
+        }
     }
 
     /// Queues the scrub snapshot of the running configuration for the worker. Not
@@ -745,6 +764,10 @@ impl<M: MechanismIo> Controller<M> {
             reference_legs: self.travel.switches.reference,
             switch_unreadable_legs: self.travel.switches.unreadable,
             in_position_legs: self.in_position_legs(),
+            temperatures_centi_k: self.temperatures.centi_kelvin(),
+            sensors_open: self.temperatures.with_fault(SensorFault::Open),
+            sensors_short: self.temperatures.with_fault(SensorFault::Short),
+            sensors_stuck: self.temperatures.with_fault(SensorFault::Stuck),
         };
         HkSample {
             report,

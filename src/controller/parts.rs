@@ -250,6 +250,8 @@ pub(super) struct Reporting {
     pub boot_event_sent: bool,
     /// Persisted parameters not applied at boot (event 0x0041 after the boot events).
     pub params_ignored_at_boot: u32,
+    /// The thermal model's sensors faulty when event 0x0050 was last considered.
+    pub sensors_faulty: u8,
 }
 
 #[cfg(test)]

@@ -111,3 +111,14 @@ impl<E, D: DirectionInhibit, S: EndOfTravel> EndOfTravel for Mechanism<E, D, S> 
         s
     }
 }
+
+/// The drivers' mechanism (the Netduino Plus 2's, a host rig's) has no ADC driver yet:
+/// every channel reads the fixed [`crate::thermal::adc::COUNTS_NEAR_20_C`] (19.99 deg C). The supervision takes a
+/// channel that repeats one count as stuck (`thermal::STUCK_SAMPLES` readings, 6.4 s),
+/// so housekeeping reports these sensors stuck: no temperature is claimed that was not
+/// measured.
+impl<E, D, S> crate::hw::TemperatureInputs for Mechanism<E, D, S> {
+    fn read_temperature_counts(&mut self) -> [u16; crate::thermal::TEMP_SENSORS] {
+        [crate::thermal::adc::COUNTS_NEAR_20_C; crate::thermal::TEMP_SENSORS]
+    }
+}

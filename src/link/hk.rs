@@ -2,7 +2,7 @@
 //!
 //! # Layout
 //!
-//! The source data of TM[3,25] is [`HK_REPORT_LEN`] = 235 bytes, big-endian, laid out by
+//! The source data of TM[3,25] is [`HK_REPORT_LEN`] = 254 bytes, big-endian, laid out by
 //! the named field ranges of [`field`] (smoltcp's `mod field`): the one description of
 //! the report's bytes. [`Housekeeping::emit`] writes by them, [`Housekeeping::parse`]
 //! reads by them, the mission database (`ground::mdb::housekeeping_rows`) takes each
@@ -11,16 +11,21 @@
 //! fields tile the report end to end (checked at compile time below).
 //!
 //! The four switch bytes are the last cycle's read (`hw::TravelSwitches`), unfiltered.
+//! The temperatures are each sensor's last mean (`thermal::SensorBank`, a reading per
+//! 100 ms, a mean of 16), in hundredths of a kelvin, 0 when the sensor has none (faulty,
+//! or before its first mean); the three sensor masks say why (bit i = sensor i, the
+//! channel of `thermal::ThermalModel::sensor_of`).
 
 use super::command::WirePose;
 use super::tm::TmTime;
 use super::wire::{Field, Fields, Order, Writer};
 use crate::kinematics::LEGS;
+use crate::thermal::TEMP_SENSORS;
 
 /// Structure ID of the one housekeeping report.
 pub const HK_STRUCTURE_ID: u8 = 1;
 /// Length of the TM[3,25] source data (bytes).
-pub const HK_REPORT_LEN: usize = 235;
+pub const HK_REPORT_LEN: usize = 254;
 /// `selected_source` when no selection record exists.
 pub const NO_SELECTION: u8 = 0xFF;
 
@@ -126,6 +131,15 @@ pub mod field {
     /// of the setpoint of the last coordinated move, or of where the drives were told to
     /// hold (leg mask; `motion::fine`).
     pub const IN_POSITION_LEGS: Field = after(&SWITCH_UNREADABLE_LEGS, 1);
+    /// 8 x u16: each temperature sensor's mean (0.01 K; 0: none, the sensor faulty or
+    /// before its first mean), sensors 0..7.
+    pub const TEMPERATURES_CENTI_K: Field = after(&IN_POSITION_LEGS, TEMPERATURES_LEN);
+    /// u8: temperature sensors open (sensor mask: bit i = sensor i).
+    pub const SENSORS_OPEN: Field = after(&TEMPERATURES_CENTI_K, 1);
+    /// u8: temperature sensors shorted (sensor mask).
+    pub const SENSORS_SHORT: Field = after(&SENSORS_OPEN, 1);
+    /// u8: temperature sensors stuck (sensor mask).
+    pub const SENSORS_STUCK: Field = after(&SENSORS_SHORT, 1);
 
     /// Bytes of a wire pose (6 x i32).
     const POSE_LEN: usize = 24;
@@ -135,10 +149,12 @@ pub mod field {
     const PIVOT_LEN: usize = 12;
     /// Bytes of a CUC 4+2 time.
     const CUC_LEN: usize = 6;
+    /// Bytes of one u16 per temperature sensor.
+    const TEMPERATURES_LEN: usize = 2 * crate::thermal::TEMP_SENSORS;
 }
 
 // The fields tile the report exactly.
-const _: () = assert!(field::IN_POSITION_LEGS.end == HK_REPORT_LEN);
+const _: () = assert!(field::SENSORS_STUCK.end == HK_REPORT_LEN);
 
 /// One housekeeping sample, filled by the controller.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -224,6 +240,14 @@ pub struct Housekeeping {
     /// Legs whose encoder reads within the in-position tolerance of the setpoint (bit i
     /// = leg i+1; [`field::IN_POSITION_LEGS`]).
     pub in_position_legs: u8,
+    /// Each temperature sensor's mean (0.01 K; 0: none; [`field::TEMPERATURES_CENTI_K`]).
+    pub temperatures_centi_k: [u16; TEMP_SENSORS],
+    /// Temperature sensors open (bit i = sensor i).
+    pub sensors_open: u8,
+    /// Temperature sensors shorted (bit i = sensor i).
+    pub sensors_short: u8,
+    /// Temperature sensors stuck (bit i = sensor i).
+    pub sensors_stuck: u8,
     /// The time-based schedule and the time reports (offsets 217..230).
     pub schedule: ScheduleHk,
 }
@@ -382,6 +406,18 @@ impl Housekeeping {
             at(w, f)?;
             w.u8(v)?;
         }
+        at(w, TEMPERATURES_CENTI_K)?;
+        for v in self.temperatures_centi_k {
+            w.u16(v)?;
+        }
+        for (f, v) in [
+            (SENSORS_OPEN, self.sensors_open),
+            (SENSORS_SHORT, self.sensors_short),
+            (SENSORS_STUCK, self.sensors_stuck),
+        ] {
+            at(w, f)?;
+            w.u8(v)?;
+        }
         // The last field ends the report.
         w.at(base, &(HK_REPORT_LEN..HK_REPORT_LEN)).map(|_| ())
     }
@@ -396,6 +432,11 @@ impl Housekeeping {
             return None;
         }
         let mut pivot = f.reader(field::PIVOT)?;
+        let mut temps = f.reader(field::TEMPERATURES_CENTI_K)?;
+        let mut temperatures_centi_k = [0u16; TEMP_SENSORS];
+        for t in temperatures_centi_k.iter_mut() {
+            *t = temps.u16()?;
+        }
         Some(Housekeeping {
             state: f.u8(field::STATE)?,
             boot_source: f.u8(field::BOOT_SOURCE)?,
@@ -438,6 +479,10 @@ impl Housekeeping {
             reference_legs: f.u8(field::REFERENCE_LEGS)?,
             switch_unreadable_legs: f.u8(field::SWITCH_UNREADABLE_LEGS)?,
             in_position_legs: f.u8(field::IN_POSITION_LEGS)?,
+            temperatures_centi_k,
+            sensors_open: f.u8(field::SENSORS_OPEN)?,
+            sensors_short: f.u8(field::SENSORS_SHORT)?,
+            sensors_stuck: f.u8(field::SENSORS_STUCK)?,
         })
     }
 }
@@ -491,6 +536,12 @@ mod tests {
             reference_legs: 0x41,
             switch_unreadable_legs: 0x42,
             in_position_legs: 0xA5,
+            temperatures_centi_k: [
+                0x5051, 0x5253, 0x5455, 0x5657, 0x5859, 0x5A5B, 0x5C5D, 0x5E5F,
+            ],
+            sensors_open: 0x60,
+            sensors_short: 0x61,
+            sensors_stuck: 0x62,
             schedule: ScheduleHk {
                 activities: 0x43,
                 release_enabled: true,
@@ -524,6 +575,9 @@ mod tests {
         assert_eq!(&out[130..132], &[0x24, 0x25]);
         assert_eq!(&out[221..223], &[0x46, 0x47]);
         assert_eq!(out[233], 0x42);
+        assert_eq!(&out[235..237], &[0x50, 0x51]);
+        assert_eq!(&out[249..251], &[0x5E, 0x5F]);
+        assert_eq!(&out[251..254], &[0x60, 0x61, 0x62]);
         // Too short a buffer: refused (the TM encoder then drops the whole packet).
         let mut short = [0u8; HK_REPORT_LEN - 1];
         assert_eq!(hk.write(&mut Writer::new(&mut short, Order::Big)), None);

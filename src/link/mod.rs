@@ -51,10 +51,15 @@ pub const M2_APID: u16 = 0x0B2;
 
 /// Largest telecommand packet accepted (bytes, whole CCSDS packet incl. CRC-16).
 pub const MAX_TC_PACKET_LEN: usize = 256;
-/// Largest telemetry packet emitted (bytes, whole CCSDS packet incl. CRC-16).
-pub const MAX_TM_PACKET_LEN: usize = 256;
+/// Largest telemetry packet emitted (bytes, whole CCSDS packet incl. CRC-16): the
+/// housekeeping report's (19 header bytes, 254 of source data, CRC-16).
+pub const MAX_TM_PACKET_LEN: usize = 275;
 /// Largest framed telecommand (bytes): delimiter, COBS-encoded packet, delimiter.
 pub const MAX_TC_FRAME_LEN: usize = framing::max_frame_len(MAX_TC_PACKET_LEN);
+// Every TM packet's source data fits the packet buffer (`TmWriter::emit` refuses, at run
+// time, what does not).
+const _: () =
+    assert!(tm::TM_HEADER_LEN + tm::MAX_TM_SOURCE_DATA_LEN + CRC16_LEN <= MAX_TM_PACKET_LEN);
 /// Largest framed telemetry packet (bytes): a buffer this long always fits any emitter.
 pub const MAX_TM_FRAME_LEN: usize = framing::max_frame_len(MAX_TM_PACKET_LEN);
 

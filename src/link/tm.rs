@@ -332,6 +332,11 @@ pub mod event_id {
     /// Control cycles overran their period several times in a row: motion stopped.
     /// aux0: consecutive overruns, aux1: overruns since boot.
     pub const DEADLINE_MISSED: u16 = 0x0030;
+    /// A temperature sensor the running table's thermal model uses became faulty (open,
+    /// shorted or stuck; once per failure: again only after it was healthy). aux0: the
+    /// sensors that became faulty (bit i = sensor i); aux1: every sensor's fault now,
+    /// open (bits 0..7), shorted (bits 8..15), stuck (bits 16..23).
+    pub const SENSOR_FAULT: u16 = 0x0050;
     // Time-based schedule (ST[11]).
     /// A scheduled activity was released: its telecommand runs now. aux0: request ID
     /// (packet ID << 16 | sequence control), aux1: release time (OBT seconds).
@@ -349,6 +354,10 @@ pub mod event_id {
     pub const FAULT_LEGS_SHIFT: u32 = 24;
     /// Lowest bit of the report subtype in ACTIVITY_FAILED's aux1 (failure code below).
     pub const ACTIVITY_SUBTYPE_SHIFT: u32 = 16;
+    /// Lowest bit of the shorted sensors in SENSOR_FAULT's aux1 (open below).
+    pub const SENSOR_SHORT_SHIFT: u32 = 8;
+    /// Lowest bit of the stuck sensors in SENSOR_FAULT's aux1.
+    pub const SENSOR_STUCK_SHIFT: u32 = 16;
 }
 
 /// Why telemetry could not be emitted.

@@ -67,7 +67,8 @@ pub enum Tm {
 #[derive(Debug)]
 pub struct Station {
     seq: TcSequencer,
-    deframer: Deframer,
+    /// Sized for the largest TM frame (the default deframer is the telecommands').
+    deframer: Deframer<{ crate::link::framing::max_cobs_len(crate::link::MAX_TM_PACKET_LEN) }>,
     /// Every TM packet received, in order.
     pub log: Vec<Tm>,
     /// The packet time (on-board time) of each entry of `log`.

@@ -232,3 +232,17 @@ pub(super) fn leg_mask_bits() -> Vec<(u32, String, String)> {
         })
         .collect()
 }
+
+/// Temperature sensor masks (housekeeping): bit i = sensor i (0-based, the channel of
+/// the thermal model's `sensor_of`).
+pub(super) fn sensor_mask_bits() -> Vec<(u32, String, String)> {
+    (0..m2ctl::thermal::TEMP_SENSORS as u32)
+        .map(|i| {
+            (
+                i,
+                format!("SENSOR{i}"),
+                format!("temperature sensor {i} (bit i = sensor i)"),
+            )
+        })
+        .collect()
+}

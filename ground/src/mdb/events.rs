@@ -207,6 +207,19 @@ pub fn events() -> Vec<Event> {
             "persisted parameters {aux0} not applied: the defaults or the table's thresholds run",
         ),
         ev(
+            event_id::SENSOR_FAULT,
+            "SENSOR_FAULT",
+            "a temperature sensor the running table's thermal model uses became faulty (open, \
+             shorted or stuck); once per failure",
+            sev(&[(Low, "")]),
+            (
+                "sensors that became faulty (bit i = sensor i)",
+                "every sensor's fault now: open (bits 0..7), shorted (bits 8..15), stuck (bits \
+                 16..23)",
+            ),
+            "temperature sensors {aux0} faulty (open, shorted, stuck: {aux1})",
+        ),
+        ev(
             event_id::ACTIVITY_RELEASED,
             "ACTIVITY_RELEASED",
             "time-tagged activity released: its telecommand runs now",
@@ -252,7 +265,9 @@ pub fn events() -> Vec<Event> {
 /// Bits of an auxiliary word.
 const AUX_BITS: u32 = u32::BITS;
 /// How the controller packs its event words (defined with the event IDs).
-pub use m2ctl::link::tm::event_id::{ACTIVITY_SUBTYPE_SHIFT, FAULT_LEGS_SHIFT};
+pub use m2ctl::link::tm::event_id::{
+    ACTIVITY_SUBTYPE_SHIFT, FAULT_LEGS_SHIFT, SENSOR_SHORT_SHIFT, SENSOR_STUCK_SHIFT,
+};
 
 /// How each event's auxiliary words are named (the meanings of [`events`]' aux texts).
 fn aux_decoding(id: u16) -> (Vec<AuxPart>, Vec<AuxPart>) {
@@ -282,6 +297,18 @@ fn aux_decoding(id: u16) -> (Vec<AuxPart>, Vec<AuxPart>) {
         event_id::ACTIVITY_FAILED => (
             Vec::new(),
             vec![part(0, ACTIVITY_SUBTYPE_SHIFT, e("failure_code"))],
+        ),
+        event_id::SENSOR_FAULT => (
+            whole(b("sensor_mask")),
+            vec![
+                part(0, SENSOR_SHORT_SHIFT, b("sensor_mask")),
+                part(
+                    SENSOR_SHORT_SHIFT,
+                    SENSOR_STUCK_SHIFT - SENSOR_SHORT_SHIFT,
+                    b("sensor_mask"),
+                ),
+                part(SENSOR_STUCK_SHIFT, 8, b("sensor_mask")),
+            ],
         ),
         _ => (Vec::new(), Vec::new()),
     }

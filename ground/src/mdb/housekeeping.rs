@@ -14,6 +14,10 @@ use m2ctl::link::time::TimeReportRate;
 use m2ctl::link::tm::event_id;
 use m2ctl::link::{service, subtype, Housekeeping};
 use m2ctl::table::BootSource;
+use m2ctl::thermal::{
+    MEAN_SAMPLES, NO_TEMPERATURE, SENSOR_MAX_C, SENSOR_MIN_C, STUCK_SAMPLES, TEMP_SENSORS,
+};
+use m2ctl::timing::{CONTROL_RATE_HZ, TEMPERATURE_PERIOD_CYCLES};
 use m2ctl::units::UM_PER_NM;
 
 /// Reads one housekeeping member as the raw integer of its wire field.
@@ -651,8 +655,82 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
     for (name, off, what, g) in switches {
         v.push(one(b(name, off, Wire::U8, "leg_mask", &what), g));
     }
+    // The temperature sensors (issue 22): each one's mean, then why a sensor has none.
+    let temps: [HkGetter; TEMP_SENSORS] = [
+        |h| i64::from(h.temperatures_centi_k[0]),
+        |h| i64::from(h.temperatures_centi_k[1]),
+        |h| i64::from(h.temperatures_centi_k[2]),
+        |h| i64::from(h.temperatures_centi_k[3]),
+        |h| i64::from(h.temperatures_centi_k[4]),
+        |h| i64::from(h.temperatures_centi_k[5]),
+        |h| i64::from(h.temperatures_centi_k[6]),
+        |h| i64::from(h.temperatures_centi_k[7]),
+    ];
+    let temperature_fields = temps
+        .into_iter()
+        .enumerate()
+        .map(|(i, g)| {
+            (
+                calibrated(
+                    &format!("temperature_sensor{i}"),
+                    hk_field::TEMPERATURES_CENTI_K.start + 2 * i,
+                    Wire::U16,
+                    UNIT_K,
+                    K_PER_CENTI_K,
+                    &format!(
+                        "temperature sensor {i}: mean of its last {MEAN_SAMPLES} readings (K; \
+                         wire u16 in 0.01 K; {NO_TEMPERATURE}: none, the sensor faulty or \
+                         before its first mean)"
+                    ),
+                ),
+                Some(g),
+            )
+        })
+        .collect();
+    v.push(HkRow::group(
+        format!(
+            "temperature sensors 0..{}: each one's mean of its last {MEAN_SAMPLES} readings \
+             (one per {} ms; 0.01 K, so deg C = value / 100 - 273.15; {NO_TEMPERATURE}: none, \
+             the sensor faulty or before its first mean)",
+            TEMP_SENSORS - 1,
+            u64::from(TEMPERATURE_PERIOD_CYCLES) * 1000 / u64::from(CONTROL_RATE_HZ)
+        ),
+        temperature_fields,
+    ));
+    let sensor_bits = "bit i = sensor i";
+    let sensor_faults: [(&str, usize, String, HkGetter); 3] = [
+        (
+            "sensors_open",
+            hk_field::SENSORS_OPEN.start,
+            format!("temperature sensors open: reading full scale or above {SENSOR_MAX_C} deg C ({sensor_bits})"),
+            |h| i64::from(h.sensors_open),
+        ),
+        (
+            "sensors_short",
+            hk_field::SENSORS_SHORT.start,
+            format!("temperature sensors shorted: reading below {SENSOR_MIN_C} deg C ({sensor_bits})"),
+            |h| i64::from(h.sensors_short),
+        ),
+        (
+            "sensors_stuck",
+            hk_field::SENSORS_STUCK.start,
+            format!(
+                "temperature sensors stuck: the same count {STUCK_SAMPLES} readings in a row \
+                 ({sensor_bits})"
+            ),
+            |h| i64::from(h.sensors_stuck),
+        ),
+    ];
+    for (name, off, what, g) in sensor_faults {
+        v.push(one(b(name, off, Wire::U8, "sensor_mask", &what), g));
+    }
     v
 }
+
+/// Engineering unit of temperatures.
+pub const UNIT_K: &str = "K";
+/// Kelvin per raw unit of a housekeeping temperature.
+pub const K_PER_CENTI_K: f64 = 0.01;
 
 /// The housekeeping fields with their accessors into [`Housekeeping`]: the fields of
 /// [`housekeeping_rows`], in order.

@@ -53,8 +53,8 @@ mod telecommands;
 mod telemetry;
 
 pub use alarms::{alarms, derived};
-use bit_fields::leg_mask_bits;
 pub use bit_fields::{bank_status_flags, fault_flag_bits, fault_flags_doc, refusal_bits, FlagDoc};
+use bit_fields::{leg_mask_bits, sensor_mask_bits};
 pub use console::{
     bit_parameter_name, calibration_stack, clear_fault_stack, console_files, display_par,
     housekeeping_display, parameter_lists, recovery_stroke_um, stacks, switch_recovery_stack,
@@ -631,6 +631,10 @@ pub fn mdb() -> Mdb {
             BitField {
                 name: "leg_mask",
                 bits: leg_mask_bits(),
+            },
+            BitField {
+                name: "sensor_mask",
+                bits: sensor_mask_bits(),
             },
         ],
         telecommands: telecommands(),
