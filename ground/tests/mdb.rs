@@ -1000,6 +1000,9 @@ fn health_parameters_have_their_alarms() {
         "cycle_overruns",
         "uart_overruns",
         "tc_rejected",
+        "sensors_open",
+        "sensors_short",
+        "sensors_stuck",
     ] {
         let a = m.alarms.iter().find(|a| a.parameter == p);
         assert!(

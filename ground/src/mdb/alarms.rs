@@ -65,6 +65,21 @@ pub fn alarms() -> Vec<ParameterAlarm> {
             "WATCH",
             "telecommands were refused by the link since boot",
         ),
+        above_zero(
+            "sensors_open",
+            "WARNING",
+            "a temperature sensor reads open (its mean is withheld)",
+        ),
+        above_zero(
+            "sensors_short",
+            "WARNING",
+            "a temperature sensor reads shorted (its mean is withheld)",
+        ),
+        above_zero(
+            "sensors_stuck",
+            "WARNING",
+            "a temperature sensor repeats one reading (its mean is withheld)",
+        ),
     ]
 }
 
