@@ -440,8 +440,11 @@ fn json_str(s: &str) -> String {
 /// or one that does not parse): type = the event's label, severity as Yamcs' PUS event
 /// decoder maps the subtype, source [`EVENT_SOURCE`], the message with the auxiliary
 /// words named ([`Mdb::event_text`]), the time = `fit` applied to the packet's on-board
-/// time (Yamcs' mission time without a correlation), and in `extra` the event ID, the
-/// raw auxiliary words and the on-board time (raw CUC 4+2).
+/// time (Yamcs' mission time without a correlation), the sequence number = the TM
+/// packet's sequence count (Yamcs keeps one event per time, source and sequence number,
+/// so a post repeated after a lost answer archives the event once: the e2e once saw
+/// BOOT twice at the same time under load), and in `extra` the event ID, the raw
+/// auxiliary words and the on-board time (raw CUC 4+2).
 pub fn event_json(mdb: &Mdb, packet: &[u8], fit: Option<TimeFit>) -> Option<String> {
     let tm = parse_tm(packet).ok()?;
     let TmReport::Event {
@@ -469,11 +472,12 @@ pub fn event_json(mdb: &Mdb, packet: &[u8], fit: Option<TimeFit>) -> Option<Stri
         .unwrap_or_default();
     Some(format!(
         "{{\"type\":\"{}\",\"message\":\"{}\",\"severity\":\"{}\",\"source\":\"{}\"{time},\
-         \"extra\":{{\"event_id\":\"{event_id}\",\"aux0\":\"{aux0}\",\"aux1\":\"{aux1}\",\"obt\":\"{obt_raw}\"}}}}",
+         \"sequenceNumber\":{},\"extra\":{{\"event_id\":\"{event_id}\",\"aux0\":\"{aux0}\",\"aux1\":\"{aux1}\",\"obt\":\"{obt_raw}\"}}}}",
         json_str(&label),
         json_str(&text),
         yamcs_severity(severity),
         json_str(EVENT_SOURCE),
+        tm.seq_count,
     ))
 }
 

@@ -438,6 +438,9 @@ fn events_go_to_yamcs_with_a_source_and_their_words_named() {
     assert_eq!(j["message"], "controller state IDLE -> MOVING");
     assert_eq!(j["time"], rfc3339(fit.utc(3.5)));
     assert_eq!(j["extra"]["obt"], (3.5f64 * 65536.0).to_string());
+    // The packet's sequence count: a repeated post is the same event for Yamcs.
+    let seq = u16::from_be_bytes([p[2], p[3]]) & 0x3FFF;
+    assert_eq!(j["sequenceNumber"], seq);
     // Refusal bits and failure code by name; Low = Yamcs WATCH.
     let refusal = Refusals {
         axes_outside: 0b1,
@@ -692,4 +695,33 @@ fn the_gateway_publishes_its_bad_frames_to_yamcs() {
     drop(qemu);
     let _ = gw.join();
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Each event is posted with its TM packet's sequence count as Yamcs' sequence number,
+/// so two events at the same time stay two, and a repeated post stays one.
+#[test]
+fn events_carry_their_packet_sequence_count() {
+    use m2ctl::link::tm::event_id;
+    let mdb = m2ground::mdb::mdb();
+    let mut w = TmWriter::new();
+    let mut seqs = Vec::new();
+    for k in 0..3u32 {
+        let mut out = [0u8; MAX_TM_FRAME_LEN];
+        let len = w
+            .emit_event(
+                TmTime::from_millis(3500),
+                EventSeverity::Info,
+                event_id::BOOT,
+                [k, 0],
+                &mut out,
+            )
+            .unwrap();
+        let p = deframe_one(&out[..len]);
+        let j: serde_json::Value =
+            serde_json::from_str(&event_json(&mdb, &p, None).expect("an event")).unwrap();
+        let seq = u16::from_be_bytes([p[2], p[3]]) & 0x3FFF;
+        assert_eq!(j["sequenceNumber"], seq);
+        seqs.push(seq);
+    }
+    assert_eq!(seqs, vec![0, 1, 2]);
 }

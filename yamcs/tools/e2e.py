@@ -651,6 +651,11 @@ def main() -> int:
     check(bool(every) and not sourceless,
           f"every event has a source ({len(every)} events, sources {sorted({e.source for e in every})}; "
           f"without: {sourceless})")
+    # Each event archived once (the gateway posts it with its packet's sequence count,
+    # so a post repeated after a lost answer is the same event for Yamcs).
+    keys = [(e.event_type, e.generation_time, e.message) for e in every]
+    repeated = sorted({k[0] for k in keys if keys.count(k) > 1})
+    check(not repeated, f"each of the {len(keys)} events archived once (repeated: {repeated})")
     changes = [e.message for e in events if e.event_type == "STATE_CHANGED"]
     named = [m for m in changes if m.startswith("controller state ")
              and {x.strip() for x in m[len("controller state "):].split("->")} <= states]
