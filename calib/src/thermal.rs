@@ -74,6 +74,11 @@ pub struct ThermalMeasurement {
     pub in_state: Pose<f64>,
 }
 
+/// The largest uniform soak of the default design, from the reference (K): the
+/// coefficients are measured over `reference +- LARGEST_SOAK_K` (the ground alarms on a
+/// sensor further away, `m2ground::mdb::derived`).
+pub const LARGEST_SOAK_K: f64 = 10.0;
+
 /// The states of the default design: uniform soaks at `reference +- 5` and `+- 10` K,
 /// the platform alone at `+- 5` K (its heaters; the base side at the reference), the
 /// base side (rods, columns, plate) at `+ 5` K, and the base interface heated (columns
@@ -81,7 +86,7 @@ pub struct ThermalMeasurement {
 /// conductive interface, before the rods follow). Without the last, the rods' and the
 /// columns' growth both lift the mirror almost uniformly and are 0.998 correlated.
 pub fn default_states() -> Vec<PartTemperatures> {
-    let mut s: Vec<PartTemperatures> = [-10.0, -5.0, 5.0, 10.0]
+    let mut s: Vec<PartTemperatures> = [-LARGEST_SOAK_K, -5.0, 5.0, LARGEST_SOAK_K]
         .iter()
         .map(|d| PartTemperatures::uniform(REFERENCE_C + d))
         .collect();

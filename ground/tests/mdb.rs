@@ -1157,11 +1157,15 @@ fn transmission_constraints_are_where_the_controller_refuses() {
     assert_eq!(constrained, 9, "constrained telecommands");
 }
 
-/// The derived parameters' inputs are housekeeping fields in the derived unit, and the
-/// following error's alarm levels are the controller's default thresholds.
+/// The derived parameters' inputs are housekeeping fields in the derived unit; the
+/// following error's alarm levels are the controller's default thresholds, the
+/// temperature deviation's the thermal calibration's largest soak around the model's
+/// default reference, with a sensor without a value left out.
 #[test]
 fn derived_parameters_come_from_housekeeping_in_their_unit() {
     use m2ctl::table::DEFAULT_SUPERVISION;
+    use m2ctl::thermal::{ThermalModel, NO_TEMPERATURE, TEMP_SENSORS};
+    use mdb::Computation;
     let m = mdb();
     let hk = &m
         .telemetry
@@ -1169,21 +1173,30 @@ fn derived_parameters_come_from_housekeeping_in_their_unit() {
         .find(|p| p.name == "housekeeping")
         .unwrap()
         .fields;
+    let field = |d: &str, name: &str| {
+        hk.iter()
+            .find(|f| f.name == name)
+            .unwrap_or_else(|| panic!("{d}: no housekeeping field {name}"))
+            .clone()
+    };
     for d in &m.derived {
-        assert!(!d.largest_difference_of.is_empty() && d.min_violations >= 1);
-        for (a, b) in &d.largest_difference_of {
-            for name in [a, b] {
-                let f = hk
-                    .iter()
-                    .find(|f| &f.name == name)
-                    .unwrap_or_else(|| panic!("{}: no housekeeping field {name}", d.name));
-                assert!(
-                    matches!(f.meaning, Meaning::Number { unit: Some(u), .. } if u == d.unit),
-                    "{}: {name} is {:?}",
-                    d.name,
-                    f.meaning
-                );
-            }
+        assert!(d.min_violations >= 1 && !d.above.is_empty());
+        let inputs: Vec<String> = match &d.computation {
+            Computation::LargestDifference { pairs } => pairs
+                .iter()
+                .flat_map(|(a, b)| [a.clone(), b.clone()])
+                .collect(),
+            Computation::LargestDeviation { fields, .. } => fields.clone(),
+        };
+        assert!(!inputs.is_empty());
+        for name in &inputs {
+            let f = field(d.name, name);
+            assert!(
+                matches!(f.meaning, Meaning::Number { unit: Some(u), .. } if u == d.unit),
+                "{}: {name} is {:?}",
+                d.name,
+                f.meaning
+            );
         }
         assert!(
             hk.iter().all(|f| f.name != d.name),
@@ -1196,7 +1209,10 @@ fn derived_parameters_come_from_housekeeping_in_their_unit() {
         .iter()
         .find(|d| d.name == "following_error_max")
         .unwrap();
-    assert_eq!(fe.largest_difference_of.len(), m2ctl::kinematics::LEGS);
+    let Computation::LargestDifference { pairs } = &fe.computation else {
+        panic!("{:?}", fe.computation)
+    };
+    assert_eq!(pairs.len(), m2ctl::kinematics::LEGS);
     let um = |mm: f32| f64::from(mm) * 1e3;
     assert_eq!(
         fe.above,
@@ -1210,5 +1226,29 @@ fn derived_parameters_come_from_housekeeping_in_their_unit() {
                 um(DEFAULT_SUPERVISION.following_error_fault_mm).round()
             ),
         ]
+    );
+    let td = m
+        .derived
+        .iter()
+        .find(|d| d.name == "temperature_deviation_max")
+        .unwrap();
+    let Computation::LargestDeviation {
+        fields,
+        from,
+        absent,
+    } = &td.computation
+    else {
+        panic!("{:?}", td.computation)
+    };
+    assert_eq!(fields.len(), TEMP_SENSORS);
+    assert_eq!(*from, f64::from(ThermalModel::NONE.reference_c) + 273.15);
+    // A sensor without a value reads NO_TEMPERATURE on the wire: its engineering value.
+    let Meaning::Number { scale, .. } = field(td.name, &fields[0]).meaning else {
+        unreachable!()
+    };
+    assert_eq!(*absent, f64::from(NO_TEMPERATURE) * scale);
+    assert_eq!(
+        td.above,
+        vec![("WARNING", m2calib::thermal::LARGEST_SOAK_K)]
     );
 }

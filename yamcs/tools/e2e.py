@@ -750,19 +750,23 @@ def main() -> int:
         alarm = None
     check(rejected > 0 and alarm is not None and alarm.get("severity") == "WATCH",
           f"tc_rejected = {rejected} raises a WATCH alarm: {alarm and {k: alarm.get(k) for k in ('severity', 'type', 'violations')}}")
-    # The derived following error: Yamcs' algorithm output equals the largest
-    # |commanded stroke - encoder| of the same housekeeping report; its alarm as described.
-    derived = {d["name"]: d for d in mdb_json["derived"]}
-    fe = derived["following_error_max"]
-    got = api("parameters/M2/following_error_max").get("type", {}).get("defaultAlarm", {})
-    levels = {(r.get("level"), r.get("maxInclusive")) for r in got.get("staticAlarmRanges", [])}
-    check(levels == {(lvl, lim) for lvl, lim in fe["above"]} and got.get("minViolations") == fe["min_violations"],
-          f"following_error_max's alarm in Yamcs: {sorted(levels)}, debounce {got.get('minViolations')} reports")
+    # The derived parameters: Yamcs' algorithm outputs equal the description's rule
+    # computed here from the same housekeeping report; their alarms as described.
     hk = op.hk_after(op.newest_obt())
-    want = max(abs(hk.value(a).eng_value - hk.value(b).eng_value) for a, b in fe["largest_difference_of"])
-    have = hk.value("following_error_max").eng_value
-    check(abs(have - want) < 1e-9, f"following_error_max = {have:.4f} um = max |stroke_cmd - encoder| "
-          f"of the same report ({want:.4f} um)")
+    for d in mdb_json["derived"]:
+        got = api("parameters/M2/" + d["name"]).get("type", {}).get("defaultAlarm", {})
+        levels = {(r.get("level"), r.get("maxInclusive")) for r in got.get("staticAlarmRanges", [])}
+        check(levels == {(lvl, lim) for lvl, lim in d["above"]} and got.get("minViolations") == d["min_violations"],
+              f"{d['name']}'s alarm in Yamcs: {sorted(levels)}, debounce {got.get('minViolations')} reports")
+        c = d["computation"]
+        if c["kind"] == "largest_difference":
+            want = max(abs(hk.value(a).eng_value - hk.value(b).eng_value) for a, b in c["pairs"])
+        else:
+            values = [hk.value(f).eng_value for f in c["fields"]]
+            want = max([abs(v - c["from"]) for v in values if v != c["absent"]] or [0.0])
+        have = hk.value(d["name"]).eng_value
+        check(abs(have - want) < 1e-9, f"{d['name']} = {have:.4f} {d['unit']} = the description's "
+              f"{c['kind']} of the same report ({want:.4f})")
     figures["active alarms"] = {k: v.get("severity") for k, v in active_alarms().items()}
 
     # 6d. A transmission constraint holds a command until the controller can take it: a

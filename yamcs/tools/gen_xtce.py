@@ -138,18 +138,34 @@ class Generator:
                                  short_description=d["description"], alarm=alarm)
             self.params[name] = out
             self.number_formats[name] = d["fraction_digits"]
-            inputs, terms = [], []
-            for i, (a, b) in enumerate(d["largest_difference_of"]):
-                for var, field in ((f"a{i}", a), (f"b{i}", b)):
-                    if field not in self.params:
-                        raise ValueError(f"{name}: input {field} is not a telemetry parameter")
-                    inputs.append(InputParameter(self.params[field], name=var, required=True))
-                terms.append(f"Math.abs(a{i}.value - b{i}.value)")
+            inputs = []
+
+            def bind(var, field):
+                if field not in self.params:
+                    raise ValueError(f"{name}: input {field} is not a telemetry parameter")
+                inputs.append(InputParameter(self.params[field], name=var, required=True))
+            c = d["computation"]
+            if c["kind"] == "largest_difference":
+                terms = []
+                for i, (a, b) in enumerate(c["pairs"]):
+                    bind(f"a{i}", a)
+                    bind(f"b{i}", b)
+                    terms.append(f"Math.abs(a{i}.value - b{i}.value)")
+                text = f"out.value = Math.max({', '.join(terms)});"
+            elif c["kind"] == "largest_deviation":
+                lines = ["var m = 0;"]
+                for i, f in enumerate(c["fields"]):
+                    bind(f"f{i}", f)
+                    lines.append(f"if (f{i}.value != {c['absent']!r}) "
+                                 f"m = Math.max(m, Math.abs(f{i}.value - {c['from']!r}));")
+                text = "\n".join(lines + ["out.value = m;"])
+            else:
+                raise ValueError(f"{name}: unknown computation {c['kind']}")
             Algorithm(
                 s,
                 f"{name}_algorithm",
                 language="JavaScript",
-                text=f"out.value = Math.max({', '.join(terms)});",
+                text=text,
                 inputs=inputs,
                 outputs=[OutputParameter(out, name="out")],
                 short_description=d["description"],

@@ -510,8 +510,7 @@ pub struct Mdb {
 }
 
 /// A parameter Yamcs computes from the fields of one housekeeping report (a Yamcs
-/// algorithm triggered by the report): the largest absolute difference of pairs of
-/// fields, in their engineering unit.
+/// algorithm triggered by the report), in their engineering unit.
 #[derive(Clone, Debug, Serialize)]
 pub struct DerivedParameter {
     /// Name (lower snake case, unique among parameters).
@@ -522,8 +521,8 @@ pub struct DerivedParameter {
     pub description: String,
     /// Decimals it is shown with.
     pub fraction_digits: u32,
-    /// `max_i |a_i - b_i|` over these `(a, b)` housekeeping field pairs.
-    pub largest_difference_of: Vec<(String, String)>,
+    /// How it is computed.
+    pub computation: Computation,
     /// In alarm at each `(level, limit)` when above the limit (engineering units).
     pub above: Vec<(&'static str, f64)>,
     /// Consecutive values in alarm before it is raised (debounce).
@@ -560,6 +559,27 @@ pub enum AlarmRule {
         limit: f64,
         /// Level.
         level: &'static str,
+    },
+}
+
+/// How a [`DerivedParameter`] is computed from housekeeping fields.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum Computation {
+    /// `max_i |a_i - b_i|` over these `(a, b)` field pairs.
+    LargestDifference {
+        /// The pairs.
+        pairs: Vec<(String, String)>,
+    },
+    /// `max_i |f_i - from|` over the fields whose value is not `absent` (0 when none has
+    /// a value).
+    LargestDeviation {
+        /// The fields.
+        fields: Vec<String>,
+        /// The value deviations are taken from (engineering units).
+        from: f64,
+        /// The engineering value a field has when it holds no value.
+        absent: f64,
     },
 }
 
