@@ -411,3 +411,30 @@ fn the_fine_positioning_figures_in_the_prose_are_the_codes() {
         );
     }
 }
+
+/// The temperature paragraph of section 6 states the controller's sensor constants.
+#[test]
+fn the_temperature_figures_in_the_prose_are_the_codes() {
+    use m2ctl::thermal::{MEAN_SAMPLES, STUCK_SAMPLES};
+    use m2ctl::timing::{CONTROL_RATE_HZ, TEMPERATURE_PERIOD_CYCLES, TEMPERATURE_PHASE_CYCLES};
+    let ms = |cycles: u32| cycles * 1000 / CONTROL_RATE_HZ;
+    let period_ms = ms(TEMPERATURE_PERIOD_CYCLES);
+    let first_mean_ms =
+        ms((u32::from(MEAN_SAMPLES) - 1) * TEMPERATURE_PERIOD_CYCLES + TEMPERATURE_PHASE_CYCLES);
+    let text = icd().split_whitespace().collect::<Vec<_>>().join(" ");
+    for phrase in [
+        format!("reads every temperature sensor once per {period_ms} ms"),
+        format!("each one's mean of {MEAN_SAMPLES} readings"),
+        format!(
+            "({MEAN_SAMPLES} readings, the first {} ms into the first {period_ms} ms: {} s after boot",
+            ms(TEMPERATURE_PHASE_CYCLES),
+            f64::from(first_mean_ms) / 1000.0
+        ),
+        format!(
+            "stuck after {STUCK_SAMPLES} equal readings ({} s)",
+            f64::from(ms(u32::from(STUCK_SAMPLES) * TEMPERATURE_PERIOD_CYCLES)) / 1000.0
+        ),
+    ] {
+        assert!(text.contains(&phrase), "docs/icd.md section 6 lacks: {phrase}");
+    }
+}
