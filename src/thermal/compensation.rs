@@ -36,7 +36,7 @@
 //! So no sensor loss, no enable or disable and no target change moves the mirror by
 //! more than one step per period (host tests `thermal_compensation`).
 //!
-//! Not yet called by the controller (the wiring, the ST[20] parameters and the hold
+//! Not yet called by the controller (the wiring, the ST\[20\] parameters and the hold
 //! telecommand are the next step of issue 22).
 
 use crate::kinematics::geometry::LEGS;
@@ -71,7 +71,7 @@ pub const DEFAULT_MAX_STEP_MM: f32 = (0.5 * MM_PER_UM) as f32;
 /// 0.01 um), so the mean's noise alone does not start a step.
 pub const DEFAULT_MIN_STEP_MM: f32 = (0.05 * MM_PER_UM) as f32;
 
-/// The stepping's parameters (to become ST[20] parameters).
+/// The stepping's parameters (to become ST\[20\] parameters).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CompensationParams {
     /// Largest change of a leg's applied offset per step (mm),
