@@ -14,6 +14,8 @@
 //!   which part of which leg.
 //! * [`stroke_offsets_mm`]: the change of each slider's stroke that keeps a pose where
 //!   the reference-temperature geometry puts it, to first order in the expansions.
+//! * [`compensation`]: how the applied offsets follow those, in bounded steps
+//!   ([`Compensation`]; not yet called by the controller).
 //!
 //! # The model (frames as [`crate::kinematics::geometry`]: base B, moving M; mm)
 //! Each part's dimensions scale by `1 + alpha * (T - T_ref)` (`alpha` in 1/K, `T` of its
@@ -42,6 +44,9 @@
 use crate::kinematics::geometry::{Geometry, LEGS};
 use crate::kinematics::ik::leg_state;
 use crate::kinematics::pose::{Pose, RotationDelta};
+
+pub mod compensation;
+pub use compensation::{Compensation, CompensationParamError, CompensationParams, StepOutcome};
 
 /// Number of temperature sensors (ADC channels).
 pub const TEMP_SENSORS: usize = 8;
