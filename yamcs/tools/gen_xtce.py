@@ -51,6 +51,7 @@ from yamcs.pymdb import (
     IntegerParameter,
     OutputParameter,
     ParameterEntry,
+    ParameterTrigger,
     ParameterValue,
     Polynomial,
     System,
@@ -168,6 +169,10 @@ class Generator:
                 text=text,
                 inputs=inputs,
                 outputs=[OutputParameter(out, name="out")],
+                # Run once per housekeeping report: on its first input's update (every
+                # input comes in the same report). Without a trigger Yamcs runs it on
+                # every input but warns at each start ("No trigger set for algorithm").
+                triggers=[ParameterTrigger(inputs[0].parameter)],
                 short_description=d["description"],
             )
 
