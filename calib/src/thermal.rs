@@ -76,7 +76,7 @@ pub struct ThermalMeasurement {
 
 /// The largest uniform soak of the default design, from the reference (K): the
 /// coefficients are measured over `reference +- LARGEST_SOAK_K` (the ground alarms on a
-/// sensor further away, `m2ground::mdb::derived`).
+/// sensor further away: the mission database's `temperature_deviation_max`).
 pub const LARGEST_SOAK_K: f64 = 10.0;
 
 /// The states of the default design: uniform soaks at `reference +- 5` and `+- 10` K,
