@@ -955,15 +955,19 @@ fn dangerous_telecommands_are_critical_and_no_other() {
     assert_eq!(critical.len(), 6, "{critical:?}");
 }
 
+/// The housekeeping packet's fields in a mission database.
+fn housekeeping_fields_of(m: &mdb::Mdb) -> &[Field] {
+    &m.telemetry
+        .iter()
+        .find(|p| p.name == "housekeeping")
+        .expect("a housekeeping packet")
+        .fields
+}
+
 #[test]
 fn health_parameters_have_their_alarms() {
     let m = mdb();
-    let hk = &m
-        .telemetry
-        .iter()
-        .find(|p| p.name == "housekeeping")
-        .unwrap()
-        .fields;
+    let hk = housekeeping_fields_of(&m);
     for a in &m.alarms {
         let f = hk
             .iter()
@@ -1167,12 +1171,7 @@ fn derived_parameters_come_from_housekeeping_in_their_unit() {
     use m2ctl::thermal::{ThermalModel, NO_TEMPERATURE, TEMP_SENSORS};
     use mdb::Computation;
     let m = mdb();
-    let hk = &m
-        .telemetry
-        .iter()
-        .find(|p| p.name == "housekeeping")
-        .unwrap()
-        .fields;
+    let hk = housekeeping_fields_of(&m);
     let field = |d: &str, name: &str| {
         hk.iter()
             .find(|f| f.name == name)
