@@ -563,7 +563,7 @@ mod tests {
         // Written inside a larger packet too: the layout is relative to where it starts.
         let mut packet = [0u8; HK_REPORT_LEN + 3];
         let mut w = Writer::new(&mut packet, Order::Big);
-        w.put(&[9, 9, 9]).unwrap();
+        assert_eq!(w.put(&[9, 9, 9]), Some(()));
         assert_eq!(hk.write(&mut w), Some(()));
         assert_eq!(w.position(), HK_REPORT_LEN + 3);
         hk.emit(&mut out);
