@@ -292,6 +292,11 @@ impl SensorBank {
         self.monitors.map(|m| m.celsius())
     }
 
+    /// Sensor `i`'s mean (deg C; [`SensorMonitor::celsius`]); `None` for no such sensor.
+    pub fn sensor_celsius(&self, i: usize) -> Option<f32> {
+        self.monitors.get(i).and_then(SensorMonitor::celsius)
+    }
+
     /// Each sensor's mean in hundredths of a kelvin (0.01 K; `T / K * 100`), rounded to
     /// the nearest, or [`NO_TEMPERATURE`]: an unsigned 16-bit word holds every
     /// temperature from 0 to 655.35 K, the sensors' range (-60 to +100 deg C) as 21,315

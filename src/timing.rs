@@ -29,6 +29,13 @@ pub const TEMPERATURE_PERIOD_CYCLES: u32 = CONTROL_RATE_HZ / 10;
 /// cycle 17,719 instructions instead of 16,550: `scripts/bench.sh`).
 pub const TEMPERATURE_PHASE_CYCLES: u32 = TEMPERATURE_PERIOD_CYCLES / 2;
 
+/// The cycle within each second (`thermal::compensation::STEP_PERIOD_CYCLES`) the
+/// thermal compensation steps on: a quarter of a temperature period after the whole
+/// seconds, off the housekeeping and scrub cycles (whole seconds) and off the sensor
+/// readings ([`TEMPERATURE_PHASE_CYCLES`] within each 100 ms), so that no control cycle
+/// carries two of them.
+pub const COMPENSATION_PHASE_CYCLES: u32 = TEMPERATURE_PERIOD_CYCLES / 4;
+
 /// Microseconds since boot of control cycle `cycle` (the telemetry clock).
 pub const fn cycle_to_us(cycle: u64) -> u64 {
     cycle * CYCLE_US as u64

@@ -53,7 +53,7 @@ pub enum CommandError {
     NoGeometry,
     /// 0x070D: a table job (commit, selection, reload) is in progress (data: job code).
     JobBusy(u8),
-    /// An on-board parameter refused (0x0720..0x0722).
+    /// An on-board parameter refused (0x0720..0x0724).
     Parameter(super::params::ParamError),
     /// A time-based schedule telecommand refused (`ScheduleError` codes 0x0B0x).
     Schedule(ScheduleError),

@@ -80,9 +80,11 @@ use crate::motion::MotionLimits;
 use crate::supervision::{CycleInputs, FaultFlags, Supervisor};
 use crate::table::upload::UploadBuffer;
 use crate::table::{BootReport, BootSource, CommitReport, Table};
-use crate::thermal::{SensorBank, SensorFault};
+use crate::thermal::compensation::{Compensation, StepOutcome, STEP_PERIOD_CYCLES};
+use crate::thermal::{SensorBank, SensorFault, TEMP_SENSORS};
 use crate::timing::{
-    cycle_to_us, SCRUB_PERIOD_CYCLES, TEMPERATURE_PERIOD_CYCLES, TEMPERATURE_PHASE_CYCLES,
+    cycle_to_us, COMPENSATION_PHASE_CYCLES, SCRUB_PERIOD_CYCLES, TEMPERATURE_PERIOD_CYCLES,
+    TEMPERATURE_PHASE_CYCLES,
 };
 
 pub use crate::worker::Worker;
@@ -151,6 +153,8 @@ pub struct Ops {
     pub hk_period_cycles: u32,
     /// In-position tolerance (mm) and dwell (cycles): [`Parameters::in_position`].
     pub in_position: (f32, u16),
+    /// Thermal compensation enabled, and its steps: [`Parameters::thermal`].
+    pub thermal: (bool, crate::thermal::compensation::CompensationParams),
 }
 
 impl Ops {
@@ -162,6 +166,7 @@ impl Ops {
             direct: params.direct_limits(table),
             hk_period_cycles: params.hk_period_cycles(table),
             in_position: params.in_position(table),
+            thermal: params.thermal(),
         }
     }
 }
@@ -223,6 +228,11 @@ pub struct Controller<M> {
     deadline: parts::DeadlineMonitor,
     /// The temperature sensors' supervision and means.
     temperatures: SensorBank,
+    /// The thermal compensation's applied stroke offsets and state (module
+    /// [`crate::thermal::compensation`]): subtracted from every encoder reading and
+    /// added to every drive command at the seam ([`Controller::held_mm`],
+    /// [`Controller::read_strokes_mm`], [`Controller::drive_mm`]).
+    compensation: Compensation,
     /// Telecommand counters and the telecommand still owed a report.
     ledger: parts::TcLedger,
     /// What was last reported by event.
@@ -303,6 +313,7 @@ impl<M: MechanismIo> Controller<M> {
             },
             deadline: parts::DeadlineMonitor::default(),
             temperatures: SensorBank::default(),
+            compensation: Compensation::default(),
             ledger: parts::TcLedger::default(),
             reporting: parts::Reporting {
                 state: State::Idle,
@@ -339,10 +350,10 @@ impl<M: MechanismIo> Controller<M> {
     /// are and takes the first reading.
     pub fn start(&mut self) {
         self.hold_here();
-        let first = self.mech.read_counts();
+        let first = self.read_strokes_mm();
         self.travel.switches = self.mech.read_switches();
-        if let Ok(counts) = first {
-            self.estimate.encoders_mm = counts_to_mm(&counts);
+        if let Ok(strokes) = first {
+            self.estimate.encoders_mm = strokes;
             self.estimate.encoders_valid = true;
             if let Ok(sol) = fk(
                 &self.tables.active.geom,
@@ -401,6 +412,12 @@ impl<M: MechanismIo> Controller<M> {
         self.jobs.scrub_done();
     }
 
+    /// The thermal compensation: its applied stroke offsets (mm, per leg along base z)
+    /// and state.
+    pub fn compensation(&self) -> &Compensation {
+        &self.compensation
+    }
+
     /// The on-board parameters (as they are in RAM).
     pub fn parameters(&self) -> &Parameters {
         self.settings.params.params()
@@ -423,7 +440,7 @@ impl<M: MechanismIo> Controller<M> {
     /// Takes the strokes the drives hold as the commanded strokes and derives their pose
     /// (FK, warm-started from the last commanded pose). The pose is kept if FK fails.
     fn sync_to_drives(&mut self) {
-        let held = self.mech.setpoints_mm();
+        let held = self.held_mm();
         self.motion.strokes_mm = held;
         // At rest where the drives hold: in position means there.
         self.motion.setpoint_mm = held;
@@ -437,6 +454,45 @@ impl<M: MechanismIo> Controller<M> {
         }
     }
 
+    /// The strokes the drives hold (mm, each slider along base z) at the thermal model's
+    /// reference temperature: the drives' setpoints less the applied compensation
+    /// offset. Every "where the drives hold" of the controller is this.
+    pub(crate) fn held_mm(&mut self) -> [f32; LEGS] {
+        let applied = self.compensation.applied_mm();
+        let mut held = self.mech.setpoints_mm();
+        for (h, a) in held.iter_mut().zip(applied.iter()) {
+            *h -= a;
+        }
+        held
+    }
+
+    /// The encoder readings (mm, each slider along base z) at the reference
+    /// temperature: the readings less the applied compensation offset.
+    fn read_strokes_mm(&mut self) -> Result<[f32; LEGS], crate::hw::EncoderError> {
+        let applied = self.compensation.applied_mm();
+        self.mech.read_counts().map(|c| {
+            let mut s = counts_to_mm(&c);
+            for (v, a) in s.iter_mut().zip(applied.iter()) {
+                *v -= a;
+            }
+            s
+        })
+    }
+
+    /// Commands the drives to `strokes_mm` (mm at the reference temperature): each
+    /// with the applied compensation offset added.
+    pub(crate) fn drive_mm(
+        &mut self,
+        strokes_mm: &[f32; LEGS],
+    ) -> Result<(), crate::hw::DriveError> {
+        let applied = self.compensation.applied_mm();
+        let mut s = *strokes_mm;
+        for (v, a) in s.iter_mut().zip(applied.iter()) {
+            *v += a;
+        }
+        self.mech.command_strokes_mm(&s)
+    }
+
     /// One control cycle (the module documentation lists its steps). Bounded: no I/O
     /// wait, no packet work, no flash.
     pub fn control_cycle(&mut self) {
@@ -445,7 +501,7 @@ impl<M: MechanismIo> Controller<M> {
             self.emit_boot_events();
         }
         // 1. Encoders, their warnings, the end-of-travel switches.
-        let readings = self.mech.read_counts().map(|c| counts_to_mm(&c));
+        let readings = self.read_strokes_mm();
         let encoder_warning_legs = self.mech.warning_legs();
         self.travel.switches = self.mech.read_switches();
         self.report_end_of_travel();
@@ -477,7 +533,7 @@ impl<M: MechanismIo> Controller<M> {
         // 3. Supervision. At rest the reference is what the drives hold now (a drive
         //    re-referenced after missed steps holds a corrected setpoint).
         if matches!(self.motion.now, Motion::Hold) {
-            let held = self.mech.setpoints_mm();
+            let held = self.held_mm();
             if held != self.motion.strokes_mm {
                 self.motion.strokes_mm = held;
                 if let Ok(sol) = fk(
@@ -530,6 +586,9 @@ impl<M: MechanismIo> Controller<M> {
         if self.cycle % TEMPERATURE_PERIOD_CYCLES == TEMPERATURE_PHASE_CYCLES {
             self.read_temperatures();
         }
+        if self.cycle % STEP_PERIOD_CYCLES == COMPENSATION_PHASE_CYCLES {
+            self.step_compensation();
+        }
         if self.cycle % self.settings.ops.hk_period_cycles.max(1) == 0 {
             self.queue_housekeeping();
         }
@@ -539,6 +598,56 @@ impl<M: MechanismIo> Controller<M> {
         // 6. State.
         self.publish_state();
         self.cycle = self.cycle.wrapping_add(1);
+    }
+
+    /// One period of the thermal compensation ([`Compensation::step`]): the target is
+    /// the running table's thermal model at the commanded pose and the sensors' means.
+    /// At rest means holding with no fault latched. A step commands the drives to the
+    /// held strokes with the new offset and runs a fine positioning on them (a step's
+    /// drive change may fall in the backlash gap); a freeze is event
+    /// [`event::THERMAL_FROZEN`]. Skipped while a sensor the model uses, healthy, has
+    /// no mean yet (the first [`crate::thermal::MEAN_SAMPLES`] readings after the boot
+    /// or a recovery), so the start is not taken for a loss. Not inlined: the cycle's
+    /// frame does not grow by the model.
+    #[inline(never)]
+    fn step_compensation(&mut self) {
+        let model = &self.tables.active.table.thermal;
+        let used = model.sensors_used();
+        let faulty = self.temperatures.faulty() & used;
+        let mut temps_c = [f32::NAN; TEMP_SENSORS];
+        for (i, t) in temps_c.iter_mut().enumerate() {
+            match self.temperatures.sensor_celsius(i) {
+                Some(v) => *t = v,
+                None if (used & !faulty) & 1u8.wrapping_shl(i as u32) != 0 => return,
+                None => {}
+            }
+        }
+        let at_rest =
+            matches!(self.motion.now, Motion::Hold) && self.supervisor.latched().is_empty();
+        let target = crate::thermal::stroke_offsets_mm(
+            model,
+            &self.tables.active.geom,
+            &self.motion.pose,
+            &temps_c,
+        );
+        let (enabled, params) = self.settings.ops.thermal;
+        self.compensation.set_enabled(enabled);
+        match self
+            .compensation
+            .step(at_rest, target, faulty == 0, false, &params)
+        {
+            StepOutcome::Stepped => {
+                let held = self.motion.strokes_mm;
+                self.motion.last_drive = self.drive_mm(&held);
+                self.begin_fine(held);
+            }
+            StepOutcome::Frozen => self.event(
+                EventSeverity::Low,
+                event::THERMAL_FROZEN,
+                [u32::from(faulty), 0],
+            ),
+            _ => {}
+        }
     }
 
     /// Reads every temperature channel once and supervises it. Not inlined: the cycle's

@@ -356,7 +356,7 @@ impl<M: MechanismIo> Controller<M> {
                 .clamp(limited.strokes_mm, &self.motion.strokes_mm);
             self.motion.approach.track(&strokes);
             self.motion.strokes_mm = strokes;
-            self.motion.last_drive = self.mech.command_strokes_mm(&strokes);
+            self.motion.last_drive = self.drive_mm(&strokes);
             if !limited.limits_ok {
                 // The output stage's own limits are upset: no command is trusted; the
                 // repair re-derives them.
@@ -396,7 +396,7 @@ impl<M: MechanismIo> Controller<M> {
 
     /// Begins the fine positioning on the setpoint strokes `target_mm` (module
     /// [`crate::motion::fine`]); the move's completion waits for it.
-    fn begin_fine(&mut self, target_mm: [f32; LEGS]) {
+    pub(super) fn begin_fine(&mut self, target_mm: [f32; LEGS]) {
         self.motion.setpoint_mm = target_mm;
         self.motion.now = Motion::Fine {
             fine: Fine::begin(target_mm, &self.motion.approach, self.cycle),
@@ -536,7 +536,7 @@ impl<M: MechanismIo> Controller<M> {
     /// The pose the drives hold now, in the operator's frames: the start of any move
     /// (FK of the held strokes, warm-started from the commanded pose).
     fn held_pose(&mut self) -> Result<Pose<f32>, CommandError> {
-        let held = self.mech.setpoints_mm();
+        let held = self.held_mm();
         self.motion.strokes_mm = held;
         let sol = fk(
             &self.tables.active.geom,
@@ -616,7 +616,7 @@ impl<M: MechanismIo> Controller<M> {
             frames: self.settings.ops.frames,
             motion: self.settings.ops.motion,
             fk_cfg: self.estimate.cfg,
-            held_mm: self.mech.setpoints_mm(),
+            held_mm: self.held_mm(),
             pose_commanded: self.motion.pose,
         });
     }
@@ -707,7 +707,7 @@ impl<M: MechanismIo> Controller<M> {
             return Err(CommandError::NoGeometry);
         };
         let idx = leg.wrapping_sub(1);
-        let held = self.mech.setpoints_mm();
+        let held = self.held_mm();
         let Some(own) = held.get(usize::from(idx)).copied() else {
             return Err(CommandError::Stroke(crate::motion::StrokeMoveError::BadLeg));
         };

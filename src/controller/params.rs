@@ -37,6 +37,7 @@ use crate::motion::{
 use crate::supervision::SupervisionConfig;
 use crate::table::store::PARAMETERS_LEN;
 use crate::table::Table;
+use crate::thermal::compensation::{self, CompensationParams};
 use crate::timing::HK_PERIOD_CYCLES;
 use crate::units::{ARCSEC_PER_RAD, MAS_PER_ARCSEC, NM_PER_MM, NM_PER_MM_F32};
 
@@ -136,10 +137,16 @@ pub mod index {
     pub const IN_POSITION_TOLERANCE: usize = 19;
     /// In-position dwell (cycles).
     pub const IN_POSITION_DWELL: usize = 20;
+    /// Thermal compensation enabled (1) or not (0).
+    pub const THERMAL_ENABLE: usize = 21;
+    /// Thermal compensation's largest step per leg (nm).
+    pub const THERMAL_MAX_STEP: usize = 22;
+    /// Thermal compensation's smallest step (nm): the dead band.
+    pub const THERMAL_MIN_STEP: usize = 23;
 }
 
 /// Number of parameters.
-pub const N_PARAMETERS: usize = 21;
+pub const N_PARAMETERS: usize = 24;
 
 /// Default in-position tolerance (nm): one encoder count (0.1 um), the accuracy issue
 /// 21 asks of every slider.
@@ -306,6 +313,26 @@ pub const PARAMETERS: [ParamDef; N_PARAMETERS] = [
         MAX_IN_POSITION_DWELL_CYCLES,
         Default::Fixed(DEFAULT_IN_POSITION_DWELL_CYCLES),
     ),
+    // Off by default: the mirror holds what the operator commanded until the operator
+    // enables the compensation (which then moves it only by bounded steps).
+    p(0x0060, "thermal_compensation", "", 0, 1, Default::Fixed(0)),
+    p(
+        0x0061,
+        "thermal_max_step",
+        "nm",
+        nm(compensation::MAX_STEP_LOWEST_MM),
+        nm(compensation::MAX_STEP_HIGHEST_MM),
+        Default::Fixed(nm(compensation::DEFAULT_MAX_STEP_MM)),
+    ),
+    // Its highest accepted value is the maximum step in force (checked by `with`).
+    p(
+        0x0062,
+        "thermal_min_step",
+        "nm",
+        nm(compensation::MIN_STEP_LOWEST_MM),
+        nm(compensation::MAX_STEP_HIGHEST_MM),
+        Default::Fixed(nm(compensation::DEFAULT_MIN_STEP_MM)),
+    ),
 ];
 
 /// Why a parameter set or report was refused (family 0x07xx, from 0x0720).
@@ -320,6 +347,9 @@ pub enum ParamError {
     /// 0x0722: the following warning threshold would not be below the fault threshold
     /// (data: 0).
     WarningNotBelowFault,
+    /// 0x0724: the thermal compensation's dead band (0x0062) would be above its largest
+    /// step (0x0061), the effective values after the set (data: 0).
+    DeadBandAboveStep,
 }
 
 impl ParamError {
@@ -330,6 +360,7 @@ impl ParamError {
             ParamError::OutOfRange(_) => 0x0721,
             ParamError::WarningNotBelowFault => 0x0722,
             ParamError::Repeated(_) => 0x0723,
+            ParamError::DeadBandAboveStep => 0x0724,
         }
     }
 
@@ -339,7 +370,7 @@ impl ParamError {
             ParamError::UnknownId(id) | ParamError::OutOfRange(id) | ParamError::Repeated(id) => {
                 *id as u32
             }
-            ParamError::WarningNotBelowFault => 0,
+            ParamError::WarningNotBelowFault | ParamError::DeadBandAboveStep => 0,
         }
     }
 }
@@ -512,13 +543,20 @@ impl Parameters {
 
     /// The effective value of parameter `k` with `table` running.
     pub fn value(&self, k: usize, table: &Table) -> i32 {
+        self.set_or_fixed(k)
+            .unwrap_or_else(|| table_value(k, table))
+    }
+
+    /// The effective value of parameter `k` when it is set or its default is compiled
+    /// in; `None` when it is the running table's.
+    fn set_or_fixed(&self, k: usize) -> Option<i32> {
         if self.set & (1 << k) != 0 {
-            return self.values.get(k).copied().unwrap_or(0);
+            return Some(self.values.get(k).copied().unwrap_or(0));
         }
         match PARAMETERS.get(k).map(|d| d.default) {
-            Some(Default::Fixed(v)) => v,
-            Some(Default::Table) => table_value(k, table),
-            None => 0,
+            Some(Default::Fixed(v)) => Some(v),
+            Some(Default::Table) => None,
+            None => Some(0),
         }
     }
 
@@ -543,6 +581,11 @@ impl Parameters {
         }
         if p.following_conflict(table) {
             return Err(ParamError::WarningNotBelowFault);
+        }
+        // The dead band's range ends at the largest step in force (each alone is in its
+        // range here, so only this combination can fail).
+        if p.thermal().1.validate().is_err() {
+            return Err(ParamError::DeadBandAboveStep);
         }
         Ok(p)
     }
@@ -593,6 +636,20 @@ impl Parameters {
         let tol = (f64::from(self.value(index::IN_POSITION_TOLERANCE, table)) / NM_PER_MM) as f32;
         let dwell = u16::try_from(self.value(index::IN_POSITION_DWELL, table)).unwrap_or(1);
         (tol, dwell)
+    }
+
+    /// Thermal compensation enabled, and its steps (mm). Their defaults are compiled in
+    /// (none is the table's), so no table is needed.
+    pub fn thermal(&self) -> (bool, CompensationParams) {
+        let v = |k: usize| self.set_or_fixed(k).unwrap_or(0);
+        let mm = |k: usize| (f64::from(v(k)) / NM_PER_MM) as f32;
+        (
+            v(index::THERMAL_ENABLE) != 0,
+            CompensationParams {
+                max_step_mm: mm(index::THERMAL_MAX_STEP),
+                min_step_mm: mm(index::THERMAL_MIN_STEP),
+            },
+        )
     }
 
     /// Housekeeping period (cycles).

@@ -337,6 +337,12 @@ pub mod event_id {
     /// sensors that became faulty (bit i = sensor i); aux1: every sensor's fault now,
     /// open (bits 0..7), shorted (bits 8..15), stuck (bits 16..23).
     pub const SENSOR_FAULT: u16 = 0x0050;
+    /// The thermal compensation froze at its last applied offset: it is enabled and a
+    /// sensor the running table's thermal model uses is faulty (once per freeze: again
+    /// only after a recovery, or a disable and an enable). Warning: the mirror keeps the
+    /// frozen offset, no longer following the temperatures. aux0: the faulty sensors
+    /// the model uses (bit i = sensor i); aux1: 0.
+    pub const THERMAL_FROZEN: u16 = 0x0051;
     // Time-based schedule (ST[11]).
     /// A scheduled activity was released: its telecommand runs now. aux0: request ID
     /// (packet ID << 16 | sequence control), aux1: release time (OBT seconds).

@@ -501,7 +501,9 @@ mod tests {
         for c in 1..TIMEOUT_CYCLES {
             if f.at_rest(c, Some(&bad), TOL, 1) == FineStep::Correct {
                 n += 1;
-                assert!(f.correct(&[0.0; LEGS], TOL, &lim.map(|v| -v), &lim, 0.2, 1.0).is_ok());
+                assert!(f
+                    .correct(&[0.0; LEGS], TOL, &lim.map(|v| -v), &lim, 0.2, 1.0)
+                    .is_ok());
             }
         }
         assert_eq!(n, MAX_CORRECTIONS);
@@ -594,7 +596,9 @@ mod tests {
         // The bound itself.
         let mut g = Fine::begin([0.0; LEGS], &alternate(0.0), 0);
         assert_eq!(g.at_rest(1, Some(&[-1.0; LEGS]), TOL, 1), FineStep::Correct);
-        assert!(g.correct(&[0.0; LEGS], TOL, &[-5.0; LEGS], &[5.0; LEGS], 0.2, 1.0).is_ok());
+        assert!(g
+            .correct(&[0.0; LEGS], TOL, &[-5.0; LEGS], &[5.0; LEGS], 0.2, 1.0)
+            .is_ok());
         assert!(g
             .setpoint(1.0)
             .iter()
@@ -614,7 +618,9 @@ mod tests {
         // The slider did not move back (in the gap): 1 um short of the setpoint.
         let short = [0.999; LEGS];
         assert_eq!(f.at_rest(1, Some(&short), TOL, 1), FineStep::Correct);
-        assert!(f.correct(&[1.0; LEGS], TOL, &[-5.0; LEGS], &[5.0; LEGS], 0.2, 1.0).is_ok());
+        assert!(f
+            .correct(&[1.0; LEGS], TOL, &[-5.0; LEGS], &[5.0; LEGS], 0.2, 1.0)
+            .is_ok());
         // 1.5 um of gap, and floor(0.85 (1 + 0.05) / 0.078125) = 11 microsteps.
         let d = f.setpoint(1.0)[0] - 1.0;
         assert!((d - (0.0015 + 11.0 * MICROSTEP_MM)).abs() < 1e-6, "{d}");
@@ -622,7 +628,9 @@ mod tests {
         // stands on (the 1.5 um are 19.2 microsteps: it stands 0.2 below the command).
         assert_eq!(f.at_rest(2, Some(&short), TOL, 1), FineStep::Correct);
         let held = f.setpoint(1.0);
-        assert!(f.correct(&held, TOL, &[-5.0; LEGS], &[5.0; LEGS], 0.2, 1.0).is_ok());
+        assert!(f
+            .correct(&held, TOL, &[-5.0; LEGS], &[5.0; LEGS], 0.2, 1.0)
+            .is_ok());
         let d = f.setpoint(1.0)[0] - held[0];
         assert!((d - 10.8 * MICROSTEP_MM).abs() < 1e-6, "{d}");
     }

@@ -147,6 +147,21 @@ pub fn parameter_description(name: &str) -> Option<String> {
              each correction of the fine positioning"
                 .into()
         }
+        "thermal_compensation" => {
+            "thermal compensation: 1 follows the running table's thermal model at rest in \
+             bounded steps, 0 ramps its offset back to zero by the same steps"
+                .into()
+        }
+        "thermal_max_step" => {
+            "thermal compensation's largest change of a slider's offset per step (a step \
+             per second at rest)"
+                .into()
+        }
+        "thermal_min_step" => {
+            "thermal compensation's dead band: no step until some slider's offset differs \
+             by this much; at most the largest step"
+                .into()
+        }
         _ => return None,
     })
 }

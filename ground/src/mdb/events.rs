@@ -220,6 +220,15 @@ pub fn events() -> Vec<Event> {
             "temperature sensors {aux0} faulty (open, shorted, stuck: {aux1})",
         ),
         ev(
+            event_id::THERMAL_FROZEN,
+            "THERMAL_FROZEN",
+            "the thermal compensation froze at its last offset: it is enabled and a \
+             temperature sensor its model uses is faulty (once per freeze)",
+            sev(&[(Low, "")]),
+            ("faulty sensors the thermal model uses (bit i = sensor i)", "0"),
+            "thermal compensation frozen: sensors {aux0} faulty",
+        ),
+        ev(
             event_id::ACTIVITY_RELEASED,
             "ACTIVITY_RELEASED",
             "time-tagged activity released: its telecommand runs now",
@@ -310,6 +319,7 @@ fn aux_decoding(id: u16) -> (Vec<AuxPart>, Vec<AuxPart>) {
                 part(SENSOR_STUCK_SHIFT, 8, b("sensor_mask")),
             ],
         ),
+        event_id::THERMAL_FROZEN => (whole(b("sensor_mask")), Vec::new()),
         _ => (Vec::new(), Vec::new()),
     }
 }

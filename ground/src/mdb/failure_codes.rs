@@ -763,6 +763,14 @@ pub fn failure_codes() -> Vec<FailureCode> {
                 "the ID",
             ),
         ),
+        (
+            ParamError::DeadBandAboveStep,
+            d(
+                Start,
+                "thermal compensation's dead band (0x0062) above its largest step (0x0061)",
+                "0",
+            ),
+        ),
     ] {
         push("CONTROLLER", "parameters", e.code(), format!("{e:?}"), doc);
     }

@@ -366,10 +366,7 @@ mod tests {
         assert_eq!(&slot[0..4], b"M2CR");
         assert_eq!(&slot[4..8], &[1, 0, 24, 0]);
         assert_eq!(&slot[8..12], &[1, 2, 3, 4]);
-        assert_eq!(
-            le_u32(&slot[12..16]) as usize,
-            TABLE_LEN
-        );
+        assert_eq!(le_u32(&slot[12..16]) as usize, TABLE_LEN);
         assert_eq!(&slot[16..20], &[0xAA, 0xBB, 0xCC, 0xDD]);
         let crc = CRC32.checksum(&slot[..20]);
         assert_eq!(le_u32(&slot[20..24]), crc);

@@ -1,0 +1,302 @@
+//! The thermal compensation wired into the controller (issue 22): the running table's
+//! thermal model, the sensors' means and the bounded steps (`thermal::Compensation`)
+//! at the encoder/drive seam, driven through ST[20] parameters 0x0060..0x0062, against
+//! the simulated plant's temperature field. The reference of every error is the pose
+//! the plant holds at the table's reference temperature, measured by the plant itself
+//! (its own expanded geometry, `Plant::true_pose`), never by the controller.
+
+mod common;
+
+use common::install;
+use m2ctl::controller::event;
+use m2ctl::controller::params::{index, PARAMETERS};
+use m2ctl::kinematics::{Pose, LEGS};
+use m2ctl::link::{Command, ParameterValues};
+use m2ctl::nominal::PROTOTYPE;
+use m2ctl::sim::thermal::{
+    Coefficients, Profile, SensorConfig, SensorFailure, ThermalConfig, REFERENCE_C,
+};
+use m2ctl::sim::{Bench, Plant, PlantConfig};
+use m2ctl::table::Table;
+use m2ctl::thermal::compensation::DEFAULT_MAX_STEP_MM;
+use m2ctl::thermal::MEAN_SAMPLES;
+use m2ctl::timing::{CONTROL_RATE_HZ, TEMPERATURE_PERIOD_CYCLES};
+use m2ctl::units::{ARCSEC_PER_RAD, UM_PER_MM};
+
+/// The goal of issue 22 with compensation: held pose error (translation norm, um).
+const GOAL_UM: f64 = 0.3;
+/// ... and rotation norm (arcsec).
+const GOAL_ARCSEC: f64 = 0.5;
+/// A step's bound with float rounding (mm): the default maximum step.
+const STEP_BOUND_MM: f32 = DEFAULT_MAX_STEP_MM * (1.0 + 1e-5);
+/// Control cycles until the sensors have their first means, and one second more.
+const FIRST_MEAN_CYCLES: u32 =
+    (MEAN_SAMPLES as u32 + 1) * TEMPERATURE_PERIOD_CYCLES + CONTROL_RATE_HZ;
+/// Enough for the compensation to follow +-5 K (offsets of about 10 um at 0.5 um per
+/// second) and the last fine positioning: 60 s.
+const FOLLOW_CYCLES: u32 = 60 * CONTROL_RATE_HZ;
+
+/// The parameter ID of index `k`.
+fn id(k: usize) -> u16 {
+    PARAMETERS[k].id
+}
+
+/// A plant (the prototype's geometry, no manufacturing error) whose parts sit at
+/// `profile`, with calibrated sensors (`seed`), and the nominal coefficients as truth.
+fn plant(profile: Profile, seed: u64) -> Plant {
+    let cfg = ThermalConfig {
+        profile,
+        truth: Coefficients::NOMINAL,
+        sensors: SensorConfig::drawn(seed),
+    };
+    Plant::new(
+        &PROTOTYPE,
+        PlantConfig {
+            seed,
+            ..PlantConfig::default()
+        },
+    )
+    .unwrap()
+    .with_thermal(cfg)
+    .unwrap()
+}
+
+/// The nominal table with the nominal thermal model (the plant's truth), as table
+/// `table_id`.
+fn table_with_model(table_id: u32) -> Table {
+    let mut t = Table::nominal();
+    t.thermal = Coefficients::NOMINAL.model();
+    t.table_id = table_id;
+    t
+}
+
+/// A bench on `profile` running the table with the thermal model, at rest.
+fn bench(profile: Profile, seed: u64) -> Bench {
+    let mut b = Bench::with_plant(plant(profile, seed));
+    let t = table_with_model(0x7E22_0001);
+    let reps = install(&mut b, &t, true);
+    assert!(common::all_ok(&reps), "{reps:?}");
+    b.run(FIRST_MEAN_CYCLES);
+    b
+}
+
+/// Sets parameters by TC[20,3]: the verification reports.
+fn set(b: &mut Bench, values: &[(u16, i32)]) -> Vec<m2ctl::link::tm::Verification> {
+    let v = ParameterValues::new(values).unwrap();
+    b.command(&Command::SetParameters(v), 2_000)
+}
+
+/// The plant's true pose (mm, rad).
+fn true_pose(b: &Bench) -> Pose<f64> {
+    b.plant.with(|p| p.true_pose().unwrap())
+}
+
+/// Translation (um) and rotation (arcsec) norms of `a - b`.
+fn error(a: &Pose<f64>, b: &Pose<f64>) -> (f64, f64) {
+    let t = (0..3)
+        .map(|i| (a.translation_mm[i] - b.translation_mm[i]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let r = (0..3)
+        .map(|i| (a.rotation_rad[i] - b.rotation_rad[i]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    (t * UM_PER_MM, r * ARCSEC_PER_RAD)
+}
+
+/// Runs `cycles`, checking every cycle that no leg's applied offset changed by more
+/// than a step; returns the number of steps seen.
+fn run_bounded(b: &mut Bench, cycles: u32) -> usize {
+    let mut last = b.ctl.compensation().applied_mm();
+    let mut steps = 0;
+    for _ in 0..cycles {
+        b.tick();
+        let now = b.ctl.compensation().applied_mm();
+        let worst = (0..LEGS)
+            .map(|i| (now[i] - last[i]).abs())
+            .fold(0.0f32, f32::max);
+        assert!(worst <= STEP_BOUND_MM, "a step of {worst} mm");
+        if worst > 0.0 {
+            steps += 1;
+        }
+        last = now;
+    }
+    steps
+}
+
+/// The pose held at the reference temperature: the same bench's start on a plant at
+/// the reference (the plant's own true pose once the controller has settled).
+fn reference_pose(seed: u64) -> Pose<f64> {
+    let b = bench(Profile::REFERENCE, seed);
+    true_pose(&b)
+}
+
+/// Held pose errors (um, arcsec) off and on for a plant at `profile`.
+fn off_and_on(profile: Profile, seed: u64) -> ((f64, f64), (f64, f64)) {
+    let reference = reference_pose(seed);
+    let mut b = bench(profile, seed);
+    let off = error(&true_pose(&b), &reference);
+    assert!(common::all_ok(&set(
+        &mut b,
+        &[(id(index::THERMAL_ENABLE), 1)]
+    )));
+    let steps = run_bounded(&mut b, FOLLOW_CYCLES);
+    assert!(steps > 0, "no step");
+    let on = error(&true_pose(&b), &reference);
+    println!(
+        "{profile:?}: off {:.3} um / {:.3}\", on {:.3} um / {:.3}\" ({steps} steps)",
+        off.0, off.1, on.0, on.1
+    );
+    (off, on)
+}
+
+#[test]
+fn compensation_holds_the_pose_through_a_uniform_swing_and_a_gradient() {
+    for (profile, seed) in [
+        (
+            Profile {
+                mean_c: REFERENCE_C + 5.0,
+                ..Profile::REFERENCE
+            },
+            3,
+        ),
+        (
+            Profile {
+                mean_c: REFERENCE_C - 5.0,
+                ..Profile::REFERENCE
+            },
+            4,
+        ),
+        (
+            Profile {
+                gradient_k: 2.0,
+                gradient_angle_rad: 0.7,
+                ..Profile::REFERENCE
+            },
+            5,
+        ),
+    ] {
+        let (off, on) = off_and_on(profile, seed);
+        assert!(
+            on.0 <= GOAL_UM && on.1 <= GOAL_ARCSEC,
+            "{profile:?}: {on:?}"
+        );
+        // The swing matters: compensation off is well outside the goal.
+        assert!(
+            off.0 > 3.0 * GOAL_UM || off.1 > 3.0 * GOAL_ARCSEC,
+            "{off:?}"
+        );
+    }
+}
+
+#[test]
+fn disabled_by_default_the_controller_holds_the_strokes() {
+    let mut b = bench(
+        Profile {
+            mean_c: REFERENCE_C + 5.0,
+            ..Profile::REFERENCE
+        },
+        6,
+    );
+    assert!(!b.ctl.compensation().is_enabled());
+    let steps = run_bounded(&mut b, 5 * CONTROL_RATE_HZ);
+    assert_eq!(steps, 0);
+    assert_eq!(b.ctl.compensation().applied_mm(), [0.0; LEGS]);
+}
+
+#[test]
+fn disabling_ramps_back_to_zero_in_bounded_steps() {
+    let mut b = bench(
+        Profile {
+            mean_c: REFERENCE_C + 5.0,
+            ..Profile::REFERENCE
+        },
+        7,
+    );
+    let uncompensated = true_pose(&b);
+    assert!(common::all_ok(&set(
+        &mut b,
+        &[(id(index::THERMAL_ENABLE), 1)]
+    )));
+    run_bounded(&mut b, FOLLOW_CYCLES);
+    assert!(b
+        .ctl
+        .compensation()
+        .applied_mm()
+        .iter()
+        .any(|v| v.abs() > 1e-3));
+    assert!(common::all_ok(&set(
+        &mut b,
+        &[(id(index::THERMAL_ENABLE), 0)]
+    )));
+    let steps = run_bounded(&mut b, FOLLOW_CYCLES);
+    assert!(steps > 1, "ramped in {steps} steps");
+    assert_eq!(b.ctl.compensation().applied_mm(), [0.0; LEGS]);
+    // Back where the strokes alone hold the mirror.
+    let (t_um, r_as) = error(&true_pose(&b), &uncompensated);
+    assert!(t_um < 0.2 && r_as < 0.3, "{t_um} um {r_as}\"");
+}
+
+#[test]
+fn a_faulty_sensor_freezes_the_offset_with_one_warning_and_recovery_resumes() {
+    let mut b = bench(
+        Profile {
+            mean_c: REFERENCE_C + 5.0,
+            ..Profile::REFERENCE
+        },
+        8,
+    );
+    assert!(common::all_ok(&set(
+        &mut b,
+        &[(id(index::THERMAL_ENABLE), 1)]
+    )));
+    // Part way: a few steps.
+    run_bounded(&mut b, 4 * CONTROL_RATE_HZ);
+    // Sensor 0 governs parts of the model (`SENSOR_OF`); it opens.
+    b.plant
+        .with(|p| p.thermal_mut().inject(0, SensorFailure::Open));
+    run_bounded(&mut b, 2 * CONTROL_RATE_HZ);
+    let frozen = b.ctl.compensation().applied_mm();
+    assert!(b.ctl.compensation().is_frozen());
+    assert!(
+        run_bounded(&mut b, 10 * CONTROL_RATE_HZ) == 0,
+        "stepped while frozen"
+    );
+    assert_eq!(b.ctl.compensation().applied_mm(), frozen);
+    let ev = b.st.events(event::THERMAL_FROZEN);
+    assert_eq!(ev.len(), 1, "{ev:?}");
+    assert_eq!(ev[0][0] & 1, 1, "sensor 0 named: {ev:?}");
+    // Recovery: the steps resume from the frozen offset, bounded.
+    b.plant.with(|p| p.thermal_mut().clear_failures());
+    let steps = run_bounded(&mut b, FOLLOW_CYCLES);
+    assert!(steps > 0);
+    assert!(!b.ctl.compensation().is_frozen());
+    assert_eq!(b.st.events(event::THERMAL_FROZEN).len(), 1);
+}
+
+#[test]
+fn a_minimum_step_above_the_maximum_is_refused_and_changes_nothing() {
+    let mut b = bench(Profile::REFERENCE, 9);
+    let before = *b.ctl.parameters();
+    let reps = set(
+        &mut b,
+        &[
+            (id(index::THERMAL_MAX_STEP), 200),
+            (id(index::THERMAL_MIN_STEP), 300),
+        ],
+    );
+    let failure = reps.iter().find_map(|v| v.failure());
+    assert_eq!(failure, Some((0x0724, 0)));
+    assert_eq!(*b.ctl.parameters(), before);
+    // Equal is accepted, and runs.
+    let reps = set(
+        &mut b,
+        &[
+            (id(index::THERMAL_MAX_STEP), 200),
+            (id(index::THERMAL_MIN_STEP), 200),
+        ],
+    );
+    assert!(common::all_ok(&reps), "{reps:?}");
+    let (_, p) = b.ctl.parameters().thermal();
+    assert_eq!((p.max_step_mm, p.min_step_mm), (200e-6, 200e-6));
+}
