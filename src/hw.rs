@@ -171,14 +171,29 @@ pub trait EndOfTravel {
 /// is generic over it; anything with the five parts has it (drivers on a board, the
 /// simulated plant, a board's slider model).
 pub trait MechanismIo:
-    StrokeEncoders + SliderDrives + EndOfTravel + EncoderWarnings + TemperatureInputs
+    StrokeEncoders + SliderDrives + EndOfTravel + EncoderWarnings + TemperatureInputs + ExposureInput
 {
 }
 
 impl<
-        T: StrokeEncoders + SliderDrives + EndOfTravel + EncoderWarnings + TemperatureInputs + ?Sized,
+        T: StrokeEncoders
+            + SliderDrives
+            + EndOfTravel
+            + EncoderWarnings
+            + TemperatureInputs
+            + ExposureInput
+            + ?Sized,
     > MechanismIo for T
 {
+}
+
+/// The camera's "exposing" discrete input (issue 22's exposure hold): read once per
+/// control cycle. Active holds every compensation step and every scheduled motion
+/// and refuses operator moves, from its rising edge until it is released or
+/// `controller` times it out.
+pub trait ExposureInput {
+    /// The input is active (the camera is exposing).
+    fn exposing(&mut self) -> bool;
 }
 
 /// The mechanism's temperature sensors (issue 22): PT1000 resistance thermometers

@@ -438,3 +438,61 @@ fn the_temperature_figures_in_the_prose_are_the_codes() {
         assert!(text.contains(&phrase), "docs/icd.md section 6 lacks: {phrase}");
     }
 }
+
+/// The thermal compensation paragraph (section 5) and the exposure hold (section 3)
+/// say the codes' figures.
+#[test]
+fn the_compensation_and_exposure_hold_figures_in_the_prose_are_the_codes() {
+    use m2ctl::controller::params::{index, ParamError, PARAMETERS};
+    use m2ctl::controller::CommandError;
+    use m2ctl::link::command::{FunctionId, MAX_EXPOSURE_HOLD_S};
+    use m2ctl::link::tm::event_id;
+    use m2ctl::thermal::compensation::{DEFAULT_MAX_STEP_MM, DEFAULT_MIN_STEP_MM};
+    use m2ctl::timing::{COMPENSATION_PHASE_CYCLES, CONTROL_RATE_HZ};
+    let nm = |mm: f32| (f64::from(mm) * 1e6).round() as i64;
+    let id = |k: usize| format!("0x{:04X}", PARAMETERS[k].id);
+    let text = icd().split_whitespace().collect::<Vec<_>>().join(" ");
+    let hold_s = m2ground::mdb::thousands(i64::from(MAX_EXPOSURE_HOLD_S));
+    for phrase in [
+        format!(
+            "(parameters {}..{}, section 5a; off by default)",
+            id(index::THERMAL_ENABLE),
+            id(index::THERMAL_MIN_STEP)
+        ),
+        format!(
+            "once a second ({} ms into it)",
+            COMPENSATION_PHASE_CYCLES * 1000 / CONTROL_RATE_HZ
+        ),
+        format!(
+            "by at most the largest step ({}, default {} nm)",
+            id(index::THERMAL_MAX_STEP),
+            nm(DEFAULT_MAX_STEP_MM)
+        ),
+        format!(
+            "the dead band ({}, default {} nm)",
+            id(index::THERMAL_MIN_STEP),
+            nm(DEFAULT_MIN_STEP_MM)
+        ),
+        format!("with event 0x{:04X} once", event_id::THERMAL_FROZEN),
+        format!(
+            "above the largest step is refused (0x{:04X})",
+            ParamError::DeadBandAboveStep.code()
+        ),
+        format!(
+            "**Exposure hold** (function 0x{:04X}, timeout u16 in seconds, 0..{hold_s})",
+            FunctionId::ExposureHold.code()
+        ),
+        format!(
+            "refused with 0x{:04X} (data: the hold's seconds left, rounded up)",
+            CommandError::ExposureHold(0).code()
+        ),
+        format!("at most {hold_s} s (then a new rising edge is needed)"),
+        format!(
+            "Event 0x{:04X} reports the start",
+            event_id::EXPOSURE_HOLD_STARTED
+        ),
+        format!("0x{:04X} the end", event_id::EXPOSURE_HOLD_ENDED),
+    ] {
+        assert!(text.contains(&phrase), "docs/icd.md lacks: {phrase}");
+    }
+}

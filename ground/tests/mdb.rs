@@ -932,7 +932,8 @@ fn must_confirm(c: &Command) -> bool {
         | Command::CheckMove(_)
         | Command::MoveRelative(_)
         | Command::Stop
-        | Command::ClearFault => false,
+        | Command::ClearFault
+        | Command::ExposureHold { .. } => false,
     }
 }
 

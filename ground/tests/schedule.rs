@@ -1444,3 +1444,35 @@ fn every_telecommand_but_st11_and_table_chunks_can_be_scheduled() {
     let released = r.st.events(event::ACTIVITY_RELEASED);
     assert_eq!(released.len(), schedulable.len());
 }
+
+#[test]
+fn an_exposure_hold_holds_every_release_until_it_ends_then_they_run_in_order() {
+    let mut r = Bench::new();
+    r.run(1);
+    let target = wire(20.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let (_, ids) = insert(
+        &mut r,
+        &[
+            (obt(1.0), Command::MoveAbsolute(target)),
+            (obt(1.5), Command::Ping),
+        ],
+    );
+    // A 3 s hold from about 0.01 s: both release times pass during it.
+    let (_, reps, at) = run_tc(&mut r, &Command::ExposureHold { timeout_s: 3 });
+    assert!(all_ok(&reps), "{reps:?}");
+    let hold_end = secs(at) + 3.0;
+    run_until_just_before(&mut r, obt(hold_end - 0.01));
+    assert!(released(&r).is_empty(), "released during the hold");
+    assert!(r.st.reports(ids[0]).is_empty() && r.st.reports(ids[1]).is_empty());
+    assert_eq!(r.ctl.state(), State::Idle);
+    // The hold times out (event 0x0053, reason 1); the activities follow, in time order.
+    r.run(50);
+    assert_eq!(r.st.events(event::EXPOSURE_HOLD_ENDED), [[1, 0]]);
+    assert_eq!(
+        released(&r),
+        [request_id_word(ids[0]), request_id_word(ids[1])]
+    );
+    r.settle(20_000);
+    assert!(all_ok(&r.st.reports(ids[0])), "{:?}", r.st.reports(ids[0]));
+    assert_at(&r, &target, "the held move, after the hold");
+}

@@ -87,6 +87,14 @@ impl crate::hw::EncoderWarnings for QemuSliders {
 
 const _: () = assert!(COUNTS_NEAR_20_C % 2 == 0);
 
+/// The QEMU machine has no discrete input wired to the camera: never exposing (the
+/// exposure hold is the telecommand's).
+impl crate::hw::ExposureInput for QemuSliders {
+    fn exposing(&mut self) -> bool {
+        false
+    }
+}
+
 impl crate::hw::TemperatureInputs for QemuSliders {
     fn read_temperature_counts(&mut self) -> [u16; TEMP_SENSORS] {
         self.temperature_dither ^= 1;

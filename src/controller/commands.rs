@@ -171,6 +171,10 @@ impl<M: MechanismIo> Controller<M> {
                 self.hold_here();
                 Ok(Outcome::Done)
             }
+            Command::ExposureHold { timeout_s } => {
+                self.set_exposure_hold(timeout_s);
+                Ok(Outcome::Done)
+            }
             Command::DirectStroke { leg, delta_nm } => {
                 self.start_direct_stroke(leg, delta_nm as f32 / NM_PER_MM_F32)
             }

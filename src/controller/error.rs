@@ -66,6 +66,9 @@ pub enum CommandError {
     /// positioning's timeout (`motion::fine::TIMEOUT_CYCLES`) after the path (data: the
     /// legs out of tolerance, bit i = leg i+1).
     NotInPosition(u8),
+    /// 0x0710: an operator move (absolute, relative, direct stroke) during an exposure
+    /// hold (data: the hold's seconds left, rounded up).
+    ExposureHold(u32),
 }
 
 /// Reasons a leg's encoder is suspect for a direct-stroke move (0x070B's data bits).
@@ -107,6 +110,7 @@ impl CommandError {
             CommandError::JobBusy(_) => 0x070D,
             CommandError::TowardEndOfTravel(_) => 0x070E,
             CommandError::NotInPosition(_) => 0x070F,
+            CommandError::ExposureHold(_) => 0x0710,
             CommandError::Parameter(e) => e.code(),
             CommandError::Schedule(e) => e.code(),
         }
@@ -136,6 +140,7 @@ impl CommandError {
             }
             CommandError::Parameter(e) => e.data(),
             CommandError::Schedule(e) => e.data(),
+            CommandError::ExposureHold(left_s) => *left_s,
             _ => 0,
         }
     }

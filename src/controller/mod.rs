@@ -233,6 +233,8 @@ pub struct Controller<M> {
     /// added to every drive command at the seam ([`Controller::held_mm`],
     /// [`Controller::read_strokes_mm`], [`Controller::drive_mm`]).
     compensation: Compensation,
+    /// The exposure hold (telecommand and discrete input).
+    exposure: parts::ExposureHold,
     /// Telecommand counters and the telecommand still owed a report.
     ledger: parts::TcLedger,
     /// What was last reported by event.
@@ -314,6 +316,7 @@ impl<M: MechanismIo> Controller<M> {
             deadline: parts::DeadlineMonitor::default(),
             temperatures: SensorBank::default(),
             compensation: Compensation::default(),
+            exposure: parts::ExposureHold::default(),
             ledger: parts::TcLedger::default(),
             reporting: parts::Reporting {
                 state: State::Idle,
@@ -580,7 +583,8 @@ impl<M: MechanismIo> Controller<M> {
             );
             self.begin_stop();
         }
-        // 4. Motion.
+        // 4. Motion (after the exposure input: a hold it begins holds this cycle).
+        self.step_exposure_hold();
         self.step_motion();
         // 5. Periodic work.
         if self.cycle % TEMPERATURE_PERIOD_CYCLES == TEMPERATURE_PHASE_CYCLES {
@@ -632,10 +636,13 @@ impl<M: MechanismIo> Controller<M> {
         );
         let (enabled, params) = self.settings.ops.thermal;
         self.compensation.set_enabled(enabled);
-        match self
-            .compensation
-            .step(at_rest, target, faulty == 0, false, &params)
-        {
+        match self.compensation.step(
+            at_rest,
+            target,
+            faulty == 0,
+            self.exposure.active(),
+            &params,
+        ) {
             StepOutcome::Stepped => {
                 let held = self.motion.strokes_mm;
                 self.motion.last_drive = self.drive_mm(&held);
@@ -645,6 +652,48 @@ impl<M: MechanismIo> Controller<M> {
                 EventSeverity::Low,
                 event::THERMAL_FROZEN,
                 [u32::from(faulty), 0],
+            ),
+            _ => {}
+        }
+    }
+
+    /// One cycle of the exposure hold: the discrete input read, the timeouts counted,
+    /// and events 0x0052/0x0053 when the hold begins or ends.
+    fn step_exposure_hold(&mut self) {
+        let input = self.mech.exposing();
+        let was = self.exposure.active();
+        if let Some(why) = self.exposure.cycle(input) {
+            self.event(
+                EventSeverity::Info,
+                event::EXPOSURE_HOLD_ENDED,
+                [why as u32, 0],
+            );
+        } else if !was && self.exposure.active() {
+            self.exposure_hold_started(1, parts::EXPOSURE_INPUT_TIMEOUT_CYCLES);
+        }
+    }
+
+    /// Event 0x0052: a hold began (`source`: 0 telecommand, 1 input) for `cycles`.
+    fn exposure_hold_started(&mut self, source: u32, cycles: u32) {
+        self.event(
+            EventSeverity::Info,
+            event::EXPOSURE_HOLD_STARTED,
+            [source, cycles / crate::timing::CONTROL_RATE_HZ],
+        );
+    }
+
+    /// TC[8,1] 0x0007: holds for `timeout_s` seconds from now (again: from now), or
+    /// with 0 ends the telecommand's hold (the input's goes on while it is active).
+    fn set_exposure_hold(&mut self, timeout_s: u16) {
+        let was = self.exposure.active();
+        let cycles = u32::from(timeout_s) * crate::timing::CONTROL_RATE_HZ;
+        self.exposure.tc_left = cycles;
+        match (was, self.exposure.active()) {
+            (false, true) => self.exposure_hold_started(0, cycles),
+            (true, false) => self.event(
+                EventSeverity::Info,
+                event::EXPOSURE_HOLD_ENDED,
+                [parts::HoldEnd::Telecommand as u32, 0],
             ),
             _ => {}
         }

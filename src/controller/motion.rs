@@ -530,7 +530,21 @@ impl<M: MechanismIo> Controller<M> {
         if !latched.is_empty() {
             return Err(CommandError::Faulted(latched));
         }
-        self.require_idle()
+        self.require_idle()?;
+        self.require_no_exposure_hold()
+    }
+
+    /// No exposure hold in force (operator moves are refused during one: 0x0710, data
+    /// its seconds left, rounded up).
+    fn require_no_exposure_hold(&self) -> Result<(), CommandError> {
+        if self.exposure.active() {
+            return Err(CommandError::ExposureHold(
+                self.exposure
+                    .left_cycles()
+                    .div_ceil(crate::timing::CONTROL_RATE_HZ),
+            ));
+        }
+        Ok(())
     }
 
     /// The pose the drives hold now, in the operator's frames: the start of any move
@@ -700,9 +714,11 @@ impl<M: MechanismIo> Controller<M> {
         leg: u8,
         delta_mm: f32,
     ) -> Result<Outcome, CommandError> {
-        // Recovery works while faulted (that is what it is for), not while moving.
+        // Recovery works while faulted (that is what it is for), not while moving, nor
+        // during an exposure hold.
         self.require_geometry()?;
         self.require_idle()?;
+        self.require_no_exposure_hold()?;
         let Some(stroke) = self.tables.active.geom.stroke else {
             return Err(CommandError::NoGeometry);
         };

@@ -306,3 +306,72 @@ mod tests {
         assert_eq!(t.changed_report(), Some(1 << EOT_UNREADABLE_SHIFT));
     }
 }
+
+/// The exposure hold (issue 22): the camera is exposing, so no compensation step, no
+/// scheduled motion and no operator move. Set by telecommand (TC[8,1] 0x0007, with its
+/// timeout) or by the board's discrete input (while it is active, at most
+/// [`EXPOSURE_INPUT_TIMEOUT_CYCLES`] from its rising edge); held while either is.
+/// Counted in control cycles left; its default (no hold) is all zero bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(super) struct ExposureHold {
+    /// Cycles left of the telecommand's hold (0: none).
+    pub tc_left: u32,
+    /// Cycles left of the discrete input's hold (0: none, or timed out while the input
+    /// stays active: a new rising edge is needed).
+    pub input_left: u32,
+    /// The input at the last cycle (the rising edge starts a hold).
+    pub input_prev: bool,
+}
+
+/// The longest hold the discrete input makes (cycles): as long as the telecommand's
+/// longest ([`crate::link::command::MAX_EXPOSURE_HOLD_S`]), so that a stuck input does
+/// not hold the mechanism for ever.
+pub(super) const EXPOSURE_INPUT_TIMEOUT_CYCLES: u32 =
+    crate::link::command::MAX_EXPOSURE_HOLD_S as u32 * crate::timing::CONTROL_RATE_HZ;
+
+/// Why an exposure hold ended (event [`crate::link::tm::event_id::EXPOSURE_HOLD_ENDED`]'s
+/// aux0).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub(super) enum HoldEnd {
+    /// A telecommand with timeout 0 (and the input is not active).
+    Telecommand = 0,
+    /// Its timeout passed.
+    TimedOut = 1,
+    /// The discrete input was released.
+    InputReleased = 2,
+}
+
+impl ExposureHold {
+    /// A hold is in force.
+    pub fn active(&self) -> bool {
+        self.tc_left != 0 || self.input_left != 0
+    }
+
+    /// The hold's cycles left (the longer of the two).
+    pub fn left_cycles(&self) -> u32 {
+        self.tc_left.max(self.input_left)
+    }
+
+    /// One control cycle with the input `input`: the rising edge starts the input's
+    /// hold, the falling edge ends it, and both count down. Returns why the hold ended
+    /// if it ended in this cycle.
+    pub fn cycle(&mut self, input: bool) -> Option<HoldEnd> {
+        let was = self.active();
+        if input && !self.input_prev {
+            self.input_left = EXPOSURE_INPUT_TIMEOUT_CYCLES;
+        }
+        let released = !input && self.input_prev && self.input_left != 0;
+        if !input {
+            self.input_left = 0;
+        }
+        self.input_prev = input;
+        self.tc_left = self.tc_left.saturating_sub(1);
+        self.input_left = self.input_left.saturating_sub(1);
+        match (was, self.active()) {
+            (true, false) if released => Some(HoldEnd::InputReleased),
+            (true, false) => Some(HoldEnd::TimedOut),
+            _ => None,
+        }
+    }
+}

@@ -427,11 +427,17 @@ impl<M: MechanismIo> Controller<M> {
         }
     }
 
-    /// Releases the first activity if its time has come (module documentation): it
+    /// Releases the first activity if its time has come and no exposure hold is in
+    /// force (module documentation): it
     /// leaves the schedule (it can never run twice) and event 0x00B0 announces it; the
     /// link service decodes its packet and hands it to
     /// [`Controller::execute_released`].
     pub fn take_due_activity(&mut self) -> Option<Activity> {
+        // An exposure hold holds every release: the activities wait, in time order,
+        // and are released once it ends.
+        if self.exposure.active() {
+            return None;
+        }
         let now = self.obt();
         let a = self.schedule.take_due(now)?;
         self.schedule.released = self.schedule.released.wrapping_add(1);

@@ -117,6 +117,14 @@ impl<E, D: DirectionInhibit, S: EndOfTravel> EndOfTravel for Mechanism<E, D, S> 
 /// channel that repeats one count as stuck (`thermal::STUCK_SAMPLES` readings, 6.4 s),
 /// so housekeeping reports these sensors stuck: no temperature is claimed that was not
 /// measured.
+/// The drivers' mechanism has no pin assigned to the camera's "exposing" input yet:
+/// never exposing (the exposure hold is the telecommand's until a board wires one).
+impl<E, D, S> crate::hw::ExposureInput for Mechanism<E, D, S> {
+    fn exposing(&mut self) -> bool {
+        false
+    }
+}
+
 impl<E, D, S> crate::hw::TemperatureInputs for Mechanism<E, D, S> {
     fn read_temperature_counts(&mut self) -> [u16; crate::thermal::TEMP_SENSORS] {
         [crate::thermal::adc::COUNTS_NEAR_20_C; crate::thermal::TEMP_SENSORS]

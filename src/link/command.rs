@@ -307,17 +307,26 @@ pub enum FunctionId {
     SwitchBank = 0x0012,
     /// Revert to the compiled-in nominal table. No args.
     RevertToNominal = 0x0013,
+    /// The camera is exposing: hold every compensation step and every scheduled motion,
+    /// refuse operator moves, for this long. Args: timeout u16 (s,
+    /// 0..=[`MAX_EXPOSURE_HOLD_S`]; 0 ends the hold the telecommand set).
+    ExposureHold = 0x0007,
 }
+
+/// Longest exposure hold (s): one hour, longer than any exposure, so that a hold the
+/// camera never ends still times out.
+pub const MAX_EXPOSURE_HOLD_S: u16 = 3_600;
 
 impl FunctionId {
     /// Every function ID.
-    pub const ALL: [FunctionId; 10] = [
+    pub const ALL: [FunctionId; 11] = [
         FunctionId::MoveAbsolute,
         FunctionId::MoveRelative,
         FunctionId::Stop,
         FunctionId::ClearFault,
         FunctionId::DirectStroke,
         FunctionId::CheckMove,
+        FunctionId::ExposureHold,
         FunctionId::CommitTable,
         FunctionId::ActivateTable,
         FunctionId::SwitchBank,
@@ -343,6 +352,7 @@ impl FunctionId {
             FunctionId::DirectStroke => 1 + 4,
             FunctionId::CommitTable => 4,
             FunctionId::ActivateTable => 4 + 4,
+            FunctionId::ExposureHold => 2,
             FunctionId::Stop
             | FunctionId::ClearFault
             | FunctionId::SwitchBank
@@ -395,6 +405,11 @@ pub enum Command {
     RevertToNominal,
     /// TC[8,1] fn 0x0006: check a move to this pose without moving (TM[8,130]).
     CheckMove(WirePose),
+    /// TC[8,1] fn 0x0007: the exposure hold for `timeout_s` seconds (0 ends it).
+    ExposureHold {
+        /// The hold's timeout (s), 0..=[`MAX_EXPOSURE_HOLD_S`].
+        timeout_s: u16,
+    },
     /// TC[20,1]: report these parameters (TM[20,2]).
     ReportParameters(ParameterIds),
     /// TC[20,3]: set these parameters (all or none; at rest only).
@@ -451,6 +466,7 @@ impl Command {
             Command::ActivateTable { .. } => Some(FunctionId::ActivateTable),
             Command::SwitchBank => Some(FunctionId::SwitchBank),
             Command::RevertToNominal => Some(FunctionId::RevertToNominal),
+            Command::ExposureHold { .. } => Some(FunctionId::ExposureHold),
             Command::Ping
             | Command::HousekeepingOneShot
             | Command::LoadTableChunk(_)
@@ -569,6 +585,7 @@ impl Command {
                         w.i32(*delta_nm)?;
                     }
                     Command::CommitTable { crc32 } => w.u32(*crc32)?,
+                    Command::ExposureHold { timeout_s } => w.u16(*timeout_s)?,
                     Command::ActivateTable { table_id, crc32 } => {
                         w.u32(*table_id)?;
                         w.u32(*crc32)?;
@@ -643,5 +660,11 @@ fn parse_function(app_data: &[u8]) -> Result<Command, LinkError> {
         },
         FunctionId::SwitchBank => Command::SwitchBank,
         FunctionId::RevertToNominal => Command::RevertToNominal,
+        FunctionId::ExposureHold => match r.u16() {
+            Some(timeout_s) if timeout_s <= MAX_EXPOSURE_HOLD_S => {
+                Command::ExposureHold { timeout_s }
+            }
+            _ => return Err(LinkError::InvalidArgument { index: 0 }),
+        },
     })
 }

@@ -343,6 +343,13 @@ pub mod event_id {
     /// frozen offset, no longer following the temperatures. aux0: the faulty sensors
     /// the model uses (bit i = sensor i); aux1: 0.
     pub const THERMAL_FROZEN: u16 = 0x0051;
+    /// An exposure hold began: no compensation step, no scheduled motion, no operator
+    /// move until it ends. aux0: what began it (0 the telecommand, 1 the discrete
+    /// input); aux1: its timeout (s).
+    pub const EXPOSURE_HOLD_STARTED: u16 = 0x0052;
+    /// The exposure hold ended. aux0: why (0 a telecommand with timeout 0, 1 the timeout
+    /// passed, 2 the discrete input was released); aux1: 0.
+    pub const EXPOSURE_HOLD_ENDED: u16 = 0x0053;
     // Time-based schedule (ST[11]).
     /// A scheduled activity was released: its telecommand runs now. aux0: request ID
     /// (packet ID << 16 | sequence control), aux1: release time (OBT seconds).

@@ -224,6 +224,8 @@ pub struct Plant {
     loss_mm: [f64; LEGS],
     /// Legs whose encoder warned in the last [`StrokeEncoders::read_counts`].
     warning_legs: u8,
+    /// The camera's "exposing" discrete input ([`Plant::set_exposing`]).
+    exposing: bool,
     /// Between the drives and the sliders (ideal unless [`Plant::with_drive_train`]).
     train: DriveTrain,
 }
@@ -252,6 +254,7 @@ impl Plant {
             faults: Vec::new(),
             loss_mm: [0.0; LEGS],
             warning_legs: 0,
+            exposing: false,
             train: ideal_train(&[0.0; LEGS]),
         })
     }
@@ -280,6 +283,11 @@ impl Plant {
     /// The thermal side: the parts' temperatures, the sensors.
     pub fn thermal(&self) -> &ThermalField {
         &self.thermal
+    }
+
+    /// Sets the camera's "exposing" discrete input (`hw::ExposureInput`).
+    pub fn set_exposing(&mut self, exposing: bool) {
+        self.exposing = exposing;
     }
 
     /// The thermal side, to set temperatures or inject sensor failures.
@@ -490,6 +498,18 @@ impl StrokeEncoders for Plant {
             *o = frozen.unwrap_or(nearest_count(s + offset + noise));
         }
         Ok(out)
+    }
+}
+
+impl crate::hw::ExposureInput for Plant {
+    fn exposing(&mut self) -> bool {
+        self.exposing
+    }
+}
+
+impl crate::hw::ExposureInput for SharedPlant {
+    fn exposing(&mut self) -> bool {
+        self.0.borrow_mut().exposing()
     }
 }
 

@@ -229,6 +229,30 @@ pub fn events() -> Vec<Event> {
             "thermal compensation frozen: sensors {aux0} faulty",
         ),
         ev(
+            event_id::EXPOSURE_HOLD_STARTED,
+            "EXPOSURE_HOLD_STARTED",
+            "an exposure hold began: no compensation step, no scheduled activity released \
+             and no operator move until it ends",
+            sev(&[(Info, "")]),
+            (
+                "what began it (0 the telecommand, 1 the discrete input)",
+                "its timeout (s)",
+            ),
+            "exposure hold began (source {aux0}, timeout {aux1} s)",
+        ),
+        ev(
+            event_id::EXPOSURE_HOLD_ENDED,
+            "EXPOSURE_HOLD_ENDED",
+            "the exposure hold ended",
+            sev(&[(Info, "")]),
+            (
+                "why (0 a telecommand with timeout 0, 1 the timeout passed, 2 the discrete \
+                 input was released)",
+                "0",
+            ),
+            "exposure hold ended (reason {aux0})",
+        ),
+        ev(
             event_id::ACTIVITY_RELEASED,
             "ACTIVITY_RELEASED",
             "time-tagged activity released: its telecommand runs now",

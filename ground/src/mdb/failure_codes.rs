@@ -735,6 +735,14 @@ pub fn failure_codes() -> Vec<FailureCode> {
                 "legs not in position (bit i = leg i+1)",
             ),
         ),
+        (
+            CommandError::ExposureHold(0),
+            d(
+                Start,
+                "an operator move (absolute, relative, direct stroke) during an exposure hold",
+                "the hold's seconds left (rounded up)",
+            ),
+        ),
     ] {
         push("CONTROLLER", "controller", e.code(), format!("{e:?}"), doc);
     }

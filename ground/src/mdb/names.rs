@@ -50,7 +50,8 @@ pub fn telecommand_name(command: &Command) -> String {
         | Command::CommitTable { .. }
         | Command::ActivateTable { .. }
         | Command::SwitchBank
-        | Command::RevertToNominal => command
+        | Command::RevertToNominal
+        | Command::ExposureHold { .. } => command
             .function_id()
             .map(|f| upper_snake(&format!("{f:?}")))
             .unwrap_or_default(),

@@ -14,7 +14,7 @@ use m2ctl::controller::State;
 use m2ctl::kinematics::LEGS;
 use m2ctl::link::command::{
     FunctionId, MemoryId, ParameterIds, ParameterValues, TableChunk, WirePose, FUNCTION_ID_LEN,
-    MAX_PARAMETERS_PER_TC, TABLE_CHUNK_MAX_LEN,
+    MAX_EXPOSURE_HOLD_S, MAX_PARAMETERS_PER_TC, TABLE_CHUNK_MAX_LEN,
 };
 use m2ctl::link::schedule::{
     ActivityBlock, ObtOffset, RequestIdList, ScheduleCommand, ACTIVITY_COUNT_LEN,
@@ -72,6 +72,13 @@ fn build_direct_stroke(a: &[ArgValue]) -> Result<Command, String> {
         leg: u8::try_from(int_arg(a, 0)?).map_err(|e| e.to_string())?,
         delta_nm: arg_i32(a, 1)?,
     })
+}
+fn build_exposure_hold(a: &[ArgValue]) -> Result<Command, String> {
+    let timeout_s: u16 = uint_arg(a, 0)?;
+    if timeout_s > MAX_EXPOSURE_HOLD_S {
+        return Err(format!("argument 0: above {MAX_EXPOSURE_HOLD_S} s"));
+    }
+    Ok(Command::ExposureHold { timeout_s })
 }
 fn build_commit(a: &[ArgValue]) -> Result<Command, String> {
     Ok(Command::CommitTable {
@@ -527,6 +534,26 @@ fn function_args(f: FunctionId) -> FunctionDesc {
             |_| Ok(Command::RevertToNominal),
             "Revert to the compiled-in nominal table.",
             "revert to the compiled-in nominal table",
+        ),
+        FunctionId::ExposureHold => d(
+            vec![field(
+                "timeout",
+                at,
+                Wire::U16,
+                Meaning::Number {
+                    unit: Some("s"),
+                    scale: 1.0,
+                    range: Some((0.0, f64::from(MAX_EXPOSURE_HOLD_S))),
+                },
+                "the hold's timeout from now (s); 0 ends the hold",
+            )],
+            build_exposure_hold,
+            "The camera is exposing: no thermal compensation step, no scheduled activity released and no operator move (0x0710) until the hold ends (timeout 0) or times out.",
+            (
+                "exposure hold",
+                "timeout u16 (s, 0..3,600; 0 ends the hold)",
+            ),
+            QUICK_COMPLETION_S,
         ),
     }
 }
