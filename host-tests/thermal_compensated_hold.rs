@@ -12,6 +12,7 @@ use m2ctl::controller::event;
 use m2ctl::controller::params::{index, PARAMETERS};
 use m2ctl::kinematics::{Pose, LEGS};
 use m2ctl::link::{Command, ParameterValues};
+use m2ctl::motion::DEFAULT_MAX_SPEED_MM_PER_S;
 use m2ctl::nominal::PROTOTYPE;
 use m2ctl::sim::thermal::{
     Coefficients, Profile, SensorConfig, SensorFailure, ThermalConfig, REFERENCE_C,
@@ -20,7 +21,7 @@ use m2ctl::sim::{Bench, Plant, PlantConfig};
 use m2ctl::table::Table;
 use m2ctl::thermal::compensation::DEFAULT_MAX_STEP_MM;
 use m2ctl::thermal::MEAN_SAMPLES;
-use m2ctl::timing::{CONTROL_RATE_HZ, TEMPERATURE_PERIOD_CYCLES};
+use m2ctl::timing::{CONTROL_RATE_HZ, CYCLE_S_F64, TEMPERATURE_PERIOD_CYCLES};
 use m2ctl::units::{ARCSEC_PER_RAD, UM_PER_MM};
 
 /// The goal of issue 22 with compensation: held pose error (translation norm, um).
@@ -104,10 +105,16 @@ fn error(a: &Pose<f64>, b: &Pose<f64>) -> (f64, f64) {
     (t * UM_PER_MM, r * ARCSEC_PER_RAD)
 }
 
+/// The largest change of a drive's setpoint in one cycle (mm): the coordinated-move
+/// speed limit over a cycle, and f32 rounding near the strokes held.
+const DRIVE_STEP_BOUND_MM: f64 = DEFAULT_MAX_SPEED_MM_PER_S as f64 * CYCLE_S_F64 + 2e-6;
+
 /// Runs `cycles`, checking every cycle that no leg's applied offset changed by more
-/// than a step; returns the number of steps seen.
+/// than a step and that no drive's setpoint changed faster than the speed limit (the
+/// mirror never jumps); returns the number of steps seen.
 fn run_bounded(b: &mut Bench, cycles: u32) -> usize {
     let mut last = b.ctl.compensation().applied_mm();
+    let mut drives = b.plant.with(|p| p.drive_setpoints_mm());
     let mut steps = 0;
     for _ in 0..cycles {
         b.tick();
@@ -120,6 +127,12 @@ fn run_bounded(b: &mut Bench, cycles: u32) -> usize {
             steps += 1;
         }
         last = now;
+        let d = b.plant.with(|p| p.drive_setpoints_mm());
+        let jump = (0..LEGS)
+            .map(|i| (d[i] - drives[i]).abs())
+            .fold(0.0, f64::max);
+        assert!(jump <= DRIVE_STEP_BOUND_MM, "a drive jumped {jump} mm");
+        drives = d;
     }
     steps
 }
@@ -299,4 +312,38 @@ fn a_minimum_step_above_the_maximum_is_refused_and_changes_nothing() {
     assert!(common::all_ok(&reps), "{reps:?}");
     let (_, p) = b.ctl.parameters().thermal();
     assert_eq!((p.max_step_mm, p.min_step_mm), (200e-6, 200e-6));
+}
+
+#[test]
+fn a_compensation_step_keeps_the_controller_idle_and_a_move_takes_over_at_once() {
+    let mut b = bench(
+        Profile {
+            mean_c: REFERENCE_C + 5.0,
+            ..Profile::REFERENCE
+        },
+        10,
+    );
+    assert!(common::all_ok(&set(
+        &mut b,
+        &[(id(index::THERMAL_ENABLE), 1)]
+    )));
+    // Until a step: its fine positioning starts in the same cycle.
+    let before = b.ctl.compensation().applied_mm();
+    let mut n = 0;
+    while b.ctl.compensation().applied_mm() == before {
+        b.tick();
+        n += 1;
+        assert!(n < 5 * CONTROL_RATE_HZ, "no step");
+    }
+    assert_eq!(b.ctl.state(), m2ctl::controller::State::Idle);
+    let target = common::wire(5.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let reps = b.command(&Command::MoveAbsolute(target), 20_000);
+    assert!(common::all_ok(&reps), "{reps:?}");
+    // No state change event for the step itself: idle -> moving once, for the move.
+    let to_moving =
+        b.st.events(event::STATE_CHANGED)
+            .iter()
+            .filter(|a| a[1] == u32::from(m2ctl::controller::State::Moving.code()))
+            .count();
+    assert_eq!(to_moving, 1);
 }

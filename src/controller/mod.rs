@@ -606,9 +606,10 @@ impl<M: MechanismIo> Controller<M> {
 
     /// One period of the thermal compensation ([`Compensation::step`]): the target is
     /// the running table's thermal model at the commanded pose and the sensors' means.
-    /// At rest means holding with no fault latched. A step commands the drives to the
-    /// held strokes with the new offset and runs a fine positioning on them (a step's
-    /// drive change may fall in the backlash gap); a freeze is event
+    /// At rest means holding with no fault latched. A step leaves the drives where they
+    /// are and runs a fine positioning onto the held setpoint in the new offset's frame
+    /// (its corrections ramp at the speed limit and take up the backlash); a freeze is
+    /// event
     /// [`event::THERMAL_FROZEN`]. Skipped while a sensor the model uses, healthy, has
     /// no mean yet (the first [`crate::thermal::MEAN_SAMPLES`] readings after the boot
     /// or a recovery), so the start is not taken for a loss. Not inlined: the cycle's
@@ -644,9 +645,12 @@ impl<M: MechanismIo> Controller<M> {
             &params,
         ) {
             StepOutcome::Stepped => {
-                let held = self.motion.strokes_mm;
-                self.motion.last_drive = self.drive_mm(&held);
-                self.begin_fine(held);
+                // Nothing jumps: the drives stay where they are, which in the new
+                // offset's frame is off the setpoint by the step, and the fine
+                // positioning ramps them back onto it at the speed limit.
+                let setpoint = self.motion.setpoint_mm;
+                self.motion.strokes_mm = self.held_mm();
+                self.begin_fine(setpoint);
             }
             StepOutcome::Frozen => self.event(
                 EventSeverity::Low,
@@ -825,6 +829,17 @@ impl<M: MechanismIo> Controller<M> {
                 }
             }
             Motion::Planning(_) => State::Moving,
+            // The fine positioning of a thermal compensation step (no move owns it) is
+            // holding position: a move or a recovery may take over from it at once.
+            Motion::Fine {
+                stopping: false, ..
+            } if !self.ledger.pending.is_some_and(|p| p.is_motion()) => {
+                if self.supervisor.latched().is_empty() {
+                    State::Idle
+                } else {
+                    State::Faulted
+                }
+            }
             Motion::Path { stopping: true, .. }
             | Motion::Stroke { stopping: true, .. }
             | Motion::Fine { stopping: true, .. } => State::Stopping,
