@@ -347,3 +347,192 @@ fn a_compensation_step_keeps_the_controller_idle_and_a_move_takes_over_at_once()
             .count();
     assert_eq!(to_moving, 1);
 }
+
+/// A small deterministic generator (the soak's own is the bench's adversary).
+struct Lcg(u64);
+
+impl Lcg {
+    /// A value in 0..n.
+    fn below(&mut self, n: u64) -> u64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (self.0 >> 33) % n
+    }
+}
+
+/// Simulated length of the thermal soak (cycles): four minutes.
+const THERMAL_SOAK_CYCLES: u32 = 240 * CONTROL_RATE_HZ;
+
+#[test]
+fn thermal_soak_bounded_steps_and_nothing_during_an_exposure_hold() {
+    use m2ctl::controller::schedule::obt_of_cycle;
+    use m2ctl::controller::State;
+    use m2ctl::sim::thermal::Swing;
+    use m2ctl::thermal::TEMP_SENSORS;
+    // From +1 to +5 K over a 10-minute orbit, a 2 K gradient: offsets to follow.
+    let mut b = bench(
+        Profile {
+            mean_c: REFERENCE_C + 3.0,
+            swing: Swing::Sine {
+                amplitude_k: 2.0,
+                period_s: 600.0,
+            },
+            gradient_k: 2.0,
+            gradient_angle_rad: 0.4,
+            ..Profile::REFERENCE
+        },
+        12,
+    );
+    assert!(common::all_ok(&set(
+        &mut b,
+        &[(id(index::THERMAL_ENABLE), 1)]
+    )));
+    let mut rng = Lcg(0x7E22);
+    let mut next_action = 0u32;
+    let mut input_until = 0u32;
+    let (mut steps, mut hold_cycles, mut refusals, mut held_releases) = (0u32, 0u32, 0u32, 0u32);
+    let mut toggles = 0u32;
+    let mut last = b.ctl.compensation().applied_mm();
+    let mut drives = b.plant.with(|p| p.drive_setpoints_mm());
+    let mut prev_hold = false;
+    let mut prev_state = b.ctl.state();
+    let mut prev_released = b.ctl.housekeeping().schedule.released;
+    let mut due_in_hold = 0u32;
+    let mut sent: Vec<m2ctl::link::RequestId> = Vec::new();
+    for n in 0..THERMAL_SOAK_CYCLES {
+        if n == input_until {
+            b.plant.with(|p| p.set_exposing(false));
+        }
+        if n == next_action {
+            next_action = n + 500 + rng.below(2_500) as u32;
+            match rng.below(10) {
+                0 => {
+                    let on = rng.below(3) != 0;
+                    toggles += 1;
+                    let v = ParameterValues::new(&[(id(index::THERMAL_ENABLE), i32::from(on))]);
+                    sent.push(b.queue(&Command::SetParameters(v.unwrap())));
+                }
+                1 => {
+                    let max = 50 + rng.below(1_000) as i32;
+                    let min = 5 + rng.below(200) as i32;
+                    let v = ParameterValues::new(&[
+                        (id(index::THERMAL_MAX_STEP), max),
+                        (id(index::THERMAL_MIN_STEP), min),
+                    ]);
+                    sent.push(b.queue(&Command::SetParameters(v.unwrap())));
+                }
+                2 => {
+                    let ch = rng.below(TEMP_SENSORS as u64) as usize;
+                    let f = match rng.below(4) {
+                        0 => Some(SensorFailure::Open),
+                        1 => Some(SensorFailure::Short),
+                        2 => Some(SensorFailure::Stuck),
+                        _ => None,
+                    };
+                    b.plant.with(|p| match f {
+                        Some(f) => p.thermal_mut().inject(ch, f),
+                        None => p.thermal_mut().clear_failures(),
+                    });
+                }
+                3 => {
+                    let timeout_s = rng.below(6) as u16;
+                    sent.push(b.queue(&Command::ExposureHold { timeout_s }));
+                }
+                4 => {
+                    b.plant.with(|p| p.set_exposing(true));
+                    input_until = n + 200 + rng.below(3_000) as u32;
+                }
+                5 | 6 => {
+                    let x = rng.below(40) as f64 - 20.0;
+                    let target = common::wire(x, 0.0, 0.0, 0.0, 0.0, 0.0);
+                    sent.push(b.queue(&Command::MoveAbsolute(target)));
+                }
+                _ => {
+                    let x = rng.below(40) as f64 - 20.0;
+                    let at = obt_of_cycle(b.ctl.cycle() + 200 + rng.below(3_000) as u32);
+                    let target = common::wire(x, 0.0, 0.0, 0.0, 0.0, 0.0);
+                    if let Ok((cmd, _)) =
+                        b.st.schedule_insert(&[(at, Command::MoveAbsolute(target))])
+                    {
+                        sent.push(b.queue(&cmd));
+                    }
+                }
+            }
+        }
+        b.tick();
+        // Bounded steps: the largest step in force (no upset here: RAM is the truth).
+        let now = b.ctl.compensation().applied_mm();
+        let step = (0..LEGS)
+            .map(|i| (now[i] - last[i]).abs())
+            .fold(0.0f32, f32::max);
+        let (_, p) = b.ctl.parameters().thermal();
+        assert!(
+            step <= p.max_step_mm * (1.0 + 1e-5),
+            "cycle {n}: a step of {step} mm"
+        );
+        if step > 0.0 {
+            steps += 1;
+        }
+        last = now;
+        // The mirror never jumps.
+        let d = b.plant.with(|p| p.drive_setpoints_mm());
+        let jump = (0..LEGS)
+            .map(|i| (d[i] - drives[i]).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            jump <= DRIVE_STEP_BOUND_MM,
+            "cycle {n}: a drive jumped {jump} mm"
+        );
+        drives = d;
+        // Nothing during an exposure hold.
+        let hold = b.ctl.exposure_hold_active();
+        let state = b.ctl.state();
+        let hk = b.ctl.housekeeping();
+        if hold && prev_hold {
+            hold_cycles += 1;
+            assert_eq!(step, 0.0, "cycle {n}: a step during a hold");
+            assert_eq!(
+                hk.schedule.released, prev_released,
+                "cycle {n}: a release during a hold"
+            );
+            assert!(
+                !(matches!(prev_state, State::Idle)
+                    && matches!(state, State::Moving | State::StrokeMoving)),
+                "cycle {n}: a motion started during a hold"
+            );
+            if b.ctl.scheduled_due() {
+                due_in_hold += 1;
+            }
+        }
+        prev_hold = hold;
+        prev_state = state;
+        prev_released = hk.schedule.released;
+    }
+    for rid in &sent {
+        let reps = b.st.reports(*rid);
+        if reps
+            .iter()
+            .any(|r| r.failure().is_some_and(|(c, _)| c == 0x0710))
+        {
+            refusals += 1;
+        }
+    }
+    if due_in_hold > 0 {
+        held_releases += 1;
+    }
+    let frozen = b.st.events(event::THERMAL_FROZEN).len();
+    println!(
+        "thermal soak: {} s simulated, {steps} compensation steps, {toggles} enable/disable, {frozen} freezes, {hold_cycles} cycles under an exposure hold, {refusals} moves refused by a hold (0x0710), {due_in_hold} cycles with a scheduled release held",
+        THERMAL_SOAK_CYCLES / CONTROL_RATE_HZ
+    );
+    // Every telecommand was answered (all actions are queued: every cycle is checked).
+    assert!(sent.iter().all(|r| b.st.finished(*r)));
+    // Every rule was exercised.
+    assert!(
+        steps > 20 && toggles > 2 && frozen > 0,
+        "{steps} {toggles} {frozen}"
+    );
+    assert!(hold_cycles > 5_000 && refusals > 0 && held_releases > 0);
+}

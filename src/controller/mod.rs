@@ -421,6 +421,11 @@ impl<M: MechanismIo> Controller<M> {
         &self.compensation
     }
 
+    /// An exposure hold is in force (telecommand or discrete input).
+    pub fn exposure_hold_active(&self) -> bool {
+        self.exposure.active()
+    }
+
     /// The on-board parameters (as they are in RAM).
     pub fn parameters(&self) -> &Parameters {
         self.settings.params.params()

@@ -427,6 +427,16 @@ impl<M: MechanismIo> Controller<M> {
         }
     }
 
+    /// The first activity's release time has come (it is released in the next link pass
+    /// unless release is disabled or an exposure hold is in force).
+    pub fn scheduled_due(&self) -> bool {
+        let now = self.obt();
+        self.schedule
+            .activities
+            .first()
+            .is_some_and(|a| a.release <= now)
+    }
+
     /// Releases the first activity if its time has come and no exposure hold is in
     /// force (module documentation): it
     /// leaves the schedule (it can never run twice) and event 0x00B0 announces it; the

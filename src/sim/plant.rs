@@ -290,6 +290,11 @@ impl Plant {
         self.exposing = exposing;
     }
 
+    /// The camera's "exposing" discrete input as set.
+    pub fn is_exposing(&self) -> bool {
+        self.exposing
+    }
+
     /// The thermal side, to set temperatures or inject sensor failures.
     pub fn thermal_mut(&mut self) -> &mut ThermalField {
         &mut self.thermal

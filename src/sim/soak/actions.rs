@@ -70,6 +70,8 @@ impl<C: Choices> Soak<C> {
     fn table(&mut self, good: bool) -> Table {
         let id = 10 + self.below(1000) as u32;
         let mut t = calibrated_table(id);
+        // The plant's thermal model (the compensation has something to follow).
+        t.thermal = crate::sim::thermal::Coefficients::NOMINAL.model();
         t.legs[self.below(6)].b_mm[self.below(3)] += self.rng.sym() * 0.05;
         if !good {
             match self.below(3) {
@@ -111,7 +113,41 @@ impl<C: Choices> Soak<C> {
     /// One random operator (or adversary) action.
     pub fn act(&mut self) {
         let pending = self.r.ctl.pending_table();
-        match self.below(26) {
+        match self.below(32) {
+            31 => self.set_thermal_parameters(),
+            26 => {
+                // An exposure hold of 1 to 3 s (one time in eight), or its end.
+                let timeout_s = if self.below(8) == 0 {
+                    1 + self.below(3) as u16
+                } else {
+                    0
+                };
+                self.send(&Command::ExposureHold { timeout_s });
+            }
+            // The camera's discrete input raised (one time in eight) for an exposure of
+            // 0.1 to 3 s.
+            27 if self.below(8) == 0 => {
+                let cycles = 100 + self.below(2_901) as u64;
+                self.note(format!("exposure input raised for {cycles} cycles"));
+                self.r.plant.with(|p| p.set_exposing(true));
+                self.input_release_at = Some(self.cycles + cycles);
+            }
+            27 => {}
+            28 => self.set_thermal_parameters(),
+            29 => self.sensor_failure(),
+            30 => {
+                // A small move scheduled 0.2..3 s ahead (an exposure hold may hold it).
+                let d = self.small_delta();
+                let ahead_s = 0.2 + 2.8 * self.uniform();
+                let cycle = self.r.ctl.cycle();
+                let at = crate::controller::schedule::obt_of_cycle(
+                    cycle
+                        .wrapping_add((ahead_s * f64::from(crate::timing::CONTROL_RATE_HZ)) as u32),
+                );
+                if let Ok((cmd, _)) = self.r.st.schedule_insert(&[(at, Command::MoveRelative(d))]) {
+                    self.send(&cmd);
+                }
+            }
             23 => self.set_parameters(),
             24 | 25 => self.upset(),
             0..=4 => {
@@ -237,6 +273,41 @@ impl<C: Choices> Soak<C> {
             self.watching = Some(rid);
             self.moves_watched += 1;
         }
+    }
+
+    /// A TC[20,3] of the thermal compensation: enable or disable, and steps (valid, or
+    /// a dead band above the step: refused with 0x0724).
+    fn set_thermal_parameters(&mut self) {
+        use crate::controller::params::{index, PARAMETERS};
+        let id = |k: usize| PARAMETERS[k].id;
+        let mut pairs = vec![(id(index::THERMAL_ENABLE), (self.below(4) != 0) as i32)];
+        if self.below(3) == 0 {
+            let max_nm = 50 + self.below(4_951) as i32;
+            pairs.push((id(index::THERMAL_MAX_STEP), max_nm));
+            pairs.push((id(index::THERMAL_MIN_STEP), 5 + self.below(1_000) as i32));
+        }
+        let Ok(values) = crate::link::command::ParameterValues::new(&pairs) else {
+            return;
+        };
+        let rid = self.send(&Command::SetParameters(values));
+        self.setting.push((rid, pairs));
+    }
+
+    /// A temperature sensor fails (open, short, stuck), or every sensor recovers.
+    fn sensor_failure(&mut self) {
+        use crate::sim::thermal::SensorFailure;
+        let ch = self.below(crate::thermal::TEMP_SENSORS);
+        let f = match self.below(6) {
+            0 => Some(SensorFailure::Open),
+            1 => Some(SensorFailure::Short),
+            2 => Some(SensorFailure::Stuck),
+            _ => None,
+        };
+        self.note(format!("sensor {ch}: {f:?}"));
+        self.r.plant.with(|p| match f {
+            Some(f) => p.thermal_mut().inject(ch, f),
+            None => p.thermal_mut().clear_failures(),
+        });
     }
 
     /// A valid TC[20,3]: speeds and accelerations within the defaults (so invariant 2's

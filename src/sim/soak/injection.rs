@@ -163,6 +163,10 @@ impl<C: Choices> Soak<C> {
         self.check_boot(&candidates);
         self.prev_cmd = self.r.ctl.strokes_commanded_mm();
         self.prev_truth = self.r.plant.with(|p| p.strokes_mm());
+        // A boot applies no compensation, holds no exposure and has released nothing.
+        self.prev_applied = [0.0; LEGS];
+        self.prev_hold = false;
+        self.prev_released = 0;
         self.prev_drives = self.r.plant.with(|p| p.drive_setpoints_mm());
         self.prev_positions = self.r.plant.with(|p| p.drive_positions_mm());
         self.prev_state = self.r.ctl.state();

@@ -8,10 +8,12 @@
 use crate::controller::{event, State};
 use crate::kinematics::LEGS;
 use crate::link::tm::Verification;
+use crate::link::Housekeeping;
 use crate::link::RequestId;
 use crate::motion::{CYCLE_S, DEFAULT_MAX_SPEED_MM_PER_S};
 use crate::sim::InjectedFault;
 use crate::station::Tm;
+use crate::thermal::compensation::MAX_STEP_HIGHEST_MM;
 use crate::units::UM_PER_MM;
 
 use super::{Choices, Soak, TableRef};
@@ -32,7 +34,12 @@ pub const REPAIR_CYCLES: u64 = 6_000;
 impl<C: Choices> Soak<C> {
     /// The per-cycle invariants (module documentation).
     pub(super) fn check_cycle(&mut self) {
-        let c = self.r.ctl.strokes_commanded_mm();
+        // The controller commands strokes at the thermal model's reference temperature
+        // (`c_ref`, what its limits apply to); the drives receive them with the applied
+        // compensation offset (`c`, what the speed and switch invariants bound).
+        let c_ref = self.r.ctl.strokes_commanded_mm();
+        let applied = self.r.ctl.compensation().applied_mm();
+        let c: [f32; LEGS] = core::array::from_fn(|i| c_ref[i] + applied[i]);
         let state = self.r.ctl.state();
         let faulted = !self.r.ctl.faults().is_empty();
         let hk = self.r.ctl.housekeeping();
@@ -53,7 +60,7 @@ impl<C: Choices> Soak<C> {
                 limits.min_mm[i] - LIMIT_TOL_MM,
                 limits.max_mm[i] + LIMIT_TOL_MM,
             );
-            let ci = f64::from(c[i]);
+            let ci = f64::from(c_ref[i]);
             if !(lo..=hi).contains(&ci) {
                 self.violation(format!(
                     "leg {} commanded {ci} mm outside [{lo}, {hi}]",
@@ -66,7 +73,7 @@ impl<C: Choices> Soak<C> {
             // and only bring it back, which the soak does not forbid. Found by the
             // 10-minute run: an 80 um slip at -4.93 mm put a slider 8 um beyond -5 mm,
             // detected 2 cycles later, and counted as a violation every cycle after.
-            let t = truth[i];
+            let t = truth[i] - f64::from(applied[i]);
             let outward = if t < lo {
                 t < self.prev_truth[i] - STILL_MM
             } else {
@@ -240,13 +247,53 @@ impl<C: Choices> Soak<C> {
         }
         // 6. Track completed selections from the telemetry.
         self.track_selections();
+        self.check_thermal_and_hold(&applied, state, &hk);
         self.prev_cmd = c;
-        self.prev_truth = truth;
+        self.prev_truth = core::array::from_fn(|i| truth[i] - f64::from(applied[i]));
         self.prev_drives = drives;
         self.prev_positions = positions;
         self.prev_state = state;
         self.prev_moving_legs = hk.moving_legs;
         self.prev_faulted = faulted;
+    }
+
+    /// Invariants 12 and 13 (module documentation): the compensation's steps bounded,
+    /// and nothing released, stepped or started during an exposure hold (in force before
+    /// and after the cycle: a hold that began or ended within it is not checked).
+    fn check_thermal_and_hold(&mut self, applied: &[f32; LEGS], state: State, hk: &Housekeeping) {
+        let step = (0..LEGS)
+            .map(|i| (applied[i] - self.prev_applied[i]).abs())
+            .fold(0.0f32, f32::max);
+        if step > 0.0 {
+            self.thermal_steps += 1;
+        }
+        if step > MAX_STEP_HIGHEST_MM * (1.0 + 1e-5) {
+            self.violation(format!(
+                "the compensation offset stepped {:.4} um in one cycle",
+                f64::from(step) * UM_PER_MM
+            ));
+        }
+        let hold = self.r.ctl.exposure_hold_active();
+        if hold && self.prev_hold {
+            self.hold_cycles += 1;
+            if step > 0.0 {
+                self.violation("a compensation step during an exposure hold".into());
+            }
+            if hk.schedule.released != self.prev_released {
+                self.violation("an activity released during an exposure hold".into());
+            }
+            let rest = |s: State| matches!(s, State::Idle | State::Faulted);
+            let motion = |s: State| matches!(s, State::Moving | State::StrokeMoving);
+            if rest(self.prev_state) && motion(state) {
+                self.violation(format!(
+                    "a motion started during an exposure hold ({:?} -> {state:?})",
+                    self.prev_state
+                ));
+            }
+        }
+        self.prev_applied = *applied;
+        self.prev_hold = hold;
+        self.prev_released = hk.schedule.released;
     }
 
     /// A completed activation is a TABLE_ACTIVATED event: that table is now the one to
@@ -326,9 +373,10 @@ impl<C: Choices> Soak<C> {
         let table = *self.r.ctl.active_table();
         let (tol_mm, _) = self.r.ctl.parameters().in_position(&table);
         let set = self.r.ctl.in_position_setpoint_mm();
+        let applied = self.r.ctl.compensation().applied_mm();
         let truth = self.r.plant.with(|p| p.strokes_mm());
         for i in 0..LEGS {
-            let e = truth[i] - f64::from(set[i]);
+            let e = truth[i] - f64::from(applied[i]) - f64::from(set[i]);
             if !(e.abs() <= f64::from(tol_mm) + crate::sim::plant::DEFAULT_ENCODER_NOISE_MM) {
                 self.violation(format!(
                     "move {rid:?} completed with leg {} {:.4} um from its setpoint",

@@ -27,7 +27,18 @@
 //!     was running;
 //! 11. a coordinated move's completion success is never reported while a true slider is
 //!     outside the in-position tolerance of its setpoint (`motion::fine`; not checked
-//!     while an encoder is made to lie: stuck, offset or noisier than specified).
+//!     while an encoder is made to lie: stuck, offset or noisier than specified);
+//! 12. the thermal compensation's applied offset never changes by more than the largest
+//!     step any parameter allows (`thermal::compensation::MAX_STEP_HIGHEST_MM`) in a
+//!     cycle, across enables, disables, sensor failures and recoveries, power cuts and
+//!     upsets (invariant 2 bounds what the drives do with it);
+//! 13. during an exposure hold (telecommand or discrete input) the applied offset does
+//!     not change, no scheduled activity is released and no operator motion starts.
+//!
+//! The plant's parts swing from +1 to +5 K over a 10-minute orbit with a 2 K gradient, its
+//! sensors fail and recover at random; the tables the soak uploads carry the thermal
+//! model, and the operator enables and disables the compensation, holds exposures by
+//! telecommand and by the discrete input, and schedules moves.
 //!
 //! The plant has the realistic drive train (`sim::drive_train`: microsteps, backlash,
 //! lead error, stiction, settling). One coordinated move in two sent while the
@@ -80,6 +91,7 @@ use crate::link::RequestId;
 use crate::nominal::PROTOTYPE;
 use crate::sim::bench::UART_115200_BYTES_PER_CYCLE;
 use crate::sim::drive_train::DriveTrainConfig;
+use crate::sim::thermal::{Coefficients, Profile, SensorConfig, Swing, ThermalConfig};
 use crate::sim::{Bench, BenchConfig, Plant, PlantConfig};
 use crate::table::mock_flash::MockFlash;
 use crate::table::Table;
@@ -98,6 +110,18 @@ pub const WATCH_ONE_IN: usize = 2;
 /// Longest watch (cycles, 60 s): a 2.6 mm stroke at the slowest speed the soak sets
 /// (0.05 mm/s) is 52 s; a watched move that dies in a reboot ends its watch at once.
 pub const WATCH_CYCLES: u32 = 60_000;
+
+/// The soak plant's mean temperature above the tables' reference (K): a power cut
+/// rebuilds the plant at the start of its orbit, so the swing alone would keep it near
+/// the reference; with this the compensation has offsets to follow from every boot.
+const MEAN_OFFSET_K: f64 = 3.0;
+/// ... its uniform swing about that mean (K, amplitude): from +1 to +5 K, within issue
+/// 22's +-5 K.
+const SWING_K: f64 = 2.0;
+/// ... its period (s): an orbit shortened to 10 minutes so a 20 s run sees it move.
+const ORBIT_S: f64 = 600.0;
+/// ... and its gradient across the base (K): issue 22's 2 K.
+const GRADIENT_K: f64 = 2.0;
 
 /// The soak: the bench, the model of what the operator may expect, and the checks.
 pub struct Soak<C> {
@@ -166,6 +190,20 @@ pub struct Soak<C> {
     upsets: u64,
     /// Reloads after a detected upset (events 0x0013).
     repairs: u64,
+    /// The applied compensation offset after the last cycle (invariant 12).
+    prev_applied: [f32; LEGS],
+    /// An exposure hold was in force after the last cycle (invariant 13).
+    prev_hold: bool,
+    /// Activities released since boot after the last cycle (housekeeping's count).
+    prev_released: u16,
+    /// Cycles the applied offset changed (compensation steps).
+    thermal_steps: u64,
+    /// Cycles an exposure hold was in force.
+    hold_cycles: u64,
+    /// Operator moves refused by a hold (0x0710).
+    hold_refusals: u64,
+    /// When the camera's discrete input, raised, falls again (cycle).
+    input_release_at: Option<u64>,
 }
 
 fn fresh_bench(flash: MockFlash) -> Bench {
@@ -178,6 +216,21 @@ fn fresh_bench(flash: MockFlash) -> Bench {
     )
     .unwrap()
     .with_drive_train(DriveTrainConfig::realistic())
+    .unwrap()
+    .with_thermal(ThermalConfig {
+        profile: Profile {
+            mean_c: crate::sim::thermal::REFERENCE_C + MEAN_OFFSET_K,
+            swing: Swing::Sine {
+                amplitude_k: SWING_K,
+                period_s: ORBIT_S,
+            },
+            gradient_k: GRADIENT_K,
+            gradient_angle_rad: 0.4,
+            ..Profile::REFERENCE
+        },
+        truth: Coefficients::NOMINAL,
+        sensors: SensorConfig::drawn(5),
+    })
     .unwrap();
     Bench::with(
         plant,
@@ -237,6 +290,13 @@ impl<C: Choices> Soak<C> {
             corrupt_since: None,
             upsets: 0,
             repairs: 0,
+            prev_applied: [0.0; LEGS],
+            prev_hold: false,
+            prev_released: 0,
+            thermal_steps: 0,
+            hold_cycles: 0,
+            hold_refusals: 0,
+            input_release_at: None,
         }
         .with_limits_from_controller()
     }
@@ -310,6 +370,10 @@ impl<C: Choices> Soak<C> {
             // The cut struck inside a flash write: the whole controller loses power.
             self.reboot();
             return;
+        }
+        if self.input_release_at.is_some_and(|t| self.cycles >= t) {
+            self.input_release_at = None;
+            self.r.plant.with(|p| p.set_exposing(false));
         }
         self.r.tick();
         self.cycles += 1;

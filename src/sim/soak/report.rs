@@ -38,6 +38,12 @@ pub struct SoakFigures {
     pub moves_watched: u64,
     /// Invariant violations.
     pub violations: u64,
+    /// Cycles the compensation's applied offset changed (invariant 12 checked them).
+    pub thermal_steps: u64,
+    /// Cycles an exposure hold was in force (invariant 13 checked them).
+    pub hold_cycles: u64,
+    /// Operator moves refused by an exposure hold (0x0710).
+    pub hold_refusals: u64,
 }
 
 /// Actions kept in the history.
@@ -104,6 +110,9 @@ impl<C: Choices> Soak<C> {
             moves_in_position: self.moves_in_position,
             moves_watched: self.moves_watched,
             violations: self.violations.len() as u64,
+            thermal_steps: self.thermal_steps,
+            hold_cycles: self.hold_cycles,
+            hold_refusals: self.hold_refusals,
         }
     }
 }

@@ -22,6 +22,13 @@ impl<C: Choices> Soak<C> {
             };
             if finished {
                 self.tcs_done += 1;
+                let hold_code = crate::controller::CommandError::ExposureHold(0).code();
+                if reps
+                    .iter()
+                    .any(|r| r.failure().is_some_and(|(c, _)| c == hold_code))
+                {
+                    self.hold_refusals += 1;
+                }
                 // A parameter set that completed is in force now (invariant 8's model),
                 // and persisted (invariant 9 checks the flash).
                 let set = self.setting.iter().position(|(r, _)| *r == rid);
