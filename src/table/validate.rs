@@ -829,6 +829,9 @@ pub fn working_geometry(t: &Table) -> Result<Geometry<f32>, GeometryError> {
 
 /// Validates a candidate table (see the module docs for the checks and their order):
 /// a [`ValidationState`] stepped to completion. Never panics, whatever the table holds.
+/// Out of line: inlined into the boot selection (its one flight caller), 64 bytes of
+/// flash more.
+#[inline(never)]
 pub fn validate(t: &Table, cfg: &ValidationConfig) -> Result<(), ValidationError> {
     let mut v = ValidationState::new();
     loop {
