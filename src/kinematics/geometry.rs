@@ -270,8 +270,10 @@ impl GeometryParams {
     }
 }
 
-/// Rod vector at home, `b + p0 - a` (mm, frame B), in f64.
-fn home_rod(leg: &LegParams, p0: &[f64; 3]) -> [f64; 3] {
+/// Rod vector at home, `b + p0 - a` (mm, frame B), in f64. Out of line: the one copy
+/// serves the geometry derivation and the table validation (`table::validate`).
+#[inline(never)]
+pub(crate) fn home_rod(leg: &LegParams, p0: &[f64; 3]) -> [f64; 3] {
     [
         leg.b_mm[0] + p0[0] - leg.a_mm[0],
         leg.b_mm[1] + p0[1] - leg.a_mm[1],

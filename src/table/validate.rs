@@ -62,7 +62,8 @@
 //! corner strokes and the 5 mm soft limits. [`F32_STROKE_ROUNDING_MM`] is added for the
 //! `f32` evaluation of the grid strokes.
 
-use crate::kinematics::geometry::LegParams;
+// The home rod vector `b + p0 - a` (mm, frame B, f64): the geometry derivation's one copy.
+use crate::kinematics::geometry::{home_rod as home_rod_mm, LegParams};
 use crate::kinematics::ik::strokes_unchecked;
 use crate::kinematics::{
     fk, FkConfig, Geometry, GeometryError, GeometryParams, Pose, WorkspaceLimits, LEGS,
@@ -309,13 +310,6 @@ fn norm3(v: [f64; 3]) -> f64 {
     crate::kinematics::real::sqrt_f64(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 }
 
-fn home_rod_mm(leg: &LegParams, p0: &[f64; 3]) -> [f64; 3] {
-    [
-        leg.b_mm[0] + p0[0] - leg.a_mm[0],
-        leg.b_mm[1] + p0[1] - leg.a_mm[1],
-        leg.b_mm[2] + p0[2] - leg.a_mm[2],
-    ]
-}
 
 fn check_finite(t: &Table) -> Result<(), ValidationError> {
     let mut coords = [0.0; JOINT_COORDS];
