@@ -63,7 +63,7 @@
 //! `f32` evaluation of the grid strokes.
 
 // The home rod vector `b + p0 - a` (mm, frame B, f64): the geometry derivation's one copy.
-use crate::kinematics::geometry::{home_rod as home_rod_mm, LegParams};
+use crate::kinematics::geometry::{home_rod as home_rod_mm, norm3, LegParams};
 use crate::kinematics::ik::strokes_unchecked;
 use crate::kinematics::{
     fk, FkConfig, Geometry, GeometryError, GeometryParams, Pose, WorkspaceLimits, LEGS,
@@ -304,10 +304,6 @@ fn first_non_finite(v: &[f64], base: u16) -> Option<u16> {
     v.iter()
         .position(|x| !x.is_finite())
         .map(|i| base.saturating_add(u16::try_from(i).unwrap_or(u16::MAX)))
-}
-
-fn norm3(v: [f64; 3]) -> f64 {
-    crate::kinematics::real::sqrt_f64(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 }
 
 
