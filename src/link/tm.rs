@@ -713,7 +713,9 @@ pub enum TmSource<'a> {
 }
 
 impl TmSource<'_> {
-    /// PUS service and subtype.
+    /// PUS service and subtype. Out of line: inlined into the emit path, 16 bytes of
+    /// flash more.
+    #[inline(never)]
     pub const fn message(&self) -> (u8, u8) {
         match self {
             TmSource::Verification { report, .. } => (service::VERIFICATION, report.subtype()),
