@@ -323,6 +323,9 @@ impl<M: MechanismIo> Controller<M> {
     }
 
     /// Applies the worker's answer (between motions: no motion starts while a job runs).
+    /// Out of line: inlined into the link service's job exchange, its match was copied
+    /// per result kind.
+    #[inline(never)]
     pub fn job_finished(&mut self, result: &JobResult) {
         match *result {
             JobResult::Committed { report, table_id } => {

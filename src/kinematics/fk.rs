@@ -77,6 +77,9 @@ pub const FK_PIVOT_RATIO_EPS: f64 = 1024.0;
 pub const FK_NEGLIGIBLE_STEP: f64 = 1.0 / FK_STEP_TOL_EPS;
 
 impl<T: Real> Default for FkConfig<T> {
+    /// Out of line: inlined at its three flight call sites (the controller's estimate,
+    /// the validation's corners, the boot self-test), 80 bytes of flash more.
+    #[inline(never)]
     fn default() -> Self {
         let eps = T::EPSILON.to_f64();
         Self {

@@ -263,20 +263,29 @@ impl GeometryParams {
     pub fn rod_lengths_mm(&self) -> [f64; LEGS] {
         let mut out = [0.0; LEGS];
         for (o, leg) in out.iter_mut().zip(self.legs.iter()) {
-            let d = home_rod(leg, &self.p0_mm);
-            *o = crate::kinematics::real::sqrt_f64(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+            *o = norm3(home_rod(leg, &self.p0_mm));
         }
         out
     }
 }
 
-/// Rod vector at home, `b + p0 - a` (mm, frame B), in f64.
-fn home_rod(leg: &LegParams, p0: &[f64; 3]) -> [f64; 3] {
+/// Rod vector at home, `b + p0 - a` (mm, frame B), in f64. Out of line: the one copy
+/// serves the geometry derivation and the table validation (`table::validate`).
+#[inline(never)]
+pub(crate) fn home_rod(leg: &LegParams, p0: &[f64; 3]) -> [f64; 3] {
     [
         leg.b_mm[0] + p0[0] - leg.a_mm[0],
         leg.b_mm[1] + p0[1] - leg.a_mm[1],
         leg.b_mm[2] + p0[2] - leg.a_mm[2],
     ]
+}
+
+/// Euclidean norm of `v` in f64 (its unit), `sqrt(v0^2 + v1^2 + v2^2)` in that order.
+/// Out of line: the one copy serves the geometry derivation (rod length at home) and
+/// the table validation (`table::validate`).
+#[inline(never)]
+pub(crate) fn norm3(v: [f64; 3]) -> f64 {
+    crate::kinematics::real::sqrt_f64(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 }
 
 impl<T: Real> Geometry<T> {
@@ -293,9 +302,7 @@ impl<T: Real> Geometry<T> {
                 d0_mm: map3(d0).into(),
                 two_d0_xy_mm: [T::from_f64(2.0 * d0[0]), T::from_f64(2.0 * d0[1])],
                 d0z_sq_mm2: T::from_f64(d0[2] * d0[2]),
-                rod_mm: T::from_f64(crate::kinematics::real::sqrt_f64(
-                    d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2],
-                )),
+                rod_mm: T::from_f64(norm3(d0)),
                 inv_two_d0z_per_mm: T::from_f64(0.5 / d0[2]),
                 fast_sqrt_delta_mm2: T::from_f64(SQRT_FAST_FRACTION * d0[2] * d0[2]),
             };

@@ -298,7 +298,9 @@ impl Housekeeping {
     /// ([`Writer::at`]: on the host a field out of place makes the write fail); the
     /// flight build writes sequentially, 0.3-0.4 KB less code than a checked write by
     /// range (flight image text, measured: 63,184 so, 63,492 by a loop over (field,
-    /// value) pairs, 63,576 by `FieldsMut`; 63,076 before the fields were named).
+    /// value) pairs, 63,576 by `FieldsMut`; 63,076 before the fields were named). Out
+    /// of line: inlined into `TmSource::write`, it cost 52 bytes more.
+    #[inline(never)]
     pub fn write(&self, w: &mut Writer<'_>) -> Option<()> {
         use field::*;
         let base = w.position();

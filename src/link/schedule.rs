@@ -335,7 +335,9 @@ impl ScheduleCommand {
         }
     }
 
-    /// Checked parse of a TC[11,`subtype`]'s application data.
+    /// Checked parse of a TC[11,`subtype`]'s application data. Out of line: inlined
+    /// into the telecommand decoder, its results were copied per subtype.
+    #[inline(never)]
     pub fn parse(subtype: u8, app_data: &[u8]) -> Result<ScheduleCommand, LinkError> {
         let none = |c: ScheduleCommand| expect_len(app_data, 0).map(|_| c);
         match subtype {

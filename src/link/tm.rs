@@ -713,7 +713,9 @@ pub enum TmSource<'a> {
 }
 
 impl TmSource<'_> {
-    /// PUS service and subtype.
+    /// PUS service and subtype. Out of line: inlined into the emit path, 16 bytes of
+    /// flash more.
+    #[inline(never)]
     pub const fn message(&self) -> (u8, u8) {
         match self {
             TmSource::Verification { report, .. } => (service::VERIFICATION, report.subtype()),
@@ -739,7 +741,9 @@ impl TmSource<'_> {
 
     /// Writes the source data of a packet made at `time`; `None` if it does not fit (or
     /// a dump chunk is empty or longer than [`TABLE_CHUNK_MAX_LEN`], or a summary has
-    /// more than [`SCHEDULE_CAPACITY`] entries).
+    /// more than [`SCHEDULE_CAPACITY`] entries). Out of line: inlined into the one
+    /// emit path (`comms::encode`), its variants were copied per record kind.
+    #[inline(never)]
     pub fn write(&self, time: TmTime, w: &mut Writer<'_>) -> Option<()> {
         match *self {
             TmSource::Verification { request_id, report } => {

@@ -102,7 +102,9 @@ pub struct Reader<'a> {
 }
 
 impl<'a> Reader<'a> {
-    /// At the start of `buf`.
+    /// At the start of `buf`. Out of line: inlined at its sixteen flight call sites, 20
+    /// bytes of flash more.
+    #[inline(never)]
     pub const fn new(buf: &'a [u8], order: Order) -> Self {
         Self { buf, pos: 0, order }
     }
@@ -236,7 +238,9 @@ pub struct Writer<'a> {
 }
 
 impl<'a> Writer<'a> {
-    /// At the start of `buf`.
+    /// At the start of `buf`. Out of line: inlined at its five flight call sites, 16
+    /// bytes of flash more.
+    #[inline(never)]
     pub fn new(buf: &'a mut [u8], order: Order) -> Self {
         Self { buf, pos: 0, order }
     }

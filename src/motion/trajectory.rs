@@ -429,6 +429,8 @@ impl TrajectoryPlanner {
     }
 
     /// Bounds of S' and S'' (see the module documentation), then the limits on s.
+    /// Out of line: inlined into [`TrajectoryPlanner::advance`], 24 bytes of flash more.
+    #[inline(never)]
     fn finish(&self) -> Result<Trajectory, MotionError> {
         let n = PATH_SAMPLE_INTERVALS as f32;
         let mut slope = self.slope;

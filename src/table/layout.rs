@@ -401,6 +401,9 @@ impl Table {
         }
     }
 
+    /// The fields in layout order into `w` (out of line: inlined into
+    /// [`Table::encode`], 32 bytes of flash more).
+    #[inline(never)]
     fn write(&self, w: &mut Writer<'_>) -> Option<()> {
         let at = |w: &mut Writer<'_>, f: Field| w.at(0, &f);
         at(w, field::MAGIC)?;

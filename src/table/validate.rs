@@ -62,7 +62,8 @@
 //! corner strokes and the 5 mm soft limits. [`F32_STROKE_ROUNDING_MM`] is added for the
 //! `f32` evaluation of the grid strokes.
 
-use crate::kinematics::geometry::LegParams;
+// The home rod vector `b + p0 - a` (mm, frame B, f64): the geometry derivation's one copy.
+use crate::kinematics::geometry::{home_rod as home_rod_mm, norm3, LegParams};
 use crate::kinematics::ik::strokes_unchecked;
 use crate::kinematics::{
     fk, FkConfig, Geometry, GeometryError, GeometryParams, Pose, WorkspaceLimits, LEGS,
@@ -305,22 +306,20 @@ fn first_non_finite(v: &[f64], base: u16) -> Option<u16> {
         .map(|i| base.saturating_add(u16::try_from(i).unwrap_or(u16::MAX)))
 }
 
-fn norm3(v: [f64; 3]) -> f64 {
-    crate::kinematics::real::sqrt_f64(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-}
-
-fn home_rod_mm(leg: &LegParams, p0: &[f64; 3]) -> [f64; 3] {
-    [
-        leg.b_mm[0] + p0[0] - leg.a_mm[0],
-        leg.b_mm[1] + p0[1] - leg.a_mm[1],
-        leg.b_mm[2] + p0[2] - leg.a_mm[2],
-    ]
-}
+/// Joint coordinates per leg in table order (`a.xyz` then `b.xyz`).
+const COORDS_PER_LEG: usize = JOINT_COORDS / LEGS;
 
 fn check_finite(t: &Table) -> Result<(), ValidationError> {
-    let mut coords = [0.0; JOINT_COORDS];
-    for (i, c) in coords.iter_mut().enumerate() {
-        *c = t.joint_coord_mm(i).unwrap_or(f64::NAN);
+    // The joint coordinates first (fields 0 to JOINT_COORDS - 1, leg-major; per leg
+    // `a.xyz` then `b.xyz`: `Table::joint_coord_mm`'s order), read in place.
+    for (l, leg) in t.legs.iter().enumerate() {
+        let base = u16::try_from(l * COORDS_PER_LEG).unwrap_or(u16::MAX);
+        let b_base = base.saturating_add(leg.a_mm.len() as u16);
+        if let Some(field) =
+            first_non_finite(&leg.a_mm, base).or_else(|| first_non_finite(&leg.b_mm, b_base))
+        {
+            return Err(ValidationError::NonFinite { field });
+        }
     }
     let s = &t.supervision;
     let sup = [
@@ -329,8 +328,7 @@ fn check_finite(t: &Table) -> Result<(), ValidationError> {
         f64::from(s.encoder_jump_mm_per_cycle),
         f64::from(s.stuck_min_progress_mm),
     ];
-    let groups: [(&[f64], u16); 7] = [
-        (&coords, 0),
+    let groups: [(&[f64], u16); 6] = [
         (&t.p0_mm, field_index::P0),
         (&t.stroke_limits.min_mm, field_index::STROKE_MIN),
         (&t.stroke_limits.max_mm, field_index::STROKE_MAX),
@@ -349,27 +347,29 @@ fn check_finite(t: &Table) -> Result<(), ValidationError> {
     Ok(())
 }
 
+/// Index (`base` + position) of the first value of `v` farther than `tol` from its
+/// reference in `r` (mm), as a coordinate index of event `CoordinateOffNominal`.
+fn first_off(v: &[f64], r: &[f64], tol: f64, base: usize) -> Option<u8> {
+    v.iter()
+        .zip(r.iter())
+        .position(|(v, r)| !close(*v, *r, tol))
+        .map(|k| (base + k) as u8)
+}
+
 fn check_near_reference(t: &Table, cfg: &ValidationConfig) -> Result<(), ValidationError> {
     let tol = cfg.max_coordinate_deviation_mm;
-    let reference = Table {
-        legs: cfg.reference.legs,
-        p0_mm: cfg.reference.p0_mm,
-        ..*t
-    };
-    for i in 0..JOINT_COORDS {
-        let (Some(v), Some(r)) = (t.joint_coord_mm(i), reference.joint_coord_mm(i)) else {
-            return Err(ValidationError::CoordinateOffNominal { index: i as u8 });
-        };
-        if !close(v, r, tol) {
-            return Err(ValidationError::CoordinateOffNominal { index: i as u8 });
+    // The joint coordinates in table order (leg-major; per leg `a.xyz` then `b.xyz`:
+    // `Table::joint_coord_mm`'s), then p0, read in place.
+    for (l, (leg, ref_leg)) in t.legs.iter().zip(cfg.reference.legs.iter()).enumerate() {
+        let base = l * COORDS_PER_LEG;
+        if let Some(index) = first_off(&leg.a_mm, &ref_leg.a_mm, tol, base)
+            .or_else(|| first_off(&leg.b_mm, &ref_leg.b_mm, tol, base + leg.a_mm.len()))
+        {
+            return Err(ValidationError::CoordinateOffNominal { index });
         }
     }
-    for (k, (v, r)) in t.p0_mm.iter().zip(cfg.reference.p0_mm.iter()).enumerate() {
-        if !close(*v, *r, tol) {
-            return Err(ValidationError::CoordinateOffNominal {
-                index: (JOINT_COORDS + k) as u8,
-            });
-        }
+    if let Some(index) = first_off(&t.p0_mm, &cfg.reference.p0_mm, tol, JOINT_COORDS) {
+        return Err(ValidationError::CoordinateOffNominal { index });
     }
     for (i, (leg, ref_leg)) in t.legs.iter().zip(cfg.reference.legs.iter()).enumerate() {
         let l = norm3(home_rod_mm(leg, &t.p0_mm));
@@ -578,7 +578,9 @@ impl Default for ValidationState {
 }
 
 impl ValidationState {
-    /// A validation not started.
+    /// A validation not started. Out of line: inlined at its flight call sites (the
+    /// worker's three, the boot's validation), 84 bytes of flash more.
+    #[inline(never)]
     pub const fn new() -> Self {
         Self {
             stage: Stage::Checks,
@@ -829,6 +831,9 @@ pub fn working_geometry(t: &Table) -> Result<Geometry<f32>, GeometryError> {
 
 /// Validates a candidate table (see the module docs for the checks and their order):
 /// a [`ValidationState`] stepped to completion. Never panics, whatever the table holds.
+/// Out of line: inlined into the boot selection (its one flight caller), 64 bytes of
+/// flash more.
+#[inline(never)]
 pub fn validate(t: &Table, cfg: &ValidationConfig) -> Result<(), ValidationError> {
     let mut v = ValidationState::new();
     loop {
