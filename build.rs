@@ -26,7 +26,7 @@ const DEVICE_MPS2: &str = "memory/mps2-an386-device.x";
 const BOARD_MEMORY: &str = "board-memory.x";
 const GOLDEN_COLUMNS: usize = 12;
 /// The flight image's boot self-test takes every this-many-th golden row (flash).
-const BOOT_ROW_STRIDE: usize = 5;
+const BOOT_ROW_STRIDE: usize = 10;
 
 fn main() {
     println!("cargo:rerun-if-changed={MEMORY_MPS2}");

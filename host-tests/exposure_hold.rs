@@ -38,6 +38,10 @@ fn a_hold_refuses_operator_moves_with_its_seconds_left_and_ends_by_telecommand()
         &b.command(&Command::ExposureHold { timeout_s: 30 }, 10)
     ));
     assert_eq!(b.st.events(event::EXPOSURE_HOLD_STARTED), [[0, 30]]);
+    assert_eq!(
+        b.hk().thermal_state,
+        m2ctl::link::hk::thermal_state::EXPOSURE_HOLD
+    );
     b.run(2 * CONTROL_RATE_HZ);
     // About 28 s left (rounded up).
     let reps = b.command(&a_move(), 10);

@@ -11,6 +11,7 @@ use common::install;
 use m2ctl::controller::event;
 use m2ctl::controller::params::{index, PARAMETERS};
 use m2ctl::kinematics::{Pose, LEGS};
+use m2ctl::link::hk::thermal_state;
 use m2ctl::link::{Command, ParameterValues};
 use m2ctl::motion::DEFAULT_MAX_SPEED_MM_PER_S;
 use m2ctl::nominal::PROTOTYPE;
@@ -271,6 +272,20 @@ fn a_faulty_sensor_freezes_the_offset_with_one_warning_and_recovery_resumes() {
     run_bounded(&mut b, 2 * CONTROL_RATE_HZ);
     let frozen = b.ctl.compensation().applied_mm();
     assert!(b.ctl.compensation().is_frozen());
+    // Housekeeping says so, with the offset applied (nm).
+    let hk = b.hk();
+    assert_eq!(
+        hk.thermal_state,
+        thermal_state::ENABLED | thermal_state::FROZEN
+    );
+    for i in 0..LEGS {
+        assert!(
+            (f64::from(hk.thermal_offsets_nm[i]) - f64::from(frozen[i]) * 1e6).abs() <= 0.5,
+            "{:?} {frozen:?}",
+            hk.thermal_offsets_nm
+        );
+    }
+    assert!(frozen.iter().any(|v| v.abs() > 1e-4), "{frozen:?}");
     assert!(
         run_bounded(&mut b, 10 * CONTROL_RATE_HZ) == 0,
         "stepped while frozen"
@@ -310,7 +325,7 @@ fn a_minimum_step_above_the_maximum_is_refused_and_changes_nothing() {
         ],
     );
     assert!(common::all_ok(&reps), "{reps:?}");
-    let (_, p) = b.ctl.parameters().thermal();
+    let (_, p) = b.ctl.parameters().thermal(b.ctl.active_table());
     assert_eq!((p.max_step_mm, p.min_step_mm), (200e-6, 200e-6));
 }
 
@@ -467,7 +482,7 @@ fn thermal_soak_bounded_steps_and_nothing_during_an_exposure_hold() {
         let step = (0..LEGS)
             .map(|i| (now[i] - last[i]).abs())
             .fold(0.0f32, f32::max);
-        let (_, p) = b.ctl.parameters().thermal();
+        let (_, p) = b.ctl.parameters().thermal(b.ctl.active_table());
         assert!(
             step <= p.max_step_mm * (1.0 + 1e-5),
             "cycle {n}: a step of {step} mm"

@@ -277,10 +277,14 @@ impl<F: NorFlash + FlashStatus> Worker<F> {
     fn other_bank(&mut self) -> Result<Bank, StoreError> {
         Ok(match self.store.running().bank() {
             Some(b) => b.other(),
-            None => match (self.store.read_bank(Bank::A), self.store.read_bank(Bank::B)) {
-                (Ok((ha, _)), Ok((hb, _)))
-                    if crate::table::store::seq_newer(hb.sequence, ha.sequence) =>
-                {
+            // Each bank's header only is kept (its table is dropped before the next
+            // read): two tables side by side were 1,152 bytes of the worker's deepest
+            // frame chain (`scripts/stack-depth.py`, WORKER).
+            None => match (
+                self.store.read_bank(Bank::A).map(|(h, _)| h),
+                self.store.read_bank(Bank::B).map(|(h, _)| h),
+            ) {
+                (Ok(ha), Ok(hb)) if crate::table::store::seq_newer(hb.sequence, ha.sequence) => {
                     Bank::B
                 }
                 (Ok(_), _) => Bank::A,

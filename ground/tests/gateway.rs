@@ -18,12 +18,13 @@ use m2ctl::link::{decode_telecommand, Command, Housekeeping, WirePose, MAX_TM_FR
 use m2ground::gateway::{
     base64, ccsds_packet_len, coefficients_json, event_json, http_post_json, link_health_json,
     rfc3339, run, tm_obt_s, Correlator, Options, Stats, TcPath, TimeFit, TmPath, Uart,
+    TM_DEFRAMER_LEN,
 };
 use m2ground::tc::{frame, TcSequencer};
 
 /// The packet of one frame.
 fn deframe_one(f: &[u8]) -> Vec<u8> {
-    let mut d: Deframer<300> = Deframer::new();
+    let mut d: Deframer<TM_DEFRAMER_LEN> = Deframer::new();
     for b in f {
         if let Some(r) = d.push_byte(*b) {
             return r.unwrap().to_vec();

@@ -419,6 +419,8 @@ fn sample_hk() -> Housekeeping {
         sensors_open: 0b0000_0100,
         sensors_short: 0,
         sensors_stuck: 0b1000_0000,
+        thermal_state: 0b101,
+        thermal_offsets_nm: [1_234, -2_345, 0, 4_567, -5_678, 6_789],
     }
 }
 
@@ -1680,14 +1682,15 @@ fn emitters_refuse_oversized_source_data_as_before() {
         Err(EmitError::BufferTooSmall)
     );
     assert!(w.emit_schedule_summary(t, &entries[..16], &mut buf).is_ok());
-    // The largest source data is the housekeeping report's 254 bytes: a count and 42
-    // entries of 6 bytes fit, 43 do not.
-    let values = vec![(1u16, -1i32); 43];
+    // The largest source data is the housekeeping report's: a count byte and as many
+    // 6-byte entries as fit beside it (46 of the 279 bytes), one more does not.
+    let fit = (m2ctl::link::hk::HK_REPORT_LEN - 1) / 6;
+    let values = vec![(1u16, -1i32); fit + 1];
     assert_eq!(
         w.emit_parameter_report(t, &values, &mut buf),
         Err(EmitError::BufferTooSmall)
     );
-    assert!(w.emit_parameter_report(t, &values[..42], &mut buf).is_ok());
+    assert!(w.emit_parameter_report(t, &values[..fit], &mut buf).is_ok());
     assert_eq!(
         w.emit_table_dump_chunk(t, MemoryId::ActiveTable, 0, &[7; 129], &mut buf),
         Err(EmitError::BadChunk)

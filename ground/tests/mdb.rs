@@ -295,6 +295,8 @@ fn distinct_housekeeping() -> Housekeeping {
         sensors_open: 0b0000_0011,
         sensors_short: 0b0011_0000,
         sensors_stuck: 0b1100_0000,
+        thermal_state: 0b011,
+        thermal_offsets_nm: [-1_001, 2_002, -3_003, 4_004, -5_005, 6_006],
     }
 }
 
@@ -359,9 +361,9 @@ fn housekeeping_fields_are_read_back_by_the_description() {
 /// Source data of a TM packet the link's writer emits.
 fn emitted(f: impl FnOnce(&mut TmWriter, &mut [u8]) -> usize) -> (Vec<u8>, u8, u8) {
     let mut w = TmWriter::new();
-    let mut frame = [0u8; 300];
+    let mut frame = [0u8; m2ctl::link::MAX_TM_FRAME_LEN];
     let n = f(&mut w, &mut frame);
-    let mut d: Deframer<300> = Deframer::new();
+    let mut d: Deframer<{ m2ground::gateway::TM_DEFRAMER_LEN }> = Deframer::new();
     let pkt = frame[..n]
         .iter()
         .find_map(|b| d.push_byte(*b).map(|r| r.unwrap().to_vec()))

@@ -153,8 +153,6 @@ pub struct Ops {
     pub hk_period_cycles: u32,
     /// In-position tolerance (mm) and dwell (cycles): [`Parameters::in_position`].
     pub in_position: (f32, u16),
-    /// Thermal compensation enabled, and its steps: [`Parameters::thermal`].
-    pub thermal: (bool, crate::thermal::compensation::CompensationParams),
 }
 
 impl Ops {
@@ -166,7 +164,6 @@ impl Ops {
             direct: params.direct_limits(table),
             hk_period_cycles: params.hk_period_cycles(table),
             in_position: params.in_position(table),
-            thermal: params.thermal(),
         }
     }
 }
@@ -609,6 +606,19 @@ impl<M: MechanismIo> Controller<M> {
         self.cycle = self.cycle.wrapping_add(1);
     }
 
+    /// Housekeeping's thermal state bits (`link::hk::thermal_state`).
+    fn thermal_state(&self) -> u8 {
+        use crate::link::hk::thermal_state::{ENABLED, EXPOSURE_HOLD, FROZEN};
+        let c = &self.compensation;
+        (if c.is_enabled() { ENABLED } else { 0 })
+            | (if c.is_frozen() { FROZEN } else { 0 })
+            | (if self.exposure.active() {
+                EXPOSURE_HOLD
+            } else {
+                0
+            })
+    }
+
     /// One period of the thermal compensation ([`Compensation::step`]): the target is
     /// the running table's thermal model at the commanded pose and the sensors' means.
     /// At rest means holding with no fault latched. A step leaves the drives where they
@@ -640,7 +650,11 @@ impl<M: MechanismIo> Controller<M> {
             &self.motion.pose,
             &temps_c,
         );
-        let (enabled, params) = self.settings.ops.thermal;
+        let (enabled, params) = self
+            .settings
+            .params
+            .params()
+            .thermal(&self.tables.active.table);
         self.compensation.set_enabled(enabled);
         match self.compensation.step(
             at_rest,
@@ -946,6 +960,11 @@ impl<M: MechanismIo> Controller<M> {
             sensors_open: self.temperatures.with_fault(SensorFault::Open),
             sensors_short: self.temperatures.with_fault(SensorFault::Short),
             sensors_stuck: self.temperatures.with_fault(SensorFault::Stuck),
+            thermal_state: self.thermal_state(),
+            thermal_offsets_nm: self
+                .compensation
+                .applied_mm()
+                .map(crate::link::wire::mm_to_nm_f32),
         };
         HkSample {
             report,

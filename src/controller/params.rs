@@ -543,20 +543,13 @@ impl Parameters {
 
     /// The effective value of parameter `k` with `table` running.
     pub fn value(&self, k: usize, table: &Table) -> i32 {
-        self.set_or_fixed(k)
-            .unwrap_or_else(|| table_value(k, table))
-    }
-
-    /// The effective value of parameter `k` when it is set or its default is compiled
-    /// in; `None` when it is the running table's.
-    fn set_or_fixed(&self, k: usize) -> Option<i32> {
         if self.set & (1 << k) != 0 {
-            return Some(self.values.get(k).copied().unwrap_or(0));
+            return self.values.get(k).copied().unwrap_or(0);
         }
         match PARAMETERS.get(k).map(|d| d.default) {
-            Some(Default::Fixed(v)) => Some(v),
-            Some(Default::Table) => None,
-            None => Some(0),
+            Some(Default::Fixed(v)) => v,
+            Some(Default::Table) => table_value(k, table),
+            None => 0,
         }
     }
 
@@ -584,7 +577,7 @@ impl Parameters {
         }
         // The dead band's range ends at the largest step in force (each alone is in its
         // range here, so only this combination can fail).
-        if p.thermal().1.validate().is_err() {
+        if p.thermal(table).1.validate().is_err() {
             return Err(ParamError::DeadBandAboveStep);
         }
         Ok(p)
@@ -638,13 +631,12 @@ impl Parameters {
         (tol, dwell)
     }
 
-    /// Thermal compensation enabled, and its steps (mm). Their defaults are compiled in
-    /// (none is the table's), so no table is needed.
-    pub fn thermal(&self) -> (bool, CompensationParams) {
-        let v = |k: usize| self.set_or_fixed(k).unwrap_or(0);
-        let mm = |k: usize| (f64::from(v(k)) / NM_PER_MM) as f32;
+    /// Thermal compensation enabled, and its steps (mm), with `table` running (their
+    /// defaults are compiled in: no table changes them).
+    pub fn thermal(&self, table: &Table) -> (bool, CompensationParams) {
+        let mm = |k: usize| (f64::from(self.value(k, table)) / NM_PER_MM) as f32;
         (
-            v(index::THERMAL_ENABLE) != 0,
+            self.value(index::THERMAL_ENABLE, table) != 0,
             CompensationParams {
                 max_step_mm: mm(index::THERMAL_MAX_STEP),
                 min_step_mm: mm(index::THERMAL_MIN_STEP),

@@ -2,7 +2,7 @@
 //!
 //! # Layout
 //!
-//! The source data of TM[3,25] is [`HK_REPORT_LEN`] = 254 bytes, big-endian, laid out by
+//! The source data of TM[3,25] is [`HK_REPORT_LEN`] = 279 bytes, big-endian, laid out by
 //! the named field ranges of [`field`] (smoltcp's `mod field`): the one description of
 //! the report's bytes. [`Housekeeping::emit`] writes by them, [`Housekeeping::parse`]
 //! reads by them, the mission database (`ground::mdb::housekeeping_rows`) takes each
@@ -25,7 +25,7 @@ use crate::thermal::TEMP_SENSORS;
 /// Structure ID of the one housekeeping report.
 pub const HK_STRUCTURE_ID: u8 = 1;
 /// Length of the TM[3,25] source data (bytes).
-pub const HK_REPORT_LEN: usize = 254;
+pub const HK_REPORT_LEN: usize = 279;
 /// `selected_source` when no selection record exists.
 pub const NO_SELECTION: u8 = 0xFF;
 
@@ -140,6 +140,11 @@ pub mod field {
     pub const SENSORS_SHORT: Field = after(&SENSORS_OPEN, 1);
     /// u8: temperature sensors stuck (sensor mask).
     pub const SENSORS_STUCK: Field = after(&SENSORS_SHORT, 1);
+    /// u8: thermal compensation and exposure hold ([`super::thermal_state`] bits).
+    pub const THERMAL_STATE: Field = after(&SENSORS_STUCK, 1);
+    /// 6 x i32: the thermal compensation's applied stroke offset of each leg (nm, along
+    /// base z): the drives hold the reported strokes plus these.
+    pub const THERMAL_OFFSETS: Field = after(&THERMAL_STATE, LEGS_I32_LEN);
 
     /// Bytes of a wire pose (6 x i32).
     const POSE_LEN: usize = 24;
@@ -154,7 +159,17 @@ pub mod field {
 }
 
 // The fields tile the report exactly.
-const _: () = assert!(field::SENSORS_STUCK.end == HK_REPORT_LEN);
+const _: () = assert!(field::THERMAL_OFFSETS.end == HK_REPORT_LEN);
+
+/// The bits of [`Housekeeping::thermal_state`].
+pub mod thermal_state {
+    /// The thermal compensation is enabled (parameter 0x0060).
+    pub const ENABLED: u8 = 1 << 0;
+    /// It is frozen at its last offset by a faulty sensor (event 0x0051).
+    pub const FROZEN: u8 = 1 << 1;
+    /// An exposure hold is in force (events 0x0052/0x0053).
+    pub const EXPOSURE_HOLD: u8 = 1 << 2;
+}
 
 /// One housekeeping sample, filled by the controller.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -248,6 +263,10 @@ pub struct Housekeeping {
     pub sensors_short: u8,
     /// Temperature sensors stuck (bit i = sensor i).
     pub sensors_stuck: u8,
+    /// Thermal compensation and exposure hold ([`thermal_state`] bits).
+    pub thermal_state: u8,
+    /// The thermal compensation's applied stroke offset of each leg (nm, along base z).
+    pub thermal_offsets_nm: [i32; LEGS],
     /// The time-based schedule and the time reports (offsets 217..230).
     pub schedule: ScheduleHk,
 }
@@ -416,10 +435,13 @@ impl Housekeeping {
             (SENSORS_OPEN, self.sensors_open),
             (SENSORS_SHORT, self.sensors_short),
             (SENSORS_STUCK, self.sensors_stuck),
+            (THERMAL_STATE, self.thermal_state),
         ] {
             at(w, f)?;
             w.u8(v)?;
         }
+        at(w, THERMAL_OFFSETS)?;
+        w.i32s(&self.thermal_offsets_nm)?;
         // The last field ends the report.
         w.at(base, &(HK_REPORT_LEN..HK_REPORT_LEN)).map(|_| ())
     }
@@ -485,6 +507,8 @@ impl Housekeeping {
             sensors_open: f.u8(field::SENSORS_OPEN)?,
             sensors_short: f.u8(field::SENSORS_SHORT)?,
             sensors_stuck: f.u8(field::SENSORS_STUCK)?,
+            thermal_state: f.u8(field::THERMAL_STATE)?,
+            thermal_offsets_nm: f.reader(field::THERMAL_OFFSETS)?.i32s()?,
         })
     }
 }
@@ -544,6 +568,15 @@ mod tests {
             sensors_open: 0x60,
             sensors_short: 0x61,
             sensors_stuck: 0x62,
+            thermal_state: 0x63,
+            thermal_offsets_nm: [
+                0x6465_6667,
+                -0x6869_6A6B,
+                0x6C6D_6E6F,
+                0x7071_7273,
+                0x7475_7677,
+                -1,
+            ],
             schedule: ScheduleHk {
                 activities: 0x43,
                 release_enabled: true,

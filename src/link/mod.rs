@@ -52,8 +52,8 @@ pub const M2_APID: u16 = 0x0B2;
 /// Largest telecommand packet accepted (bytes, whole CCSDS packet incl. CRC-16).
 pub const MAX_TC_PACKET_LEN: usize = 256;
 /// Largest telemetry packet emitted (bytes, whole CCSDS packet incl. CRC-16): the
-/// housekeeping report's (19 header bytes, 254 of source data, CRC-16).
-pub const MAX_TM_PACKET_LEN: usize = 275;
+/// housekeeping report's (19 header bytes, 279 of source data, CRC-16).
+pub const MAX_TM_PACKET_LEN: usize = 300;
 /// Largest framed telecommand (bytes): delimiter, COBS-encoded packet, delimiter.
 pub const MAX_TC_FRAME_LEN: usize = framing::max_frame_len(MAX_TC_PACKET_LEN);
 // Every TM packet's source data fits the packet buffer (`TmWriter::emit` refuses, at run

@@ -246,3 +246,28 @@ pub(super) fn sensor_mask_bits() -> Vec<(u32, String, String)> {
         })
         .collect()
 }
+
+/// The bits of housekeeping's `thermal_state` (`link::hk::thermal_state`).
+pub(super) fn thermal_state_bits() -> Vec<(u32, String, String)> {
+    use m2ctl::link::hk::thermal_state::{ENABLED, EXPOSURE_HOLD, FROZEN};
+    [
+        (
+            ENABLED,
+            "ENABLED",
+            "thermal compensation enabled (parameter 0x0060)",
+        ),
+        (
+            FROZEN,
+            "FROZEN",
+            "compensation frozen at its last offset by a faulty sensor",
+        ),
+        (
+            EXPOSURE_HOLD,
+            "EXPOSURE_HOLD",
+            "an exposure hold is in force",
+        ),
+    ]
+    .into_iter()
+    .map(|(bit, name, doc)| (bit.trailing_zeros(), name.to_string(), doc.to_string()))
+    .collect()
+}

@@ -724,6 +724,45 @@ pub fn housekeeping_rows() -> Vec<HkRow> {
     for (name, off, what, g) in sensor_faults {
         v.push(one(b(name, off, Wire::U8, "sensor_mask", &what), g));
     }
+    v.push(one(
+        b(
+            "thermal_state",
+            hk_field::THERMAL_STATE.start,
+            Wire::U8,
+            "thermal_state",
+            "thermal compensation and exposure hold: bit 0 compensation enabled, bit 1 \
+             frozen by a faulty sensor, bit 2 exposure hold in force",
+        ),
+        |h| i64::from(h.thermal_state),
+    ));
+    let offsets: [HkGetter; LEGS] = leg_getters!(thermal_offsets_nm);
+    let fields = offsets
+        .into_iter()
+        .enumerate()
+        .map(|(i, g)| {
+            (
+                calibrated(
+                    &format!("thermal_offset_leg{}", i + 1),
+                    hk_field::THERMAL_OFFSETS.start + 4 * i,
+                    Wire::I32,
+                    UNIT_UM,
+                    UM_PER_NM,
+                    &format!(
+                        "leg {}: thermal compensation's applied stroke offset (um; wire i32 in nm)",
+                        i + 1
+                    ),
+                ),
+                Some(g),
+            )
+        })
+        .collect();
+    v.push(HkRow::group(
+        format!(
+            "thermal compensation's applied stroke offsets, legs 1..{LEGS} (nm, along base z): \
+             the drives hold the reported strokes plus these"
+        ),
+        fields,
+    ));
     v
 }
 

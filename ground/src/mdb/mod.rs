@@ -54,7 +54,7 @@ mod telemetry;
 
 pub use alarms::{alarms, derived};
 pub use bit_fields::{bank_status_flags, fault_flag_bits, fault_flags_doc, refusal_bits, FlagDoc};
-use bit_fields::{leg_mask_bits, sensor_mask_bits};
+use bit_fields::{leg_mask_bits, sensor_mask_bits, thermal_state_bits};
 pub use console::{
     bit_parameter_name, calibration_stack, clear_fault_stack, console_files, display_par,
     housekeeping_display, parameter_lists, recovery_stroke_um, stacks, switch_recovery_stack,
@@ -655,6 +655,10 @@ pub fn mdb() -> Mdb {
             BitField {
                 name: "sensor_mask",
                 bits: sensor_mask_bits(),
+            },
+            BitField {
+                name: "thermal_state",
+                bits: thermal_state_bits(),
             },
         ],
         telecommands: telecommands(),
