@@ -148,8 +148,8 @@ fn halt() -> ! {
 }
 
 /// Boot self-test of the flight kinematics on a subset of the golden vectors (every
-/// fifth row; the self-test image m2selftest checks all of them). Not inlined: its
-/// frame is gone before the controller is built.
+/// tenth row, kept in f32: `selftest::BootRow`; the self-test image m2selftest checks
+/// all of them). Not inlined: its frame is gone before the controller is built.
 #[inline(never)]
 fn boot_selftest_passes() -> bool {
     // The nominal geometry through its one out-of-line copy (the worker's validation
@@ -161,7 +161,7 @@ fn boot_selftest_passes() -> bool {
     };
     selftest::BOOT_GOLDEN_ROWS
         .iter()
-        .all(|row| selftest::run_row(&geom, row).pass)
+        .all(|row| selftest::run_row(&geom, &row.widen()).pass)
 }
 
 /// The worker (owning the table store) and the controller, each built by its own

@@ -22,6 +22,29 @@ pub struct GoldenRow {
     pub strokes_mm: [f64; LEGS],
 }
 
+/// A golden row as the flight image's boot self-test keeps it: in `f32` (half the flash
+/// of [`GoldenRow`]'s `f64`). The rounding is far inside the tolerances: at most half an
+/// f32 step, 0.24 nm for a stroke below 4 mm against [`IK_TOL_MM`]'s 1 nm, and the pose's
+/// rounding moves the strokes by less than 0.01 nm (host test
+/// `selftest::boot_rows_are_the_golden_rows_in_f32_and_pass`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BootRow {
+    /// `[x, y, z]` in mm and `[alpha, beta, gamma]` in arcsec.
+    pub pose: [f32; 6],
+    /// Reference strokes (mm).
+    pub strokes_mm: [f32; LEGS],
+}
+
+impl BootRow {
+    /// The row in `f64`, as [`run_row`] takes it.
+    pub fn widen(&self) -> GoldenRow {
+        GoldenRow {
+            pose: self.pose.map(f64::from),
+            strokes_mm: self.strokes_mm.map(f64::from),
+        }
+    }
+}
+
 include!(concat!(env!("OUT_DIR"), "/golden.rs"));
 
 /// Iterates over the golden rows (`testdata/ik_golden.csv`, compiled in by build.rs).
@@ -166,5 +189,40 @@ fn nan_max(a: f64, b: f64) -> f64 {
         f64::NAN
     } else {
         a.max(b)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each boot row is a golden row (the first, then every stride-th) rounded to f32,
+    /// and passes the self-test with the flight geometry, as the row it rounds does.
+    #[test]
+    fn boot_rows_are_the_golden_rows_in_f32_and_pass() {
+        let stride = GOLDEN_ROWS.len().div_ceil(BOOT_GOLDEN_ROWS.len());
+        let geom = Geometry::<f32>::new(&crate::nominal::prototype_with_flight_limits());
+        assert!(geom.is_ok());
+        let Ok(geom) = geom else { return };
+        for (k, boot) in BOOT_GOLDEN_ROWS.iter().enumerate() {
+            let golden = &GOLDEN_ROWS[k * stride];
+            let pairs = boot
+                .pose
+                .iter()
+                .zip(golden.pose.iter())
+                .chain(boot.strokes_mm.iter().zip(golden.strokes_mm.iter()));
+            for (b, g) in pairs {
+                assert_eq!(*b, *g as f32, "row {}", k * stride);
+            }
+            let wide = run_row(&geom, &boot.widen());
+            assert!(wide.pass, "boot row {k}: {wide:?}");
+            assert!(run_row(&geom, golden).pass);
+            // The rounding's share of the IK error: far inside the 1 nm tolerance.
+            let exact = run_row(&geom, golden);
+            assert!(
+                (wide.ik_err_mm - exact.ik_err_mm).abs() < 0.3e-6,
+                "{wide:?} {exact:?}"
+            );
+        }
     }
 }

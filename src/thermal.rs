@@ -42,7 +42,7 @@
 //! with the exact strokes of the expanded mechanism (the square root in f64).
 
 use crate::kinematics::geometry::{Geometry, LEGS};
-use crate::kinematics::ik::leg_state;
+use crate::kinematics::linalg::{add3, mat_vec3};
 use crate::kinematics::pose::{Pose, RotationDelta};
 
 pub mod compensation;
@@ -464,7 +464,22 @@ pub fn stroke_offsets_mm(
         .zip(geom.legs.iter())
         .zip(model.sensor_of.iter())
     {
-        let st = leg_state(leg, &rot, &pose.translation_mm)?;
+        // The leg at the pose (as `kinematics::ik::leg_state`, without the stroke and
+        // its fast square root: one plain root a second is cheaper in flash than a third
+        // inlined copy of the IK's): the upper joint relative to M's origin `rb`, the
+        // rod's horizontal components `h` and its vertical one `q` (`|d0|` is the rod).
+        let b = [leg.b_mm.x, leg.b_mm.y, leg.b_mm.z];
+        let wb = mat_vec3(&rot.w, &b);
+        let rb = add3(&b, &wb);
+        let t = &pose.translation_mm;
+        let h_x = leg.d0_mm.x + wb[0] + t[0];
+        let h_y = leg.d0_mm.y + wb[1] + t[1];
+        let l = leg.rod_mm;
+        let q2 = l * l - h_x * h_x - h_y * h_y;
+        if !(q2 > 0.0) {
+            return None;
+        }
+        let q = <f32 as crate::kinematics::Real>::sqrt(q2);
         let mut e = [0.0f32; PARTS];
         for ((e, s), a) in e
             .iter_mut()
@@ -473,14 +488,10 @@ pub fn stroke_offsets_mm(
         {
             *e = *a * (*temps_c.get(usize::from(*s))? - model.reference_c);
         }
-        let [h_x, h_y] = st.h_mm;
-        let q = st.q_mm;
         let a = &leg.a_mm;
-        let rb = &st.rb_mm;
-        let l = leg.rod_mm;
         // In `Part` order.
         let [e_rod, e_column, e_base, e_platform] = e;
-        let [rb_x, rb_y, rb_z] = *rb;
+        let [rb_x, rb_y, rb_z] = rb;
         *ds = -e_column * model.column_length_mm
             - e_rod * l * l / q
             - e_base * (h_x * a.x + h_y * a.y) / q

@@ -463,25 +463,15 @@ impl<M: MechanismIo> Controller<M> {
     /// reference temperature: the drives' setpoints less the applied compensation
     /// offset. Every "where the drives hold" of the controller is this.
     pub(crate) fn held_mm(&mut self) -> [f32; LEGS] {
-        let applied = self.compensation.applied_mm();
-        let mut held = self.mech.setpoints_mm();
-        for (h, a) in held.iter_mut().zip(applied.iter()) {
-            *h -= a;
-        }
-        held
+        let held = self.mech.setpoints_mm();
+        less_offset(held, &self.compensation)
     }
 
     /// The encoder readings (mm, each slider along base z) at the reference
     /// temperature: the readings less the applied compensation offset.
     fn read_strokes_mm(&mut self) -> Result<[f32; LEGS], crate::hw::EncoderError> {
-        let applied = self.compensation.applied_mm();
-        self.mech.read_counts().map(|c| {
-            let mut s = counts_to_mm(&c);
-            for (v, a) in s.iter_mut().zip(applied.iter()) {
-                *v -= a;
-            }
-            s
-        })
+        let counts = self.mech.read_counts()?;
+        Ok(less_offset(counts_to_mm(&counts), &self.compensation))
     }
 
     /// Commands the drives to `strokes_mm` (mm at the reference temperature): each
@@ -1082,6 +1072,17 @@ impl<M: MechanismIo> Controller<M> {
         f(&mut self.tables.active, &mut cfg);
         self.supervisor.set_config(cfg);
     }
+}
+
+/// `strokes_mm` (mm per leg) less the compensation's applied offset: from the drives'
+/// and the encoders' frame to the reference temperature's. One out-of-line copy for the
+/// readings and the held strokes.
+#[inline(never)]
+fn less_offset(mut strokes_mm: [f32; LEGS], c: &Compensation) -> [f32; LEGS] {
+    for (v, a) in strokes_mm.iter_mut().zip(c.applied_mm().iter()) {
+        *v -= a;
+    }
+    strokes_mm
 }
 
 /// A table with no usable geometry, only for the defect path where even the

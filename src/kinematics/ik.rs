@@ -74,7 +74,7 @@ pub struct LegState<T: Real> {
 }
 
 /// Evaluates one leg; `None` when the radicand is not positive (leg cannot reach).
-#[inline(never)]
+#[inline(always)]
 pub fn leg_state<T: Real>(leg: &Leg<T>, rot: &RotationDelta<T>, t: &[T; 3]) -> Option<LegState<T>> {
     let b = &leg.b_mm.data.0[0];
     let wb = mat_vec3(&rot.w, b);
