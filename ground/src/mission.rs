@@ -13,7 +13,11 @@
 //! 5. the calibrated table uploaded by telecommands (chunks, commit with CRC-32),
 //!    validated on board and activated;
 //! 6. the same targets again: pose error after calibration;
-//! 7. a summary table and a plot.
+//! 7. thermal: the parts at +5 K, then -5 K (uniform), the mirror held at the last
+//!    target; the held pose error against the pose held at the reference temperature,
+//!    with the thermal compensation off, then on (TC[20,3] parameter 0x0060; the
+//!    calibrated table carries the materials' nominal thermal model, the plant's truth);
+//! 8. a summary table and a plot.
 //!
 //! Everything the controller sees arrives as framed PUS telecommands and everything the
 //! ground learns comes from telemetry or the tracker, as in operations.
@@ -35,9 +39,10 @@ use m2ctl::link::{Command, WirePose};
 use m2ctl::motion::CYCLE_S;
 use m2ctl::sim::drive_train::DriveTrainConfig;
 use m2ctl::sim::manufacturing::perturbed;
+use m2ctl::sim::thermal::{Coefficients, Profile, SensorConfig, ThermalConfig, ThermalField};
 use m2ctl::sim::{Bench, Plant, PlantConfig};
 use m2ctl::table::{Provenance, Table, DEFAULT_SUPERVISION};
-use m2ctl::units::NM_PER_MM;
+use m2ctl::units::{ARCSEC_PER_RAD, NM_PER_MM, UM_PER_MM};
 
 /// Most cycles one telecommand may take to complete (a move across the workspace at
 /// the default 0.2 mm/s is well under this).
@@ -50,6 +55,15 @@ const NOT_IN_POSITION: &str = "code 0x070f";
 const SETTLE_CYCLES: u32 = 20;
 /// Table ID of the uploaded calibrated table.
 const CALIBRATED_TABLE_ID: u32 = 1;
+/// The thermal phase's uniform swing (K): issue 22's +-5 K.
+const THERMAL_SWING_K: [f64; 2] = [5.0, -5.0];
+/// Cycles the sensors take to give their first means (16 readings at 10 Hz), with margin.
+const SENSOR_MEAN_CYCLES: u32 = 3_000;
+/// Cycles the compensation is given to follow, and to ramp back when disabled: about
+/// 4 um of offset at +-5 K in steps of 0.5 um, each step followed by its fine
+/// positioning on the realistic drive train (up to 1.2 s to be in position: a step
+/// comes every one or two seconds), with a wide margin: two minutes.
+const COMPENSATION_CYCLES: u32 = 120_000;
 /// Provenance tag of the calibrated table (16 ASCII bytes).
 const PROVENANCE_TAG: [u8; 16] = *b"MISSION-DEMO-IMP";
 
@@ -135,6 +149,32 @@ pub struct MissionReport {
     pub sim_time_s: f64,
     /// CRC-32 of the table that became active.
     pub table_crc32: u32,
+    /// The thermal phase's largest held pose error with the compensation off:
+    /// translation (um) and rotation (arcsec) norms.
+    pub thermal_off: HeldError,
+    /// ... and on.
+    pub thermal_on: HeldError,
+}
+
+/// A held pose error: translation norm (um) and rotation norm (arcsec).
+pub type HeldError = (f64, f64);
+
+/// Translation (um) and rotation (arcsec) norms of `a - b`.
+fn held_error(a: &Pose<f64>, b: &Pose<f64>) -> HeldError {
+    let norm = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    (
+        norm(core::array::from_fn(|k| {
+            a.translation_mm[k] - b.translation_mm[k]
+        })) * UM_PER_MM,
+        norm(core::array::from_fn(|k| {
+            a.rotation_rad[k] - b.rotation_rad[k]
+        })) * ARCSEC_PER_RAD,
+    )
+}
+
+/// The larger of two (um, arcsec) pairs, component by component.
+fn worse(a: HeldError, b: HeldError) -> HeldError {
+    (a.0.max(b.0), a.1.max(b.1))
 }
 
 /// The bench with the mission's helpers.
@@ -196,6 +236,48 @@ impl Mission {
         self.command(&Command::HousekeepingOneShot)?;
         let hk = self.bench.st.last_hk().ok_or("no housekeeping received")?;
         Ok(hk.encoders_nm.map(|v| f64::from(v) / NM_PER_MM))
+    }
+
+    /// Step 7: the parts at each of [`THERMAL_SWING_K`] in turn; the largest held pose
+    /// error with the compensation off and on, against the pose held now (at the
+    /// reference temperature). The compensation is enabled and disabled by TC[20,3],
+    /// and ramps back to zero before the next swing.
+    fn thermal_swing(
+        &mut self,
+        truth: &m2ctl::kinematics::geometry::GeometryParams,
+        seed: u64,
+    ) -> Result<(HeldError, HeldError), String> {
+        let reference = self.true_pose()?;
+        let (mut off, mut on) = ((0.0, 0.0), (0.0, 0.0));
+        for dt_k in THERMAL_SWING_K {
+            let cfg = ThermalConfig {
+                profile: Profile {
+                    mean_c: m2ctl::sim::thermal::REFERENCE_C + dt_k,
+                    ..Profile::REFERENCE
+                },
+                truth: Coefficients::NOMINAL,
+                sensors: SensorConfig::drawn(seed),
+            };
+            let field = ThermalField::new(cfg, truth).map_err(|e| format!("thermal: {e:?}"))?;
+            self.bench.plant.with(|p| *p.thermal_mut() = field);
+            self.bench.run(SENSOR_MEAN_CYCLES);
+            off = worse(off, held_error(&self.true_pose()?, &reference));
+            self.set_compensation(true)?;
+            self.bench.run(COMPENSATION_CYCLES);
+            on = worse(on, held_error(&self.true_pose()?, &reference));
+            self.set_compensation(false)?;
+            self.bench.run(COMPENSATION_CYCLES);
+        }
+        Ok((off, on))
+    }
+
+    /// TC[20,3]: the thermal compensation on or off (parameter 0x0060).
+    fn set_compensation(&mut self, on: bool) -> Result<(), String> {
+        use m2ctl::controller::params::{index, PARAMETERS};
+        let id = PARAMETERS[index::THERMAL_ENABLE].id;
+        let values = m2ctl::link::ParameterValues::new(&[(id, i32::from(on))])
+            .map_err(|e| format!("{e:?}"))?;
+        self.command(&Command::SetParameters(values))
     }
 
     fn true_pose(&mut self) -> Result<Pose<f64>, String> {
@@ -309,7 +391,7 @@ pub fn run_mission(
         tracker.summary()
     ));
 
-    let table = Table::from_geometry(
+    let mut table = Table::from_geometry(
         &calib.params,
         CALIBRATED_TABLE_ID,
         Provenance {
@@ -319,6 +401,9 @@ pub fn run_mission(
         DEFAULT_SUPERVISION,
     )
     .map_err(|e| format!("table: {e:?}"))?;
+    // The materials' nominal thermal model (the plant's truth here; the thermal
+    // calibration, `m2calib::thermal`, fits a mechanism's own).
+    table.thermal = Coefficients::NOMINAL.model();
     let upload = upload_commands(&table)?;
     for cmd in &upload {
         m.command(cmd)?;
@@ -353,6 +438,11 @@ pub fn run_mission(
         after.max_arcsec()
     ));
     log(&format!("   {}", tracker.verification_note(&targets)));
+    let (thermal_off, thermal_on) = m.thermal_swing(&truth, cfg.seed)?;
+    log(&format!(
+        "7. thermal, +-5 K uniform, held at the last target: compensation off {:.3} um / {:.3} arcsec, on {:.3} um / {:.3} arcsec",
+        thermal_off.0, thermal_off.1, thermal_on.0, thermal_on.1
+    ));
     if m.bench.st.bad_frames != 0 {
         return Err(format!(
             "{} telemetry frames did not parse",
@@ -365,7 +455,7 @@ pub fn run_mission(
             &[("nominal table", &before), ("calibrated table", &after)],
             tracker.pose_noise_sigma(),
         )?;
-        log(&format!("7. plot: {}", path.display()));
+        log(&format!("8. plot: {}", path.display()));
     }
     Ok(MissionReport {
         before,
@@ -376,6 +466,8 @@ pub fn run_mission(
         tm_received: m.bench.st.log.len(),
         sim_time_s: m.bench.cycles as f64 * f64::from(CYCLE_S),
         table_crc32: table.crc32(),
+        thermal_off,
+        thermal_on,
     })
 }
 
@@ -392,6 +484,10 @@ pub fn format_summary(r: &MissionReport) -> String {
             ));
         }
     }
+    s.push_str(&format!(
+        "\nThermal, +-5 K uniform, held pose error: compensation off {:.3} um / {:.3} arcsec, on {:.3} um / {:.3} arcsec\n",
+        r.thermal_off.0, r.thermal_off.1, r.thermal_on.0, r.thermal_on.1
+    ));
     s.push_str(&format!(
         "\n{} calibration poses, {} telecommands, {} telemetry packets, {:.1} s of simulated time\n",
         r.n_measurements, r.tc_sent, r.tm_received, r.sim_time_s
