@@ -1118,6 +1118,7 @@ fn a_switch_stops_its_leg_in_that_direction_in_the_cycle_it_is_seen() {
         encoders: NoEncoders,
         drives,
         switches,
+        exposure: m2ctl::drivers::exposure::NoExposureLine,
     };
     mech.align_issued_mm(&[0.0; LEGS]);
     // Leg 3 moves down 5 microsteps per cycle; its lower switch trips at cycle 7.
@@ -1159,4 +1160,35 @@ fn a_switch_stops_its_leg_in_that_direction_in_the_cycle_it_is_seen() {
     mech.drives
         .inhibit(sw.blocked_negative(), sw.blocked_positive());
     assert_eq!(mech.drives.issued_microsteps()[2], -31);
+}
+
+/// The camera's exposing line (issue 22): its active level is "exposing", the other
+/// level and an unreadable pin are not (the telecommand's hold still works), and the
+/// mechanism answers `hw::ExposureInput` through it.
+#[test]
+fn the_exposing_line_reads_its_active_level_and_an_error_as_not_exposing() {
+    use m2ctl::drivers::exposure::ExposureLine;
+    use m2ctl::hw::ExposureInput;
+    let reads = [
+        PinTransaction::get(High),
+        PinTransaction::get(Low),
+        PinTransaction::get(High).with_error(MockError::Io(std::io::ErrorKind::Other)),
+        PinTransaction::get(Low),
+    ];
+    let mut pin = PinMock::new(&reads);
+    {
+        let mut mech = Mechanism {
+            encoders: (),
+            drives: (),
+            switches: (),
+            exposure: ExposureLine::new(pin.clone(), true),
+        };
+        assert!(mech.exposing());
+        assert!(!mech.exposing());
+        assert!(!mech.exposing());
+    }
+    // Active low.
+    let mut low = ExposureLine::new(pin.clone(), false);
+    assert!(low.exposing());
+    pin.done();
 }

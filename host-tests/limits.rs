@@ -743,6 +743,7 @@ fn rig(
                 reference_active_high: true,
             },
         ),
+        exposure: m2ctl::drivers::exposure::NoExposureLine,
     };
     let flash: MockFlash = MockFlash::new(SIM_FLASH_BYTES);
     let mut store = TableStore::new(flash, SIM_LAYOUT)

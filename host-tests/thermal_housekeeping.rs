@@ -214,6 +214,7 @@ fn a_board_without_an_adc_driver_reports_its_sensors_stuck() {
         encoders: (),
         drives: (),
         switches: (),
+        exposure: m2ctl::drivers::exposure::NoExposureLine,
     };
     let mut bank = SensorBank::default();
     for k in 1..=STUCK_SAMPLES {

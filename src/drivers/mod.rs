@@ -9,6 +9,7 @@
 //!   timer -> [`hw::SliderDrives`], [`hw::IssuedStrokes`].
 //! * [`switches`]: lower/upper end-of-travel switches and a reference sensor per slider
 //!   -> [`hw::EndOfTravel`].
+//! * [`exposure`]: the camera's "exposing" line -> [`hw::ExposureInput`].
 //! * [`Mechanism`]: the three together as the one `mech` object the controller takes.
 //!   Its switch read also stops the drives at once in every blocked direction
 //!   ([`DirectionInhibit`]): an end-of-travel switch stops its leg in the driver, within
@@ -22,8 +23,10 @@
 //! [`hw::SliderDrives`]: crate::hw::SliderDrives
 //! [`hw::IssuedStrokes`]: crate::hw::IssuedStrokes
 //! [`hw::EndOfTravel`]: crate::hw::EndOfTravel
+//! [`hw::ExposureInput`]: crate::hw::ExposureInput
 
 pub mod biss;
+pub mod exposure;
 pub mod stepper;
 pub mod switches;
 
@@ -33,30 +36,32 @@ use crate::hw::{
 };
 use crate::kinematics::LEGS;
 
-/// Encoders, drives and switches of one mechanism, behind every [`crate::hw`] trait
-/// (each call goes to the part that owns it).
-pub struct Mechanism<E, D, S> {
+/// Encoders, drives, switches and the camera's exposing line of one mechanism, behind
+/// every [`crate::hw`] trait (each call goes to the part that owns it).
+pub struct Mechanism<E, D, S, X = exposure::NoExposureLine> {
     /// The stroke encoders.
     pub encoders: E,
     /// The slider drives.
     pub drives: D,
     /// The end-of-travel switches and reference sensors.
     pub switches: S,
+    /// The camera's "exposing" line ([`exposure::NoExposureLine`] where none is wired).
+    pub exposure: X,
 }
 
-impl<E: StrokeEncoders, D, S> StrokeEncoders for Mechanism<E, D, S> {
+impl<E: StrokeEncoders, D, S, X> StrokeEncoders for Mechanism<E, D, S, X> {
     fn read_counts(&mut self) -> Result<[i32; LEGS], EncoderError> {
         self.encoders.read_counts()
     }
 }
 
-impl<E: EncoderWarnings, D, S> EncoderWarnings for Mechanism<E, D, S> {
+impl<E: EncoderWarnings, D, S, X> EncoderWarnings for Mechanism<E, D, S, X> {
     fn warning_legs(&self) -> u8 {
         self.encoders.warning_legs()
     }
 }
 
-impl<E, D: SliderDrives, S> SliderDrives for Mechanism<E, D, S> {
+impl<E, D: SliderDrives, S, X> SliderDrives for Mechanism<E, D, S, X> {
     fn command_strokes_mm(&mut self, setpoint_mm: &[f32; LEGS]) -> Result<(), DriveError> {
         self.drives.command_strokes_mm(setpoint_mm)
     }
@@ -71,7 +76,7 @@ impl<E, D: SliderDrives, S> SliderDrives for Mechanism<E, D, S> {
     }
 }
 
-impl<E, D: IssuedStrokes, S> IssuedStrokes for Mechanism<E, D, S> {
+impl<E, D: IssuedStrokes, S, X> IssuedStrokes for Mechanism<E, D, S, X> {
     fn issued_strokes_mm(&self) -> [f32; LEGS] {
         self.drives.issued_strokes_mm()
     }
@@ -103,7 +108,7 @@ where
 
 /// Reads the switches and, before returning, applies them to the drives
 /// ([`DirectionInhibit::inhibit`] with `blocked_negative`/`blocked_positive`).
-impl<E, D: DirectionInhibit, S: EndOfTravel> EndOfTravel for Mechanism<E, D, S> {
+impl<E, D: DirectionInhibit, S: EndOfTravel, X> EndOfTravel for Mechanism<E, D, S, X> {
     fn read_switches(&mut self) -> TravelSwitches {
         let s = self.switches.read_switches();
         self.drives
@@ -117,15 +122,14 @@ impl<E, D: DirectionInhibit, S: EndOfTravel> EndOfTravel for Mechanism<E, D, S> 
 /// channel that repeats one count as stuck (`thermal::STUCK_SAMPLES` readings, 6.4 s),
 /// so housekeeping reports these sensors stuck: no temperature is claimed that was not
 /// measured.
-/// The drivers' mechanism has no pin assigned to the camera's "exposing" input yet:
-/// never exposing (the exposure hold is the telecommand's until a board wires one).
-impl<E, D, S> crate::hw::ExposureInput for Mechanism<E, D, S> {
+/// The camera's "exposing" line, as wired ([`exposure`]).
+impl<E, D, S, X: crate::hw::ExposureInput> crate::hw::ExposureInput for Mechanism<E, D, S, X> {
     fn exposing(&mut self) -> bool {
-        false
+        self.exposure.exposing()
     }
 }
 
-impl<E, D, S> crate::hw::TemperatureInputs for Mechanism<E, D, S> {
+impl<E, D, S, X> crate::hw::TemperatureInputs for Mechanism<E, D, S, X> {
     fn read_temperature_counts(&mut self) -> [u16; crate::thermal::TEMP_SENSORS] {
         [crate::thermal::adc::COUNTS_NEAR_20_C; crate::thermal::TEMP_SENSORS]
     }

@@ -8,6 +8,7 @@ use stm32f4xx_hal::spi::Spi;
 
 use super::step_engine::{StepChannel, MAX_PULSES_PER_CYCLE};
 use crate::drivers::biss::{BissChain, BissConfig, MaLine};
+use crate::drivers::exposure::ExposureLine;
 use crate::drivers::stepper::{StepDirDrives, StepperConfig, StepperPolarity};
 use crate::drivers::switches::{SwitchPolarity, TravelSwitchInputs};
 use crate::drivers::Mechanism as DriverMechanism;
@@ -60,10 +61,12 @@ pub type Drives =
     StepDirDrives<StepChannel, AnyPin<Output<PushPull>>, AnyPin<Output<PushPull>>, AnyPin<Input>>;
 /// The eighteen switch inputs.
 pub type Switches = TravelSwitchInputs<AnyPin<Input>>;
-/// Encoders, drives and switches behind the `hw` traits: what the controller drives on
-/// this board. Its temperature inputs are the drivers' mechanism's fixed reading
-/// (`hw`: no ADC driver yet; housekeeping reports the sensors stuck).
-pub type Sliders = DriverMechanism<Encoders, Drives, Switches>;
+/// The camera's "exposing" line (PA7).
+pub type Exposure = ExposureLine<AnyPin<Input>>;
+/// Encoders, drives, switches and the exposing line behind the `hw` traits: what the
+/// controller drives on this board. Its temperature inputs are the drivers' mechanism's
+/// fixed reading (`hw`: no ADC driver yet; housekeeping reports the sensors stuck).
+pub type Sliders = DriverMechanism<Encoders, Drives, Switches, Exposure>;
 /// An output pin of the harness.
 pub(super) type OutPin = AnyPin<Output<PushPull>>;
 /// An input pin of the harness.

@@ -43,6 +43,7 @@
 //! | lower end switch (NC, pull-up) legs 1..6 | PA0, PA1, PA2, PA3, PA4, PA8 |
 //! | upper end switch (NC, pull-up) legs 1..6 | PA11, PA12, PA15, PB12, PB13, PB14 |
 //! | reference sensor (active high) legs 1..6 | PB15, PC12, PC13, PC14, PC15, PD2 |
+//! | camera "exposing" line (active high, pull-down: unconnected is not exposing) | PA7 |
 //!
 //! ## QEMU 7.2 `netduinoplus2`
 //!
@@ -75,6 +76,7 @@ use stm32f4xx_hal::serial::{self as hal_serial, Serial};
 use stm32f4xx_hal::spi::{Mode as SpiMode, Phase, Polarity, Spi};
 
 use crate::drivers::biss::{BissChain, EncoderScale, MaLine};
+use crate::drivers::exposure::ExposureLine;
 use crate::drivers::stepper::{StepDirDrives, StepperLeg};
 use crate::drivers::switches::{LegSwitches, TravelSwitchInputs};
 use crate::drivers::Mechanism as DriverMechanism;
@@ -292,6 +294,7 @@ impl Board {
                 encoders,
                 drives,
                 switches,
+                exposure: ExposureLine::new(gpioa.pa7.into_pull_down_input().erase(), true),
             },
         })
     }
