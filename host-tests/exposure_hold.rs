@@ -14,9 +14,8 @@ use m2ctl::kinematics::LEGS;
 use m2ctl::link::command::MAX_EXPOSURE_HOLD_S;
 use m2ctl::link::tm::Verification;
 use m2ctl::link::{Command, FunctionId, ParameterValues};
-use m2ctl::nominal::PROTOTYPE;
-use m2ctl::sim::thermal::{Coefficients, Profile, SensorConfig, ThermalConfig, REFERENCE_C};
-use m2ctl::sim::{Bench, Plant, PlantConfig};
+use m2ctl::sim::thermal::{Coefficients, Profile, REFERENCE_C};
+use m2ctl::sim::Bench;
 use m2ctl::table::Table;
 use m2ctl::timing::CONTROL_RATE_HZ;
 
@@ -161,18 +160,13 @@ fn table_with_model() -> Table {
 
 #[test]
 fn no_compensation_step_during_a_hold_and_the_steps_resume_after_it() {
-    let cfg = ThermalConfig {
-        profile: Profile {
+    let plant = common::thermal_plant(
+        Profile {
             mean_c: REFERENCE_C + 5.0,
             ..Profile::REFERENCE
         },
-        truth: Coefficients::NOMINAL,
-        sensors: SensorConfig::drawn(11),
-    };
-    let plant = Plant::new(&PROTOTYPE, PlantConfig::default())
-        .unwrap()
-        .with_thermal(cfg)
-        .unwrap();
+        11,
+    );
     let mut b = Bench::with_plant(plant);
     assert!(all_ok(&install(&mut b, &table_with_model(), true)));
     b.run(3 * CONTROL_RATE_HZ);

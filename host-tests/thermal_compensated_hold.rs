@@ -14,11 +14,8 @@ use m2ctl::kinematics::{Pose, LEGS};
 use m2ctl::link::hk::thermal_state;
 use m2ctl::link::{Command, ParameterValues};
 use m2ctl::motion::DEFAULT_MAX_SPEED_MM_PER_S;
-use m2ctl::nominal::PROTOTYPE;
-use m2ctl::sim::thermal::{
-    Coefficients, Profile, SensorConfig, SensorFailure, ThermalConfig, REFERENCE_C,
-};
-use m2ctl::sim::{Bench, Plant, PlantConfig};
+use m2ctl::sim::thermal::{Coefficients, Profile, SensorFailure, REFERENCE_C};
+use m2ctl::sim::{Bench, Plant};
 use m2ctl::table::Table;
 use m2ctl::thermal::compensation::DEFAULT_MAX_STEP_MM;
 use m2ctl::thermal::MEAN_SAMPLES;
@@ -43,24 +40,9 @@ fn id(k: usize) -> u16 {
     PARAMETERS[k].id
 }
 
-/// A plant (the prototype's geometry, no manufacturing error) whose parts sit at
-/// `profile`, with calibrated sensors (`seed`), and the nominal coefficients as truth.
+/// The thermal tests' plant at `profile` (`common::thermal_plant`).
 fn plant(profile: Profile, seed: u64) -> Plant {
-    let cfg = ThermalConfig {
-        profile,
-        truth: Coefficients::NOMINAL,
-        sensors: SensorConfig::drawn(seed),
-    };
-    Plant::new(
-        &PROTOTYPE,
-        PlantConfig {
-            seed,
-            ..PlantConfig::default()
-        },
-    )
-    .unwrap()
-    .with_thermal(cfg)
-    .unwrap()
+    common::thermal_plant(profile, seed)
 }
 
 /// The nominal table with the nominal thermal model (the plant's truth), as table
@@ -110,30 +92,53 @@ fn error(a: &Pose<f64>, b: &Pose<f64>) -> (f64, f64) {
 /// speed limit over a cycle, and f32 rounding near the strokes held.
 const DRIVE_STEP_BOUND_MM: f64 = DEFAULT_MAX_SPEED_MM_PER_S as f64 * CYCLE_S_F64 + 2e-6;
 
-/// Runs `cycles`, checking every cycle that no leg's applied offset changed by more
-/// than a step and that no drive's setpoint changed faster than the speed limit (the
-/// mirror never jumps); returns the number of steps seen.
+/// What a cycle is checked against: the applied offsets and the drives' setpoints of
+/// the last cycle.
+struct Watch {
+    /// Applied offsets (mm).
+    last_mm: [f32; LEGS],
+    /// Drive setpoints (mm).
+    drives_mm: [f64; LEGS],
+}
+
+impl Watch {
+    fn new(b: &Bench) -> Self {
+        Self {
+            last_mm: b.ctl.compensation().applied_mm(),
+            drives_mm: b.plant.with(|p| p.drive_setpoints_mm()),
+        }
+    }
+
+    /// After a cycle: no leg's applied offset changed by more than `step_bound_mm`, no
+    /// drive's setpoint faster than the speed limit (the mirror never jumps). Returns
+    /// the largest change of an applied offset (mm).
+    fn check(&mut self, b: &Bench, step_bound_mm: f32) -> f32 {
+        let now = b.ctl.compensation().applied_mm();
+        let step = (0..LEGS)
+            .map(|i| (now[i] - self.last_mm[i]).abs())
+            .fold(0.0f32, f32::max);
+        assert!(step <= step_bound_mm, "a step of {step} mm");
+        self.last_mm = now;
+        let d = b.plant.with(|p| p.drive_setpoints_mm());
+        let jump = (0..LEGS)
+            .map(|i| (d[i] - self.drives_mm[i]).abs())
+            .fold(0.0, f64::max);
+        assert!(jump <= DRIVE_STEP_BOUND_MM, "a drive jumped {jump} mm");
+        self.drives_mm = d;
+        step
+    }
+}
+
+/// Runs `cycles`, each checked ([`Watch::check`], the default largest step); returns
+/// the number of steps seen.
 fn run_bounded(b: &mut Bench, cycles: u32) -> usize {
-    let mut last = b.ctl.compensation().applied_mm();
-    let mut drives = b.plant.with(|p| p.drive_setpoints_mm());
+    let mut watch = Watch::new(b);
     let mut steps = 0;
     for _ in 0..cycles {
         b.tick();
-        let now = b.ctl.compensation().applied_mm();
-        let worst = (0..LEGS)
-            .map(|i| (now[i] - last[i]).abs())
-            .fold(0.0f32, f32::max);
-        assert!(worst <= STEP_BOUND_MM, "a step of {worst} mm");
-        if worst > 0.0 {
+        if watch.check(b, STEP_BOUND_MM) > 0.0 {
             steps += 1;
         }
-        last = now;
-        let d = b.plant.with(|p| p.drive_setpoints_mm());
-        let jump = (0..LEGS)
-            .map(|i| (d[i] - drives[i]).abs())
-            .fold(0.0, f64::max);
-        assert!(jump <= DRIVE_STEP_BOUND_MM, "a drive jumped {jump} mm");
-        drives = d;
     }
     steps
 }
@@ -409,8 +414,7 @@ fn thermal_soak_bounded_steps_and_nothing_during_an_exposure_hold() {
     let mut input_until = 0u32;
     let (mut steps, mut hold_cycles, mut refusals, mut held_releases) = (0u32, 0u32, 0u32, 0u32);
     let mut toggles = 0u32;
-    let mut last = b.ctl.compensation().applied_mm();
-    let mut drives = b.plant.with(|p| p.drive_setpoints_mm());
+    let mut watch = Watch::new(&b);
     let mut prev_hold = false;
     let mut prev_state = b.ctl.state();
     let mut prev_released = b.ctl.housekeeping().schedule.released;
@@ -477,30 +481,13 @@ fn thermal_soak_bounded_steps_and_nothing_during_an_exposure_hold() {
             }
         }
         b.tick();
-        // Bounded steps: the largest step in force (no upset here: RAM is the truth).
-        let now = b.ctl.compensation().applied_mm();
-        let step = (0..LEGS)
-            .map(|i| (now[i] - last[i]).abs())
-            .fold(0.0f32, f32::max);
+        // Bounded steps (the largest step in force: no upset here, RAM is the truth),
+        // and the mirror never jumps.
         let (_, p) = b.ctl.parameters().thermal(b.ctl.active_table());
-        assert!(
-            step <= p.max_step_mm * (1.0 + 1e-5),
-            "cycle {n}: a step of {step} mm"
-        );
+        let step = watch.check(&b, p.max_step_mm * (1.0 + 1e-5));
         if step > 0.0 {
             steps += 1;
         }
-        last = now;
-        // The mirror never jumps.
-        let d = b.plant.with(|p| p.drive_setpoints_mm());
-        let jump = (0..LEGS)
-            .map(|i| (d[i] - drives[i]).abs())
-            .fold(0.0, f64::max);
-        assert!(
-            jump <= DRIVE_STEP_BOUND_MM,
-            "cycle {n}: a drive jumped {jump} mm"
-        );
-        drives = d;
         // Nothing during an exposure hold.
         let hold = b.ctl.exposure_hold_active();
         let state = b.ctl.state();

@@ -11,12 +11,11 @@ mod common;
 
 use common::{all_ok, calibrated_table, install};
 use m2ctl::controller::event;
-use m2ctl::nominal::PROTOTYPE;
 use m2ctl::sim::thermal::{
-    Coefficients, Profile, SensorConfig, SensorFailure, Swing, ThermalConfig, CLASS_TENTH_DIN_K,
-    CLASS_TENTH_DIN_PER_C, REFERENCE_C,
+    Coefficients, Profile, SensorFailure, Swing, CLASS_TENTH_DIN_K, CLASS_TENTH_DIN_PER_C,
+    REFERENCE_C,
 };
-use m2ctl::sim::{Bench, Plant, PlantConfig};
+use m2ctl::sim::{Bench, Plant};
 use m2ctl::thermal::{
     adc, pt1000, SensorFault, MEAN_SAMPLES, NO_TEMPERATURE, STUCK_SAMPLES, TEMP_SENSORS,
 };
@@ -33,8 +32,8 @@ fn sensor_error_k(t_c: f64) -> f64 {
 /// A plant whose parts sit at 25 deg C mean with a 3 K gradient across the base (each
 /// sensor at its own temperature), the parts following their drive at once.
 fn warm_plant(seed: u64) -> Plant {
-    let cfg = ThermalConfig {
-        profile: Profile {
+    common::thermal_plant(
+        Profile {
             mean_c: 25.0,
             swing: Swing::Constant,
             gradient_k: 3.0,
@@ -42,19 +41,8 @@ fn warm_plant(seed: u64) -> Plant {
             gradient_period_s: None,
             lag_s: [0.0; 4],
         },
-        truth: Coefficients::NOMINAL,
-        sensors: SensorConfig::drawn(seed),
-    };
-    Plant::new(
-        &PROTOTYPE,
-        PlantConfig {
-            seed,
-            ..PlantConfig::default()
-        },
+        seed,
     )
-    .unwrap()
-    .with_thermal(cfg)
-    .unwrap()
 }
 
 /// Control cycles until every sensor has a first mean: `MEAN_SAMPLES` readings, one per

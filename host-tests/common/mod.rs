@@ -185,3 +185,26 @@ pub fn install(r: &mut Bench, t: &Table, activate: bool) -> Vec<Verification> {
     }
     reps
 }
+
+/// A plant with the prototype's geometry (no manufacturing error) whose parts sit at
+/// `profile`, with calibrated sensors drawn from `seed` and the materials' nominal
+/// coefficients as truth (the thermal tests' plant).
+pub fn thermal_plant(profile: m2ctl::sim::thermal::Profile, seed: u64) -> m2ctl::sim::Plant {
+    use m2ctl::sim::thermal::{Coefficients, SensorConfig, ThermalConfig};
+    let cfg = ThermalConfig {
+        profile,
+        truth: Coefficients::NOMINAL,
+        sensors: SensorConfig::drawn(seed),
+    };
+    let plant = m2ctl::sim::Plant::new(
+        &m2ctl::nominal::PROTOTYPE,
+        m2ctl::sim::PlantConfig {
+            seed,
+            ..m2ctl::sim::PlantConfig::default()
+        },
+    )
+    .unwrap_or_else(|e| panic!("plant: {e:?}"));
+    plant
+        .with_thermal(cfg)
+        .unwrap_or_else(|e| panic!("thermal: {e:?}"))
+}
