@@ -20,7 +20,6 @@ use m2ctl::table::Table;
 use m2ctl::thermal::compensation::DEFAULT_MAX_STEP_MM;
 use m2ctl::thermal::MEAN_SAMPLES;
 use m2ctl::timing::{CONTROL_RATE_HZ, CYCLE_S_F64, TEMPERATURE_PERIOD_CYCLES};
-use m2ctl::units::{ARCSEC_PER_RAD, UM_PER_MM};
 
 /// The goal of issue 22 with compensation: held pose error (translation norm, um).
 const GOAL_UM: f64 = 0.3;
@@ -75,17 +74,11 @@ fn true_pose(b: &Bench) -> Pose<f64> {
     b.plant.with(|p| p.true_pose().unwrap())
 }
 
-/// Translation (um) and rotation (arcsec) norms of `a - b`.
+/// Translation (um) and rotation (arcsec) norms of `a - b` (`sim::pose_error`'s axes).
 fn error(a: &Pose<f64>, b: &Pose<f64>) -> (f64, f64) {
-    let t = (0..3)
-        .map(|i| (a.translation_mm[i] - b.translation_mm[i]).powi(2))
-        .sum::<f64>()
-        .sqrt();
-    let r = (0..3)
-        .map(|i| (a.rotation_rad[i] - b.rotation_rad[i]).powi(2))
-        .sum::<f64>()
-        .sqrt();
-    (t * UM_PER_MM, r * ARCSEC_PER_RAD)
+    let e = m2ctl::sim::pose_error(a, b);
+    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    (norm(&e[..3]), norm(&e[3..]))
 }
 
 /// The largest change of a drive's setpoint in one cycle (mm): the coordinated-move

@@ -42,7 +42,7 @@ use m2ctl::sim::manufacturing::perturbed;
 use m2ctl::sim::thermal::{Coefficients, Profile, SensorConfig, ThermalConfig, ThermalField};
 use m2ctl::sim::{Bench, Plant, PlantConfig};
 use m2ctl::table::{Provenance, Table, DEFAULT_SUPERVISION};
-use m2ctl::units::{ARCSEC_PER_RAD, NM_PER_MM, UM_PER_MM};
+use m2ctl::units::NM_PER_MM;
 
 /// Most cycles one telecommand may take to complete (a move across the workspace at
 /// the default 0.2 mm/s is well under this).
@@ -159,17 +159,11 @@ pub struct MissionReport {
 /// A held pose error: translation norm (um) and rotation norm (arcsec).
 pub type HeldError = (f64, f64);
 
-/// Translation (um) and rotation (arcsec) norms of `a - b`.
+/// Translation (um) and rotation (arcsec) norms of `a - b` (`pose_error`'s axes).
 fn held_error(a: &Pose<f64>, b: &Pose<f64>) -> HeldError {
-    let norm = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
-    (
-        norm(core::array::from_fn(|k| {
-            a.translation_mm[k] - b.translation_mm[k]
-        })) * UM_PER_MM,
-        norm(core::array::from_fn(|k| {
-            a.rotation_rad[k] - b.rotation_rad[k]
-        })) * ARCSEC_PER_RAD,
-    )
+    let e = pose_error(a, b);
+    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    (norm(&e[..3]), norm(&e[3..]))
 }
 
 /// The larger of two (um, arcsec) pairs, component by component.
