@@ -191,3 +191,27 @@ fn no_compensation_step_during_a_hold_and_the_steps_resume_after_it() {
         .iter()
         .any(|v| v.abs() > 1e-4));
 }
+
+#[test]
+fn a_move_already_running_finishes_and_a_clear_is_accepted_during_a_hold() {
+    let mut b = Bench::new();
+    b.run(10);
+    let rid = b.send(&Command::MoveAbsolute(wire(200.0, 0.0, 0.0, 0.0, 0.0, 0.0)));
+    b.run(50);
+    assert!(all_ok(
+        &b.command(&Command::ExposureHold { timeout_s: 60 }, 10)
+    ));
+    // The move started before the hold completes during it.
+    for _ in 0..20_000 {
+        if b.st.finished(rid) {
+            break;
+        }
+        b.tick();
+    }
+    assert_eq!(
+        b.st.reports(rid).last(),
+        Some(&Verification::CompletionSuccess)
+    );
+    assert!(b.ctl.exposure_hold_active());
+    assert!(all_ok(&b.command(&Command::ClearFault, 10)));
+}

@@ -496,3 +496,18 @@ fn the_compensation_and_exposure_hold_figures_in_the_prose_are_the_codes() {
         assert!(text.contains(&phrase), "docs/icd.md lacks: {phrase}");
     }
 }
+
+/// The packet and report sizes the ICD states are the code's.
+#[test]
+fn the_packet_sizes_in_the_prose_are_the_codes() {
+    use m2ctl::link::hk::HK_REPORT_LEN;
+    use m2ctl::link::{MAX_TM_FRAME_LEN, MAX_TM_PACKET_LEN};
+    let text = icd().split_whitespace().collect::<Vec<_>>().join(" ");
+    for phrase in [
+        format!("largest TM packet {MAX_TM_PACKET_LEN} bytes"),
+        format!("(TM frame <= {MAX_TM_FRAME_LEN} bytes)"),
+        format!("## 6. Housekeeping TM[3,25] ({HK_REPORT_LEN} bytes)"),
+    ] {
+        assert!(text.contains(&phrase), "docs/icd.md lacks: {phrase}");
+    }
+}
