@@ -534,15 +534,17 @@ fn thermal_soak_bounded_steps_and_nothing_during_an_exposure_hold() {
 
 /// A +-5 K uniform swing in time (a 10-minute orbit, faster than a real one) with a 2 K
 /// gradient across the base, the parts following their drive at once, held at home,
-/// the held pose error sampled once a second over one and a quarter orbits after the
-/// first minute. With the compensation on, every sample with the sliders in position
-/// (housekeeping's `in_position_legs`: all six) is within the goal; the samples taken
-/// while a step's fine positioning runs are not: a step against a leg's approach side
-/// retreats it 5 um and returns it (`motion::fine`, the one-sided approach of issue 21),
-/// for about a second. The worst of those is printed (README, "Thermal drift"). With
-/// the compensation off the swing moves the mirror by micrometres and arcseconds.
+/// the held pose error on the plant's true pose every cycle over one and a quarter
+/// orbits after the first minute (every cycle: a transient between two once-a-second
+/// samples counts), and once a second with the sliders in position (housekeeping's
+/// `in_position_legs`: all six). With the compensation on, both are within the goal: a
+/// step against a leg's approach side turns its approach and the leg crosses its
+/// backlash gap (`motion::fine`, `creep`) instead of retreating 5 um past its setpoint
+/// and returning (before: 6.129 um / 7.785" every cycle, 0.904 um / 1.182" once a
+/// second). With the compensation off the swing moves the mirror by micrometres and
+/// arcseconds. Printed for the README, "Thermal drift".
 #[test]
-fn compensation_follows_a_swing_in_time_within_the_goal_when_in_position() {
+fn compensation_follows_a_swing_in_time_within_the_goal_every_cycle() {
     use m2ctl::sim::thermal::Swing;
     const ORBIT_S: f64 = 600.0;
     let profile = Profile {
@@ -556,7 +558,7 @@ fn compensation_follows_a_swing_in_time_within_the_goal_when_in_position() {
     };
     let reference = reference_pose(13);
     let worse = |a: (f64, f64), b: (f64, f64)| (a.0.max(b.0), a.1.max(b.1));
-    // (worst in position, worst of all samples, samples in position)
+    // (worst in position once a second, worst of every cycle, samples in position)
     let run = |on: bool| -> ((f64, f64), (f64, f64), u32) {
         let mut b = bench(profile, 13);
         if on {
@@ -568,9 +570,13 @@ fn compensation_follows_a_swing_in_time_within_the_goal_when_in_position() {
         run_bounded(&mut b, 60 * CONTROL_RATE_HZ);
         let (mut settled, mut all, mut n) = ((0.0, 0.0), (0.0, 0.0), 0);
         for _ in 0..(1.25 * ORBIT_S) as u32 {
-            run_bounded(&mut b, CONTROL_RATE_HZ);
+            let mut watch = Watch::new(&b);
+            for _ in 0..CONTROL_RATE_HZ {
+                b.tick();
+                watch.check(&b, STEP_BOUND_MM);
+                all = worse(all, error(&true_pose(&b), &reference));
+            }
             let e = error(&true_pose(&b), &reference);
-            all = worse(all, e);
             if b.ctl.housekeeping().in_position_legs == 0x3F {
                 settled = worse(settled, e);
                 n += 1;
@@ -581,11 +587,15 @@ fn compensation_follows_a_swing_in_time_within_the_goal_when_in_position() {
     let (off, _, _) = run(false);
     let (on, transient, n) = run(true);
     println!(
-        "swing +-5 K over {ORBIT_S} s with a 2 K gradient: off {:.3} um / {:.3}\", on (in position, {n} of {} samples) {:.3} um / {:.3}\", on (every sample) {:.3} um / {:.3}\"",
+        "swing +-5 K over {ORBIT_S} s with a 2 K gradient: off {:.3} um / {:.3}\", on (in position, {n} of {} samples) {:.3} um / {:.3}\", on (every cycle) {:.3} um / {:.3}\"",
         off.0, off.1, (1.25 * ORBIT_S) as u32, on.0, on.1, transient.0, transient.1
     );
     assert!(on.0 <= GOAL_UM && on.1 <= GOAL_ARCSEC, "{on:?}");
-    assert!(n as f64 > 0.8 * 1.25 * ORBIT_S, "{n} samples in position");
+    assert!(
+        transient.0 <= GOAL_UM && transient.1 <= GOAL_ARCSEC,
+        "{transient:?}"
+    );
+    assert!(n as f64 > 0.95 * 1.25 * ORBIT_S, "{n} samples in position");
     assert!(
         off.0 > 3.0 * GOAL_UM && off.1 > 3.0 * GOAL_ARCSEC,
         "{off:?}"

@@ -658,8 +658,13 @@ impl<M: MechanismIo> Controller<M> {
                 // offset's frame is off the setpoint by the step, and the fine
                 // positioning ramps them back onto it at the speed limit.
                 let setpoint = self.motion.setpoint_mm;
-                self.motion.strokes_mm = self.held_mm();
-                self.begin_fine(setpoint);
+                // (At rest the commanded strokes are the held ones, in the old frame.)
+                let held = self.held_mm();
+                self.motion
+                    .approach
+                    .step_offsets(&self.motion.strokes_mm, &held);
+                self.motion.strokes_mm = held;
+                self.begin_fine(setpoint, true);
             }
             StepOutcome::Frozen => self.event(
                 EventSeverity::Low,

@@ -387,7 +387,7 @@ impl<M: MechanismIo> Controller<M> {
                 self.sync_to_drives();
             } else if path_arrived {
                 // The path has arrived: its completion waits for the sliders.
-                self.begin_fine(strokes);
+                self.begin_fine(strokes, false);
                 return;
             }
             self.end_pending_move(stopping);
@@ -396,10 +396,10 @@ impl<M: MechanismIo> Controller<M> {
 
     /// Begins the fine positioning on the setpoint strokes `target_mm` (module
     /// [`crate::motion::fine`]); the move's completion waits for it.
-    pub(super) fn begin_fine(&mut self, target_mm: [f32; LEGS]) {
+    pub(super) fn begin_fine(&mut self, target_mm: [f32; LEGS], creep: bool) {
         self.motion.setpoint_mm = target_mm;
         self.motion.now = Motion::Fine {
-            fine: Fine::begin(target_mm, &self.motion.approach, self.cycle),
+            fine: Fine::begin(target_mm, &self.motion.approach, self.cycle, creep),
             ramp: Ramp::immediate(),
             start_cycle: self.cycle,
             stopping: false,
@@ -580,7 +580,7 @@ impl<M: MechanismIo> Controller<M> {
         ) {
             if self.in_position_of(&target_mm) {
                 self.motion.refusal_bits = 0;
-                self.begin_fine(target_mm);
+                self.begin_fine(target_mm, false);
                 return Ok(Outcome::Started);
             }
         }

@@ -42,6 +42,13 @@
 //!   correcting by the error converged only after several corrections and a measured
 //!   compensation would need the backlash of every leg kept and re-measured; the
 //!   one-sided approach needs neither.
+//! * **After a compensation step** (`controller`'s thermal compensation, no move): a
+//!   leg the step moves against its approach side takes the step's side
+//!   ([`Approach::step_offsets`]) and crosses its backlash gap toward it by the same
+//!   corrections toward the approach, however many the timeout allows; a leg found
+//!   beyond its setpoint crosses back the same way. No retreat: on a mirror held during
+//!   an exposure a retreat is a 5 um excursion (docs/decisions.md, "Thermal
+//!   compensation").
 //! * **Timeout.** A move not in position [`TIMEOUT_CYCLES`] after its path ended ends
 //!   with a completion failure 0x070F naming the legs out of tolerance.
 //!
@@ -186,6 +193,28 @@ impl Approach {
         }
     }
 
+    /// A compensation step: the applied offset (mm, added to every command) changed
+    /// while the drives stood still, so the strokes they hold moved in the new offset's
+    /// frame from `before_mm` to `after_mm` (mm) and each slider must move by the
+    /// difference `before_mm - after_mm`. The furthest commands move into the new
+    /// frame; a leg whose move is against its last direction takes the move's
+    /// direction from where it holds: its fine positioning crosses the backlash gap
+    /// toward the new side ([`Fine::begin`]'s `creep`) instead of retreating past the
+    /// setpoint and returning, which moves the slider by micrometres.
+    pub fn step_offsets(&mut self, before_mm: &[f32; LEGS], after_mm: &[f32; LEGS]) {
+        let mut bit = 1u8;
+        for ((t, b), a) in self.turn_mm.iter_mut().zip(before_mm).zip(after_mm) {
+            let up = *b > *a;
+            if up != (self.last_up & bit != 0) && *b != *a {
+                self.last_up ^= bit;
+                *t = *a;
+            } else {
+                *t += *a - *b;
+            }
+            bit <<= 1;
+        }
+    }
+
     /// Notes the direction of each leg's commanded motion, from its command `next_mm`:
     /// it reverses once the command has turned back [`TURN_MM`] from its furthest point
     /// in the last direction (a play of that width: a leg that hardly moves, or dithers
@@ -208,6 +237,9 @@ impl Approach {
 /// rest for a second dwell before the next decision, set by a return ([`RETREAT_MM`]),
 /// after which a slider settles from micrometres away.
 const LONG_SETTLE: u8 = 0x80;
+/// Bit of [`Fine`]'s `returning`: a compensation step's fine positioning
+/// ([`Fine::begin`]'s `creep`): no late retreat, and corrections until the timeout.
+const CREEP: u8 = 0x40;
 
 /// The fine positioning of one move (module documentation).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -240,8 +272,12 @@ pub struct Fine {
 
 impl Fine {
     /// Begins positioning the sliders on `target_mm` in cycle `now`, each leg
-    /// approaching from the side of its last commanded motion (`approach`).
-    pub fn begin(target_mm: [f32; LEGS], approach: &Approach, now: u32) -> Self {
+    /// approaching from the side of its last commanded motion (`approach`). `creep`:
+    /// after a compensation step ([`Approach::step_offsets`]), a leg whose approach
+    /// side changed crosses its backlash gap by corrections toward it, each no larger
+    /// than its error allows, however many the timeout leaves room for: no late
+    /// retreat ([`LATE_CORRECTION`]), and no limit of [`MAX_CORRECTIONS`].
+    pub fn begin(target_mm: [f32; LEGS], approach: &Approach, now: u32, creep: bool) -> Self {
         Self {
             target_mm,
             approach_up: approach.last_up,
@@ -252,7 +288,7 @@ impl Fine {
             rest_sum_mm: [0.0; LEGS],
             from_mm: approach.turn_mm,
             delta_mm: [0.0; LEGS],
-            returning: 0,
+            returning: if creep { CREEP } else { 0 },
         }
     }
 
@@ -304,7 +340,7 @@ impl Fine {
         if now.wrapping_sub(self.began) >= TIMEOUT_CYCLES {
             return FineStep::TimedOut(out);
         }
-        if at_rest && self.corrections < MAX_CORRECTIONS {
+        if at_rest && (self.corrections < MAX_CORRECTIONS || self.returning & CREEP != 0) {
             return FineStep::Correct;
         }
         FineStep::Wait
@@ -388,11 +424,17 @@ impl Fine {
             } else if !(err.abs() > band) {
                 *d = 0.0;
                 continue;
-            } else if err * toward > 0.0 && self.corrections != LATE_CORRECTION {
-                // Toward the approach side: whole microsteps, as many as cannot carry the
-                // slider past the band's far edge (at least one: [`GAIN`]), plus the gap.
+            } else if (err * toward > 0.0 && self.corrections != LATE_CORRECTION)
+                || self.returning & CREEP != 0
+            {
+                // Toward the setpoint: whole microsteps, as many as cannot carry the
+                // slider past the band's far edge (at least one: [`GAIN`]); toward the
+                // approach side, plus the gap left behind. (Creeping, a leg beyond its
+                // setpoint crosses its gap back the same way, as after a compensation
+                // step against its approach, instead of retreating.)
                 let steps = (GAIN * (err.abs() + band) / MICROSTEP_MM) as i32;
-                behind + toward * MICROSTEP_MM * steps as f32
+                let behind = if err * toward > 0.0 { behind } else { 0.0 };
+                behind + err.signum() * MICROSTEP_MM * steps as f32
             } else {
                 // An overshoot (or a leg still out at the late correction): back past the
                 // setpoint; the next correction returns.
@@ -450,7 +492,7 @@ mod tests {
 
     #[test]
     fn completion_waits_for_the_sliders_at_rest_for_the_dwell_on_their_mean_reading() {
-        let mut f = Fine::begin([0.0; LEGS], &Approach::new([0.0; LEGS]), 100);
+        let mut f = Fine::begin([0.0; LEGS], &Approach::new([0.0; LEGS]), 100, false);
         let ok = [0.0f32; LEGS];
         let mut moved = ok;
         moved[1] = 0.001;
@@ -464,7 +506,7 @@ mod tests {
         assert_eq!(f.at_rest(107, Some(&ok), TOL, 3), FineStep::InPosition);
         // A reading flickering between the counts either side of the setpoint: at rest,
         // in position on the mean (each single reading is one count off).
-        f = Fine::begin([0.00005; LEGS], &Approach::new([0.0; LEGS]), 200);
+        f = Fine::begin([0.00005; LEGS], &Approach::new([0.0; LEGS]), 200, false);
         let (lo, hi) = ([0.0f32; LEGS], [0.0001f32; LEGS]);
         assert_eq!(f.at_rest(201, Some(&lo), TOL, 4), FineStep::Wait);
         assert_eq!(f.at_rest(202, Some(&hi), TOL, 4), FineStep::Wait);
@@ -472,7 +514,7 @@ mod tests {
         assert_eq!(f.at_rest(204, Some(&hi), TOL, 4), FineStep::InPosition);
         // A mean one count off: within the tolerance, not within it less half a count
         // (the true slider could be 1.5 counts off): a correction.
-        f = Fine::begin([0.0; LEGS], &Approach::new([0.0; LEGS]), 300);
+        f = Fine::begin([0.0; LEGS], &Approach::new([0.0; LEGS]), 300, false);
         for c in 301..303 {
             assert_eq!(f.at_rest(c, Some(&hi), TOL, 3), FineStep::Wait);
         }
@@ -494,7 +536,7 @@ mod tests {
 
     #[test]
     fn corrections_are_bounded_in_number_and_time() {
-        let mut f = Fine::begin([0.0; LEGS], &Approach::new([0.0; LEGS]), 0);
+        let mut f = Fine::begin([0.0; LEGS], &Approach::new([0.0; LEGS]), 0, false);
         let bad = [0.001f32; LEGS];
         let lim = [10.0f32; LEGS];
         let mut n = 0;
@@ -544,7 +586,7 @@ mod tests {
         // The drives stand 0.3 microsteps off a whole one (as after a path, which ended
         // there).
         let held = [1.0f32 + 0.3 * MICROSTEP_MM; LEGS];
-        let mut f = Fine::begin([1.0; LEGS], &alternate(held[0]), 0);
+        let mut f = Fine::begin([1.0; LEGS], &alternate(held[0]), 0, false);
         // Leg 1 short (below, approach up): corrected toward the approach. Leg 2 short
         // (above, approach down): likewise. Leg 3 overshot (above, approach up): back
         // past by the retreat. Leg 4 overshot (below, approach down). Leg 5 far off:
@@ -594,7 +636,7 @@ mod tests {
         }
         assert_eq!(f.at_rest(8, Some(&enc), TOL, 2), FineStep::Correct);
         // The bound itself.
-        let mut g = Fine::begin([0.0; LEGS], &alternate(0.0), 0);
+        let mut g = Fine::begin([0.0; LEGS], &alternate(0.0), 0, false);
         assert_eq!(g.at_rest(1, Some(&[-1.0; LEGS]), TOL, 1), FineStep::Correct);
         assert!(g
             .correct(&[0.0; LEGS], TOL, &[-5.0; LEGS], &[5.0; LEGS], 0.2, 1.0)
@@ -606,6 +648,100 @@ mod tests {
     }
 
     #[test]
+    fn a_compensation_step_turns_the_approach_of_the_legs_it_moves_against_it() {
+        // Legs 1, 3, 5 last moved up, 2, 4, 6 down, all to 1 mm. The offset grows by
+        // 0.3 um on legs 1, 2, 3 and shrinks by as much on legs 4, 5, 6 (each slider
+        // must move by its change); in the new frame the drives hold 1 mm less it.
+        let mut a = alternate(1.0);
+        let change = [0.0003f32, 0.0003, 0.0003, -0.0003, -0.0003, -0.0003];
+        let held: [f32; LEGS] = core::array::from_fn(|i| 1.0 - change[i]);
+        a.step_offsets(&[1.0; LEGS], &held);
+        // Up on 1, 2, 3; down on 4, 5, 6.
+        assert_eq!(a.last_up, 0b00_0111);
+        // Legs 1, 3, 4 and 6 kept their approach (their furthest command, where they
+        // stood, moved into the new frame with the drives); 2 and 5 turned, from where
+        // they hold.
+        for (t, h) in a.turn_mm.iter().zip(held.iter()) {
+            assert!((t - h).abs() < 1e-7, "{:?}", a.turn_mm);
+        }
+        // No change, no turn.
+        let mut b = alternate(1.0);
+        b.step_offsets(&[1.0; LEGS], &[1.0; LEGS]);
+        assert_eq!(b, alternate(1.0));
+    }
+
+    /// A leg with `backlash_mm` of lost motion: its slider follows its drive `drive_mm`
+    /// only when the drive pushes on one side of the gap (mm).
+    fn follow(slider_mm: f32, drive_mm: f32, backlash_mm: f32) -> f32 {
+        slider_mm
+            .max(drive_mm - 0.5 * backlash_mm)
+            .min(drive_mm + 0.5 * backlash_mm)
+    }
+
+    /// A compensation step's fine positioning (`creep`) on legs whose approach turned:
+    /// the drives cross the backlash gap by corrections no larger than the error allows
+    /// (more of them than [`MAX_CORRECTIONS`], past [`LATE_CORRECTION`]), the sliders
+    /// never pass the band's far edge and never retreat; a leg beyond its setpoint
+    /// turns its approach and crosses back the same way. Without `creep` the same
+    /// fine positioning retreats past the setpoint at the late correction.
+    #[test]
+    fn a_creeping_fine_positioning_crosses_the_gap_without_passing_the_band() {
+        const GAP_MM: f32 = 0.003;
+        let band = TOL - HALF_COUNT_MM;
+        let lim = [5.0f32; LEGS];
+        let run = |creep: bool| {
+            // Every leg last moved up, the drive half the gap above its slider. Legs
+            // 1..5: the slider 0.1 um above the setpoint 1 mm before a compensation
+            // step of -0.1 um turns their approach down. Leg 6: no step, its slider as
+            // far above: an overshoot of its approach.
+            let mut sliders = [1.0001f32; LEGS];
+            let mut drives = sliders.map(|s| s + 0.5 * GAP_MM);
+            let mut a = Approach::new([0.9; LEGS]);
+            a.track(&drives);
+            assert_eq!(a.last_up, ALL_LEGS);
+            if creep {
+                let change = [-0.0001, -0.0001, -0.0001, -0.0001, -0.0001, 0.0];
+                let after: [f32; LEGS] = core::array::from_fn(|i| drives[i] - change[i]);
+                a.step_offsets(&drives, &after);
+                assert_eq!(a.last_up, 0b10_0000);
+            }
+            let mut f = Fine::begin([1.0; LEGS], &a, 0, creep);
+            // (end, corrections, lowest slider, a drive moved up)
+            let (mut lowest, mut up) = (f32::INFINITY, false);
+            for c in 1..TIMEOUT_CYCLES {
+                match f.at_rest(c, Some(&sliders), TOL, 1) {
+                    FineStep::Correct => {
+                        let r = f.correct(&drives, TOL, &lim.map(|v| -v), &lim, 0.2, 1.0);
+                        assert!(r.is_ok());
+                        let next = f.setpoint(1.0);
+                        up |= next.iter().zip(drives.iter()).any(|(n, d)| *n > *d + 1e-7);
+                        drives = next;
+                        for (s, d) in sliders.iter_mut().zip(drives.iter()) {
+                            *s = follow(*s, *d, GAP_MM);
+                            lowest = lowest.min(*s);
+                        }
+                    }
+                    FineStep::Wait => {}
+                    end => return (end, f.corrections(), lowest, up),
+                }
+            }
+            (FineStep::Wait, f.corrections(), lowest, up)
+        };
+        let (end, n, lowest, up) = run(true);
+        assert_eq!(end, FineStep::InPosition);
+        assert!(n > MAX_CORRECTIONS, "{n} corrections");
+        assert!(!up, "a drive retreated");
+        assert!(
+            lowest >= 1.0 - band - 1e-7,
+            "a slider passed the band: {lowest}"
+        );
+        // The same without `creep` (and without the step's turn): leg 6 retreats past
+        // the setpoint by micrometres, legs 1..5 retreat and return.
+        let (_, _, lowest, up) = run(false);
+        assert!(up && lowest < 1.0 - 0.001, "{lowest}");
+    }
+
+    #[test]
     fn the_first_correction_takes_up_the_gap_a_small_reversal_left() {
         // Every leg moved up to 1.0015 mm, then back 1.5 um (less than the turn) to its
         // setpoint 1 mm: still approaching from below, the command 1.5 um behind where
@@ -614,7 +750,7 @@ mod tests {
         a.track(&[1.0015; LEGS]);
         a.track(&[1.0; LEGS]);
         assert_eq!(a.last_up, ALL_LEGS);
-        let mut f = Fine::begin([1.0; LEGS], &a, 0);
+        let mut f = Fine::begin([1.0; LEGS], &a, 0, false);
         // The slider did not move back (in the gap): 1 um short of the setpoint.
         let short = [0.999; LEGS];
         assert_eq!(f.at_rest(1, Some(&short), TOL, 1), FineStep::Correct);
