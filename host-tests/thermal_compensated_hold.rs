@@ -85,6 +85,15 @@ fn error(a: &Pose<f64>, b: &Pose<f64>) -> (f64, f64) {
 /// speed limit over a cycle, and f32 rounding near the strokes held.
 const DRIVE_STEP_BOUND_MM: f64 = DEFAULT_MAX_SPEED_MM_PER_S as f64 * CYCLE_S_F64 + 2e-6;
 
+/// How far beyond the last compensation step a slider may stand from where the held
+/// setpoint and the applied offset put it while the controller is idle (mm): twice
+/// the in-position tolerance (where the last fine positioning left it, and a count of
+/// reading). The step itself is allowed: the slider has not followed it yet. A retreat
+/// past the setpoint (5 um of drive, micrometres of slider beyond the backlash) is far
+/// outside it.
+const IDLE_SLIDER_MARGIN_MM: f64 =
+    2.0 * m2ctl::controller::params::DEFAULT_IN_POSITION_TOLERANCE_NM as f64 * 1e-6;
+
 /// What a cycle is checked against: the applied offsets and the drives' setpoints of
 /// the last cycle.
 struct Watch {
@@ -92,6 +101,8 @@ struct Watch {
     last_mm: [f32; LEGS],
     /// Drive setpoints (mm).
     drives_mm: [f64; LEGS],
+    /// The largest change of an applied offset in the last compensation step (mm).
+    last_step_mm: f32,
 }
 
 impl Watch {
@@ -99,12 +110,16 @@ impl Watch {
         Self {
             last_mm: b.ctl.compensation().applied_mm(),
             drives_mm: b.plant.with(|p| p.drive_setpoints_mm()),
+            last_step_mm: 0.0,
         }
     }
 
     /// After a cycle: no leg's applied offset changed by more than `step_bound_mm`, no
-    /// drive's setpoint faster than the speed limit (the mirror never jumps). Returns
-    /// the largest change of an applied offset (mm).
+    /// drive's setpoint faster than the speed limit, and, idle (no move; the
+    /// compensation's own fine positioning included), no slider further than the last
+    /// step and [`IDLE_SLIDER_MARGIN_MM`] from where the held setpoint and the applied
+    /// offset put it (the mirror never jumps). Returns the largest change of an applied
+    /// offset (mm).
     fn check(&mut self, b: &Bench, step_bound_mm: f32) -> f32 {
         let now = b.ctl.compensation().applied_mm();
         let step = (0..LEGS)
@@ -112,6 +127,22 @@ impl Watch {
             .fold(0.0f32, f32::max);
         assert!(step <= step_bound_mm, "a step of {step} mm");
         self.last_mm = now;
+        if step > 0.0 {
+            self.last_step_mm = step;
+        }
+        if b.ctl.state() == m2ctl::controller::State::Idle {
+            let setpoint = b.ctl.in_position_setpoint_mm();
+            let sliders = b.plant.with(|p| p.strokes_mm());
+            let bound = f64::from(self.last_step_mm) + IDLE_SLIDER_MARGIN_MM;
+            for (i, s) in sliders.iter().enumerate() {
+                let off = (s - f64::from(setpoint[i] + now[i])).abs();
+                assert!(
+                    off <= bound,
+                    "idle, slider {} is {off} mm from its setpoint and offset",
+                    i + 1
+                );
+            }
+        }
         let d = b.plant.with(|p| p.drive_setpoints_mm());
         let jump = (0..LEGS)
             .map(|i| (d[i] - self.drives_mm[i]).abs())

@@ -409,8 +409,15 @@ impl Fine {
             // Before the first correction `from_mm` holds the legs' furthest commands
             // in their approach direction ([`Fine::begin`]): the gap a reversal smaller
             // than [`TURN_MM`] left, which the first correction toward the approach
-            // takes up first.
-            let behind = if self.corrections == 1 { *f - *h } else { 0.0 };
+            // takes up first. Not when creeping: where that gap is smaller than the
+            // reversal (a preloaded nut, a stiff train) taking it up at once carries the
+            // slider past the setpoint by the difference; the creep crosses whatever
+            // gap there is.
+            let behind = if self.corrections == 1 && self.returning & CREEP == 0 {
+                *f - *h
+            } else {
+                0.0
+            };
             *f = *h;
             // The drive's new command, from the microstep it stands on (the drive rounds
             // the command's fraction of a microstep as it rounded the held one's).
@@ -428,12 +435,11 @@ impl Fine {
                 || self.returning & CREEP != 0
             {
                 // Toward the setpoint: whole microsteps, as many as cannot carry the
-                // slider past the band's far edge (at least one: [`GAIN`]); toward the
-                // approach side, plus the gap left behind. (Creeping, a leg beyond its
-                // setpoint crosses its gap back the same way, as after a compensation
-                // step against its approach, instead of retreating.)
+                // slider past the band's far edge (at least one: [`GAIN`]), plus the gap
+                // left behind. (Creeping, a leg beyond its setpoint crosses its gap back
+                // the same way, as after a compensation step against its approach,
+                // instead of retreating.)
                 let steps = (GAIN * (err.abs() + band) / MICROSTEP_MM) as i32;
-                let behind = if err * toward > 0.0 { behind } else { 0.0 };
                 behind + err.signum() * MICROSTEP_MM * steps as f32
             } else {
                 // An overshoot (or a leg still out at the late correction): back past the
