@@ -192,6 +192,38 @@ impl ActiveTable {
             source,
         })
     }
+
+    /// The running table at boot: `table` (from `source`) with its working geometry,
+    /// and whether motion may run. A booted table was validated, so a geometry that
+    /// fails is a defect guard: the nominal table instead; if even that fails, the
+    /// nominal table without a geometry and motion refused (`false`). Out of line, its
+    /// frame is gone before the controller's fields are built (the boot stack).
+    #[inline(never)]
+    fn booted(table: Table, source: BootSource) -> (Self, bool) {
+        use crate::table::validate::working_geometry;
+        // One table, one geometry result and one struct written in place: built as
+        // `ActiveTable::new` results, the three outcomes were each a whole copy.
+        let (table, source, geom) = match working_geometry(&table) {
+            Ok(g) => (table, source, Ok(g)),
+            Err(_) => {
+                let nominal = Table::nominal();
+                (nominal, BootSource::Nominal, working_geometry(&nominal))
+            }
+        };
+        let (geom, geometry_ok) = match geom {
+            Ok(g) => (g, true),
+            Err(_) => (no_geometry(), false),
+        };
+        (
+            Self {
+                crc32: table.crc32(),
+                table,
+                geom,
+                source,
+            },
+            geometry_ok,
+        )
+    }
 }
 
 /// A committed table waiting for activation.
@@ -264,24 +296,28 @@ impl<M: MechanismIo> Controller<M> {
     /// place (a static slot: `slot.write(Controller::unstarted(..)).start()`), so the
     /// ~6 KB struct is never copied on the stack. Until [`Controller::start`] the
     /// drives are not held and no reading was taken: call it before the first cycle.
-    #[inline(always)]
     pub fn unstarted(mech: M, table: Table, boot: BootReport, tm: TmProducer) -> Self {
-        let (active, geometry_ok) = match ActiveTable::new(table, boot.source) {
-            Ok(a) => (a, true),
-            // A booted table was validated, so this is a defect guard: fall back to the
-            // nominal table; if even that fails, run without motion.
-            Err(_) => match ActiveTable::new(Table::nominal(), BootSource::Nominal) {
-                Ok(a) => (a, true),
-                Err(_) => (nominal_placeholder(), false),
-            },
-        };
+        let booted = ActiveTable::booted(table, boot.source);
+        Self::assembled(mech, &booted.0, booted.1, boot, tm)
+    }
+
+    /// [`Controller::unstarted`] on the running table `active` (`geometry_ok`: its
+    /// geometry derived, [`ActiveTable::booted`]).
+    #[inline(always)]
+    fn assembled(
+        mech: M,
+        active: &ActiveTable,
+        geometry_ok: bool,
+        boot: BootReport,
+        tm: TmProducer,
+    ) -> Self {
         let params = params::InForce::new(Parameters::none());
         let supervisor = Supervisor::new(params.params().supervision(&active.table));
         let ops = Ops::derive(params.params(), &active.table);
         Self {
             mech,
             tables: parts::Tables {
-                active,
+                active: *active,
                 geometry_ok,
                 generation: 0,
                 boot,
@@ -331,10 +367,11 @@ impl<M: MechanismIo> Controller<M> {
         }
     }
 
-    /// [`Controller::unstarted`] written into `slot` (the flight image's static slot).
-    /// Not inlined, with the construction inlined into it: the optimiser then writes
-    /// each field into the slot instead of building the whole struct on the stack and
-    /// copying it (the boot stack of the flight image).
+    /// [`Controller::unstarted`] written into `slot` (the flight image's static slot):
+    /// the running table derived here ([`ActiveTable::booted`]), the rest by
+    /// [`Controller::assembled_in`], not inlined, with the construction inlined into it:
+    /// the optimiser then writes each field into the slot instead of building the whole
+    /// struct on the stack and copying it (the boot stack of the flight image).
     #[inline(never)]
     pub fn unstarted_in(
         slot: &mut core::mem::MaybeUninit<Self>,
@@ -343,7 +380,23 @@ impl<M: MechanismIo> Controller<M> {
         boot: BootReport,
         tm: TmProducer,
     ) -> &mut Self {
-        slot.write(Self::unstarted(mech, table, boot, tm))
+        let booted = ActiveTable::booted(table, boot.source);
+        Self::assembled_in(slot, mech, &booted.0, booted.1, boot, tm)
+    }
+
+    /// [`Controller::assembled`] written into `slot`. Not inlined: the running table is
+    /// read where [`ActiveTable::booted`] left it, in the caller's frame, instead of
+    /// being copied about this one's (the boot stack).
+    #[inline(never)]
+    fn assembled_in<'a>(
+        slot: &'a mut core::mem::MaybeUninit<Self>,
+        mech: M,
+        active: &ActiveTable,
+        geometry_ok: bool,
+        boot: BootReport,
+        tm: TmProducer,
+    ) -> &'a mut Self {
+        slot.write(Self::assembled(mech, active, geometry_ok, boot, tm))
     }
 
     /// Second step of [`Controller::unstarted`]: holds the sliders where their drives
@@ -1090,19 +1143,14 @@ fn less_offset(mut strokes_mm: [f32; LEGS], c: &Compensation) -> [f32; LEGS] {
     strokes_mm
 }
 
-/// A table with no usable geometry, only for the defect path where even the
-/// compiled-in nominal table fails to derive: every motion is refused then.
-fn nominal_placeholder() -> ActiveTable {
-    let table = Table::nominal();
-    ActiveTable {
-        crc32: table.crc32(),
-        table,
-        geom: Geometry {
-            legs: [crate::kinematics::geometry::Leg::default(); LEGS],
-            p0_mm: [0.0; 3],
-            stroke: None,
-            workspace: None,
-        },
-        source: BootSource::Nominal,
+/// The geometry of no table (all zero, mm in the base frame), only for the defect path
+/// where even the compiled-in nominal table fails to derive: every motion is refused
+/// then.
+fn no_geometry() -> Geometry<f32> {
+    Geometry {
+        legs: [crate::kinematics::geometry::Leg::default(); LEGS],
+        p0_mm: [0.0; 3],
+        stroke: None,
+        workspace: None,
     }
 }
