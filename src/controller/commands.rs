@@ -194,15 +194,14 @@ impl<M: MechanismIo> Controller<M> {
                 let params = self.intact_parameters()?;
                 self.start_job(JobRequest::ActivatePending(p.report, params))
             }
-            Command::SwitchBank => {
+            Command::SwitchBank | Command::RevertToNominal => {
                 self.require_idle()?;
                 let params = self.intact_parameters()?;
-                self.start_job(JobRequest::SwitchBank(params))
-            }
-            Command::RevertToNominal => {
-                self.require_idle()?;
-                let params = self.intact_parameters()?;
-                self.start_job(JobRequest::RevertToNominal(params))
+                self.start_job(if matches!(tc.command, Command::SwitchBank) {
+                    JobRequest::SwitchBank(params)
+                } else {
+                    JobRequest::RevertToNominal(params)
+                })
             }
             // Time-based schedule (ST[11]) and time reports (ST[9]).
             Command::Schedule(ref op) => self.execute_schedule(op),
