@@ -553,6 +553,13 @@ impl Parameters {
         }
     }
 
+    /// [`Parameters::value`] of a length parameter (nm) in mm (f32, rounded from the f64
+    /// quotient). Out of line: each of its ~15 flight uses was an inlined copy.
+    #[inline(never)]
+    fn value_mm(&self, k: usize, table: &Table) -> f32 {
+        (f64::from(self.value(k, table)) / NM_PER_MM) as f32
+    }
+
     /// These parameters with `updates` (ID, value) applied: all-or-nothing.
     pub fn with(&self, updates: &[(u16, i32)], table: &Table) -> Result<Self, ParamError> {
         let mut p = *self;
@@ -586,7 +593,7 @@ impl Parameters {
     /// The pivot and user frame (f32 working units).
     pub fn frames(&self, table: &Table) -> Frames<f32> {
         let v = |k: usize| self.value(k, table);
-        let mm = |k: usize| (f64::from(v(k)) / NM_PER_MM) as f32;
+        let mm = |k: usize| self.value_mm(k, table);
         let rad = |k: usize| (f64::from(v(k)) / MAS_PER_ARCSEC / ARCSEC_PER_RAD) as f32;
         Frames::new(
             [mm(index::PIVOT), mm(index::PIVOT + 1), mm(index::PIVOT + 2)],
@@ -596,7 +603,7 @@ impl Parameters {
 
     /// Coordinated-move limits (every slider the same).
     pub fn motion_limits(&self, table: &Table) -> MotionLimits {
-        let mm = |k: usize| (f64::from(self.value(k, table)) / NM_PER_MM) as f32;
+        let mm = |k: usize| self.value_mm(k, table);
         MotionLimits {
             max_speed_mm_per_s: [mm(index::MOVE_SPEED); LEGS],
             max_accel_mm_per_s2: [mm(index::MOVE_ACCEL); LEGS],
@@ -605,7 +612,7 @@ impl Parameters {
 
     /// Direct-stroke speed, acceleration, largest delta (mm/s, mm/s^2, mm).
     pub fn direct_limits(&self, table: &Table) -> (f32, f32, f32) {
-        let mm = |k: usize| (f64::from(self.value(k, table)) / NM_PER_MM) as f32;
+        let mm = |k: usize| self.value_mm(k, table);
         (
             mm(index::DIRECT_SPEED),
             mm(index::DIRECT_ACCEL),
@@ -616,7 +623,7 @@ impl Parameters {
     /// The output stage's limits (`motion::limiter`): coordinated and direct-stroke
     /// speed and acceleration (mm/s, mm/s^2).
     pub fn step_limits(&self, table: &Table) -> crate::motion::StepLimits {
-        let mm = |k: usize| (f64::from(self.value(k, table)) / NM_PER_MM) as f32;
+        let mm = |k: usize| self.value_mm(k, table);
         crate::motion::StepLimits {
             coordinated: (mm(index::MOVE_SPEED), mm(index::MOVE_ACCEL)),
             direct: (mm(index::DIRECT_SPEED), mm(index::DIRECT_ACCEL)),
@@ -626,7 +633,7 @@ impl Parameters {
     /// The in-position rule: tolerance of every slider encoder about its setpoint (mm)
     /// and dwell (cycles).
     pub fn in_position(&self, table: &Table) -> (f32, u16) {
-        let tol = (f64::from(self.value(index::IN_POSITION_TOLERANCE, table)) / NM_PER_MM) as f32;
+        let tol = self.value_mm(index::IN_POSITION_TOLERANCE, table);
         let dwell = u16::try_from(self.value(index::IN_POSITION_DWELL, table)).unwrap_or(1);
         (tol, dwell)
     }
@@ -634,7 +641,7 @@ impl Parameters {
     /// Thermal compensation enabled, and its steps (mm), with `table` running (their
     /// defaults are compiled in: no table changes them).
     pub fn thermal(&self, table: &Table) -> (bool, CompensationParams) {
-        let mm = |k: usize| (f64::from(self.value(k, table)) / NM_PER_MM) as f32;
+        let mm = |k: usize| self.value_mm(k, table);
         (
             self.value(index::THERMAL_ENABLE, table) != 0,
             CompensationParams {
