@@ -661,7 +661,8 @@ impl Parameters {
         let mut c = SupervisionConfig::from_table(table);
         let set = |k: usize| self.set & (1 << k) != 0;
         let raw = |k: usize| self.values.get(k).copied().unwrap_or(0);
-        let mm = |k: usize| (f64::from(raw(k)) / NM_PER_MM) as f32;
+        // Read only where set, where `value` is the stored (raw) value: the same quotient.
+        let mm = |k: usize| self.value_mm(k, table);
         let cycles = |k: usize| u16::try_from(raw(k)).unwrap_or(u16::MAX);
         if set(index::FOLLOWING_WARNING) {
             c.following_warning_mm = mm(index::FOLLOWING_WARNING);
