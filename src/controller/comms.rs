@@ -185,10 +185,11 @@ impl LinkService {
             let Some(decoded) = self.next_packet(rx) else {
                 break;
             };
-            match &decoded {
-                Ok(tc) => ctl.lock(|c| c.execute_telecommand(tc)),
-                Err(rejection) => ctl.lock(|c| c.refuse_telecommand(rejection)),
-            }
+            // One lock for either outcome (one copy of the lock's entry and exit).
+            ctl.lock(|c| match &decoded {
+                Ok(tc) => c.execute_telecommand(tc),
+                Err(rejection) => c.refuse_telecommand(rejection),
+            });
             self.run_move_check(ctl);
             handled += 1;
         }
