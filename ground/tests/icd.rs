@@ -492,6 +492,15 @@ fn the_compensation_and_exposure_hold_figures_in_the_prose_are_the_codes() {
             event_id::EXPOSURE_HOLD_STARTED
         ),
         format!("0x{:04X} the end", event_id::EXPOSURE_HOLD_ENDED),
+        format!(
+            "by corrections no larger than its error (as many as its {} s allow)",
+            m2ctl::motion::fine::TIMEOUT_CYCLES / CONTROL_RATE_HZ
+        ),
+        format!(
+            "Housekeeping reports the state (offset {}) and the applied offsets (offset {}), section 6.",
+            m2ctl::link::hk::field::THERMAL_STATE.start,
+            m2ctl::link::hk::field::THERMAL_OFFSETS.start
+        ),
     ] {
         assert!(text.contains(&phrase), "docs/icd.md lacks: {phrase}");
     }
