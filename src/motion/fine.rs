@@ -266,7 +266,7 @@ pub struct Fine {
     from_mm: [f32; LEGS],
     delta_mm: [f32; LEGS],
     /// Legs the last correction retreated: the next one returns them ([`RETREAT_MM`]);
-    /// and [`LONG_SETTLE`].
+    /// and [`LONG_SETTLE`] and [`CREEP`].
     returning: u8,
 }
 
