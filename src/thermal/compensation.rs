@@ -36,8 +36,9 @@
 //! So no sensor loss, no enable or disable and no target change moves the mirror by
 //! more than one step per period (host tests `thermal_compensation`).
 //!
-//! Not yet called by the controller (the wiring, the ST\[20\] parameters and the hold
-//! telecommand are the next step of issue 22).
+//! The controller calls it once a second (`Controller::step_compensation`), with the
+//! ST\[20\] parameters 0x0060..0x0062 and the exposure hold; a step's fine
+//! positioning creeps onto the held setpoint (`motion::fine`).
 
 use crate::kinematics::geometry::LEGS;
 use crate::timing::CONTROL_RATE_HZ;
