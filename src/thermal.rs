@@ -15,7 +15,7 @@
 //! * [`stroke_offsets_mm`]: the change of each slider's stroke that keeps a pose where
 //!   the reference-temperature geometry puts it, to first order in the expansions.
 //! * [`compensation`]: how the applied offsets follow those, in bounded steps
-//!   ([`Compensation`]; not yet called by the controller).
+//!   ([`Compensation`]), once a second by the controller at rest.
 //!
 //! # The model (frames as [`crate::kinematics::geometry`]: base B, moving M; mm)
 //! Each part's dimensions scale by `1 + alpha * (T - T_ref)` (`alpha` in 1/K, `T` of its
