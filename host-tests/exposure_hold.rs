@@ -215,3 +215,70 @@ fn a_move_already_running_finishes_and_a_clear_is_accepted_during_a_hold() {
     assert!(b.ctl.exposure_hold_active());
     assert!(all_ok(&b.command(&Command::ClearFault, 10)));
 }
+
+/// A hold that begins while a compensation step's fine positioning is under way: like a
+/// move already running, it finishes, moving each slider by no more than the step and
+/// twice the in-position tolerance, and within the fine positioning's timeout; then
+/// nothing moves until the hold ends (no further step).
+#[test]
+fn a_steps_fine_positioning_under_way_finishes_within_the_step_during_a_hold() {
+    use m2ctl::controller::params::DEFAULT_IN_POSITION_TOLERANCE_NM;
+    use m2ctl::motion::fine::TIMEOUT_CYCLES;
+    let plant = common::thermal_plant(
+        Profile {
+            mean_c: REFERENCE_C + 5.0,
+            ..Profile::REFERENCE
+        },
+        11,
+    );
+    let mut b = Bench::with_plant(plant);
+    assert!(all_ok(&install(&mut b, &table_with_model(), true)));
+    b.run(3 * CONTROL_RATE_HZ);
+    let set = ParameterValues::new(&[(PARAMETERS[index::THERMAL_ENABLE].id, 1)]);
+    assert!(set.is_ok());
+    assert!(set.is_ok_and(|set| all_ok(&b.command(&Command::SetParameters(set), 2_000))));
+    // Until the first step.
+    let mut step_mm = 0.0f32;
+    for _ in 0..3 * CONTROL_RATE_HZ {
+        b.tick();
+        let a = b.ctl.compensation().applied_mm();
+        step_mm = a.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        if step_mm > 0.0 {
+            break;
+        }
+    }
+    assert!(step_mm > 0.0, "no step");
+    let applied = b.ctl.compensation().applied_mm();
+    let before = b.plant.with(|p| p.strokes_mm());
+    // The hold, at once (its telecommand takes a few cycles to be executed).
+    b.send(&Command::ExposureHold { timeout_s: 20 });
+    while !b.ctl.exposure_hold_active() {
+        b.tick();
+    }
+    let bound_mm = f64::from(step_mm) + 2.0 * f64::from(DEFAULT_IN_POSITION_TOLERANCE_NM) * 1e-6;
+    let mut moved_mm = 0.0f64;
+    for _ in 0..TIMEOUT_CYCLES {
+        b.tick();
+        let now = b.plant.with(|p| p.strokes_mm());
+        for (n, s) in now.iter().zip(before.iter()) {
+            moved_mm = moved_mm.max((n - s).abs());
+        }
+        assert_eq!(
+            b.ctl.compensation().applied_mm(),
+            applied,
+            "a step in a hold"
+        );
+    }
+    assert!(moved_mm > 0.0, "the fine positioning did not run");
+    assert!(
+        moved_mm <= bound_mm,
+        "moved {moved_mm} mm, step {step_mm} mm"
+    );
+    // Finished: nothing moves for the rest of the hold.
+    let after = b.plant.with(|p| p.strokes_mm());
+    for _ in 0..10 * CONTROL_RATE_HZ {
+        b.tick();
+        assert!(b.ctl.exposure_hold_active());
+        assert_eq!(b.plant.with(|p| p.strokes_mm()), after);
+    }
+}

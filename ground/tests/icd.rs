@@ -497,6 +497,10 @@ fn the_compensation_and_exposure_hold_figures_in_the_prose_are_the_codes() {
             m2ctl::motion::fine::TIMEOUT_CYCLES / CONTROL_RATE_HZ
         ),
         format!(
+            "compensation step made just before (within its {} s, each slider moving by at most the step and twice the in-position tolerance)",
+            m2ctl::motion::fine::TIMEOUT_CYCLES / CONTROL_RATE_HZ
+        ),
+        format!(
             "Housekeeping reports the state (offset {}) and the applied offsets (offset {}), section 6.",
             m2ctl::link::hk::field::THERMAL_STATE.start,
             m2ctl::link::hk::field::THERMAL_OFFSETS.start
