@@ -158,8 +158,9 @@ fn table_with_model() -> Table {
     t
 }
 
-#[test]
-fn no_compensation_step_during_a_hold_and_the_steps_resume_after_it() {
+/// A bench on a plant at +5 K running [`table_with_model`], the sensors' first means
+/// taken (compensation still off).
+fn warm_bench() -> Bench {
     let plant = common::thermal_plant(
         Profile {
             mean_c: REFERENCE_C + 5.0,
@@ -170,6 +171,12 @@ fn no_compensation_step_during_a_hold_and_the_steps_resume_after_it() {
     let mut b = Bench::with_plant(plant);
     assert!(all_ok(&install(&mut b, &table_with_model(), true)));
     b.run(3 * CONTROL_RATE_HZ);
+    b
+}
+
+#[test]
+fn no_compensation_step_during_a_hold_and_the_steps_resume_after_it() {
+    let mut b = warm_bench();
     assert!(all_ok(
         &b.command(&Command::ExposureHold { timeout_s: 20 }, 10)
     ));
@@ -224,16 +231,7 @@ fn a_move_already_running_finishes_and_a_clear_is_accepted_during_a_hold() {
 fn a_steps_fine_positioning_under_way_finishes_within_the_step_during_a_hold() {
     use m2ctl::controller::params::DEFAULT_IN_POSITION_TOLERANCE_NM;
     use m2ctl::motion::fine::TIMEOUT_CYCLES;
-    let plant = common::thermal_plant(
-        Profile {
-            mean_c: REFERENCE_C + 5.0,
-            ..Profile::REFERENCE
-        },
-        11,
-    );
-    let mut b = Bench::with_plant(plant);
-    assert!(all_ok(&install(&mut b, &table_with_model(), true)));
-    b.run(3 * CONTROL_RATE_HZ);
+    let mut b = warm_bench();
     let set = ParameterValues::new(&[(PARAMETERS[index::THERMAL_ENABLE].id, 1)]);
     assert!(set.is_ok());
     assert!(set.is_ok_and(|set| all_ok(&b.command(&Command::SetParameters(set), 2_000))));

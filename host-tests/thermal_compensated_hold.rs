@@ -577,17 +577,8 @@ fn thermal_soak_bounded_steps_and_nothing_during_an_exposure_hold() {
 /// plant (its sensors and drive train; default 13).
 #[test]
 fn compensation_follows_a_swing_in_time_within_the_goal_every_cycle() {
-    use m2ctl::sim::thermal::Swing;
     const ORBIT_S: f64 = 600.0;
-    let profile = Profile {
-        swing: Swing::Sine {
-            amplitude_k: 5.0,
-            period_s: ORBIT_S,
-        },
-        gradient_k: 2.0,
-        gradient_angle_rad: 0.7,
-        ..Profile::REFERENCE
-    };
+    let profile = Profile::swing_with_gradient(ORBIT_S);
     let seed: u64 = std::env::var("M2_THERMAL_SEED")
         .ok()
         .and_then(|v| v.parse().ok())

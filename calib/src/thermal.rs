@@ -79,6 +79,17 @@ pub struct ThermalMeasurement {
 /// sensor further away: the mission database's `temperature_deviation_max`).
 pub const LARGEST_SOAK_K: f64 = 10.0;
 
+/// The targets of the default design: home, the translation corners (+-1.5 mm) and the
+/// rotation corners (+-500 arcsec), each measured in every state.
+pub fn default_targets() -> Vec<Pose<f64>> {
+    let mut t = vec![Pose::home()];
+    for s in crate::plan::sign_patterns() {
+        t.push(Pose::from_mm_arcsec(s.map(|v| 1.5 * v), [0.0; 3]));
+        t.push(Pose::from_mm_arcsec([0.0; 3], s.map(|v| 500.0 * v)));
+    }
+    t
+}
+
 /// The states of the default design: uniform soaks at `reference +- 5` and `+- 10` K,
 /// the platform alone at `+- 5` K (its heaters; the base side at the reference), the
 /// base side (rods, columns, plate) at `+ 5` K, and the base interface heated (columns

@@ -4,26 +4,14 @@
 #![cfg(feature = "host")]
 
 use m2calib::campaign::perturbed;
-use m2calib::plan::sign_patterns;
 use m2calib::thermal::{
-    default_states, fit, observability, params_of, simulate, ThermalCampaign, PARAMS, PARAM_NAMES,
+    default_states, default_targets, fit, observability, params_of, simulate, ThermalCampaign,
+    PARAMS, PARAM_NAMES,
 };
-use m2ctl::kinematics::Pose;
 use m2ctl::nominal::PROTOTYPE;
 use m2ctl::sim::thermal::{Coefficients, PartTemperatures, Profile, SensorConfig, ThermalConfig};
 use m2ctl::sim::tracker::PoseTracker;
 use m2ctl::sim::{Plant, PlantConfig};
-
-/// Targets: home, the translation corners (+-1.5 mm) and the rotation corners
-/// (+-500 arcsec).
-fn targets() -> Vec<Pose<f64>> {
-    let mut t = vec![Pose::home()];
-    for s in sign_patterns() {
-        t.push(Pose::from_mm_arcsec(s.map(|v| 1.5 * v), [0.0; 3]));
-        t.push(Pose::from_mm_arcsec([0.0; 3], s.map(|v| 500.0 * v)));
-    }
-    t
-}
 
 /// A manufactured plant with its own coefficients (seed), and the campaign measured on
 /// it with the ground's geometry the nominal one (0.1 mm off the truth).
@@ -64,7 +52,7 @@ fn campaign_in(
         })
         .unwrap();
     let c = ThermalCampaign {
-        targets: targets(),
+        targets: default_targets(),
         states,
         tracker,
     };

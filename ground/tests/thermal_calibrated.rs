@@ -8,14 +8,13 @@
 
 #![cfg(feature = "host")]
 
-use m2calib::plan::sign_patterns;
-use m2calib::thermal::{default_states, fit, simulate, ThermalCampaign};
+use m2calib::thermal::{default_states, default_targets, fit, simulate, ThermalCampaign};
 use m2ctl::controller::params::{index, PARAMETERS};
 use m2ctl::kinematics::Pose;
 use m2ctl::link::tm::Verification;
 use m2ctl::link::{Command, ParameterValues};
 use m2ctl::nominal::PROTOTYPE;
-use m2ctl::sim::thermal::{Coefficients, Profile, SensorConfig, Swing, ThermalConfig};
+use m2ctl::sim::thermal::{Coefficients, Profile, SensorConfig, ThermalConfig};
 use m2ctl::sim::tracker::PoseTracker;
 use m2ctl::sim::{Bench, Plant, PlantConfig};
 use m2ctl::table::Table;
@@ -37,17 +36,7 @@ const JOB_CYCLES: u32 = 20_000;
 
 /// The swing: +-5 K over the orbit and a 2 K gradient across the base, the parts
 /// following at once (their lags: README, "Thermal drift").
-fn swing() -> Profile {
-    Profile {
-        swing: Swing::Sine {
-            amplitude_k: 5.0,
-            period_s: ORBIT_S,
-        },
-        gradient_k: 2.0,
-        gradient_angle_rad: 0.7,
-        ..Profile::REFERENCE
-    }
-}
+const SWING: Profile = Profile::swing_with_gradient(ORBIT_S);
 
 /// The mechanism of `seed` (the prototype's geometry, its own materials) with its parts
 /// at `profile`.
@@ -74,14 +63,9 @@ fn plant(seed: u64, profile: Profile) -> Plant {
 /// The ground's thermal campaign on the mechanism of `seed` (home, the translation and
 /// rotation corners, the default states, the paper's tracker): the fitted model.
 fn fitted_model(seed: u64) -> ThermalModel {
-    let mut targets = vec![Pose::home()];
-    for s in sign_patterns() {
-        targets.push(Pose::from_mm_arcsec(s.map(|v| 1.5 * v), [0.0; 3]));
-        targets.push(Pose::from_mm_arcsec([0.0; 3], s.map(|v| 500.0 * v)));
-    }
     let tracker = PoseTracker::PAPER;
     let campaign = ThermalCampaign {
-        targets,
+        targets: default_targets(),
         states: default_states(),
         tracker,
     };
@@ -148,7 +132,7 @@ fn held_over_swing(seed: u64, model: ThermalModel, on: bool, seconds: f64) -> (f
         };
         p
     };
-    let mut b = bench(seed, swing(), model);
+    let mut b = bench(seed, SWING, model);
     if on {
         let v = ParameterValues::new(&[(PARAMETERS[index::THERMAL_ENABLE].id, 1)]);
         assert!(v.is_ok());

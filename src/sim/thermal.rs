@@ -273,6 +273,21 @@ impl Profile {
         lag_s: [600.0, 1_500.0, 2_400.0, 1_800.0],
     };
 
+    /// Issue 22's evidence profile: a +-5 K sinusoidal swing over `period_s` (s) and a
+    /// 2 K gradient across the base at 0.7 rad from base x, fixed, every part following
+    /// its drive at once (no lags).
+    pub const fn swing_with_gradient(period_s: f64) -> Profile {
+        Profile {
+            swing: Swing::Sine {
+                amplitude_k: 5.0,
+                period_s,
+            },
+            gradient_k: 2.0,
+            gradient_angle_rad: 0.7,
+            ..Profile::REFERENCE
+        }
+    }
+
     /// The uniform drive at `t_s` (deg C).
     fn uniform_c(&self, t_s: f64) -> f64 {
         self.mean_c + self.swing.at(t_s)
