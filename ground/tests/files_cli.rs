@@ -31,9 +31,8 @@ fn m2ground(args: &[&str]) -> (bool, String, String) {
     )
 }
 
-fn tmp(name: &str, text: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("m2ctl-files-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+/// `text` written to `name` in `dir` (a test's own `tmp_dir`, removed when the test ends).
+fn tmp(dir: &std::path::Path, name: &str, text: &str) -> std::path::PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
     p
@@ -54,7 +53,8 @@ fn cli_ik_reproduces_the_golden_strokes_and_fk_inverts_it() {
     }
     assert!(worst <= 1e-6, "{worst:e}");
     // fk of that output returns the poses (f64, 15 decimals printed).
-    let ik_out = tmp("ik_out.csv", &out);
+    let dir = tmp_dir("ik-fk");
+    let ik_out = tmp(&dir, "ik_out.csv", &out);
     let (ok, out, err) = m2ground(&[
         "fk",
         "--geometry",
@@ -74,14 +74,16 @@ fn cli_ik_reproduces_the_golden_strokes_and_fk_inverts_it() {
             );
         }
     }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn cli_writes_output_file_and_applies_file_limits() {
     let mut text = std::fs::read_to_string(GEOMETRY).unwrap();
     text.push_str("\n[limits]\nstroke_min_mm = -0.5\nstroke_max_mm = 0.5\ntranslation_mm = 2.0\nrotation_arcsec = 600.0\n");
-    let g = tmp("limited.toml", &text);
-    let out = std::env::temp_dir().join(format!("m2ctl-out-{}.csv", std::process::id()));
+    let dir = tmp_dir("output");
+    let g = tmp(&dir, "limited.toml", &text);
+    let out = dir.join("out.csv");
     // The golden rows with 1 mm z exceed +-0.5 mm strokes: refused, naming the line.
     let (ok, _, err) = m2ground(&[
         "ik",
@@ -108,10 +110,12 @@ fn cli_writes_output_file_and_applies_file_limits() {
     ]);
     assert!(ok, "{err}");
     assert_eq!(std::fs::read_to_string(&out).unwrap().lines().count(), 41);
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn bad_files_name_the_line_and_exit_nonzero() {
+    let dir = tmp_dir("bad-files");
     let cases: &[(&str, &str, &str)] = &[
         (
             "x_mm,y_mm,z_mm,rx_arcsec,ry_arcsec,rz_arcsec\n0,0,0,0,0,0\n1,2,x,0,0,0\n",
@@ -145,7 +149,7 @@ fn bad_files_name_the_line_and_exit_nonzero() {
         ),
     ];
     for (i, (csv, line, what)) in cases.iter().enumerate() {
-        let p = tmp(&format!("bad{i}.csv"), csv);
+        let p = tmp(&dir, &format!("bad{i}.csv"), csv);
         let (ok, out, err) =
             m2ground(&["ik", "--geometry", GEOMETRY, "--input", p.to_str().unwrap()]);
         assert!(!ok && out.is_empty(), "case {i}: {out}");
@@ -188,7 +192,7 @@ fn bad_files_name_the_line_and_exit_nonzero() {
     ));
     geoms.push((&low, &low_line, "leg 5: the upper joint must be"));
     for (i, (toml, line, what)) in geoms.iter().enumerate() {
-        let p = tmp(&format!("bad{i}.toml"), toml);
+        let p = tmp(&dir, &format!("bad{i}.toml"), toml);
         let (ok, _, err) = m2ground(&["ik", "--geometry", p.to_str().unwrap(), "--input", GOLDEN]);
         assert!(!ok, "geometry case {i}");
         assert!(
@@ -196,6 +200,7 @@ fn bad_files_name_the_line_and_exit_nonzero() {
             "geometry case {i}: {err}"
         );
     }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
