@@ -139,17 +139,29 @@ class Operator:
         with self._lock:
             return dict(self._values.get(generation_time, {}))
 
-    @staticmethod
-    def wait(what: str, find, timeout: float):
-        """find() until it is not None; the wall clock only bounds the wait."""
+    def wait(self, what: str, find, timeout: float):
+        """find() until it is not None; the wall clock only bounds the wait. A wait that
+        times out says whether the controller rebooted meanwhile (a watchdog reset looks
+        like a lost reply otherwise)."""
         t0 = time.time()
         while True:
             found = find()
             if found is not None:
                 return found
             if time.time() - t0 > timeout:
-                raise TimeoutError(what)
+                raise TimeoutError(what + self.reboots())
             time.sleep(0.2)
+
+    def reboots(self) -> str:
+        """'' if the archive holds one boot (the test's own start), else the boot details
+        of the reboots since: their texts name the reset cause (BOOT_DETAIL, aux1)."""
+        try:
+            boots = [e.message for e in self.archive.list_events() if e.event_type == "BOOT_DETAIL"]
+        except Exception as e:  # the archive itself unreachable: say so, do not mask the wait
+            return f" (the archive's events could not be read: {e})"
+        if len(boots) <= 1:
+            return ""
+        return f"; the controller rebooted meanwhile ({len(boots)} boots): {boots[1:]}"
 
     def packets(self, service: int, subtype: int) -> list:
         """Archived packets TM[service,subtype], in on-board time order."""
