@@ -117,11 +117,6 @@ impl<E, D: DirectionInhibit, S: EndOfTravel, X> EndOfTravel for Mechanism<E, D, 
     }
 }
 
-/// The drivers' mechanism (the Netduino Plus 2's, a host rig's) has no ADC driver yet:
-/// every channel reads the fixed [`crate::thermal::adc::COUNTS_NEAR_20_C`] (19.99 deg C). The supervision takes a
-/// channel that repeats one count as stuck (`thermal::STUCK_SAMPLES` readings, 6.4 s),
-/// so housekeeping reports these sensors stuck: no temperature is claimed that was not
-/// measured.
 /// The camera's "exposing" line, as wired ([`exposure`]).
 impl<E, D, S, X: crate::hw::ExposureInput> crate::hw::ExposureInput for Mechanism<E, D, S, X> {
     fn exposing(&mut self) -> bool {
@@ -129,6 +124,11 @@ impl<E, D, S, X: crate::hw::ExposureInput> crate::hw::ExposureInput for Mechanis
     }
 }
 
+/// The drivers' mechanism (the Netduino Plus 2's, a host rig's) has no ADC driver yet:
+/// every channel reads the fixed [`crate::thermal::adc::COUNTS_NEAR_20_C`] (19.99 deg C).
+/// The supervision takes a channel that repeats one count as stuck
+/// (`thermal::STUCK_SAMPLES` readings, 6.4 s), so housekeeping reports these sensors
+/// stuck: no temperature is claimed that was not measured.
 impl<E, D, S, X> crate::hw::TemperatureInputs for Mechanism<E, D, S, X> {
     fn read_temperature_counts(&mut self) -> [u16; crate::thermal::TEMP_SENSORS] {
         [crate::thermal::adc::COUNTS_NEAR_20_C; crate::thermal::TEMP_SENSORS]
