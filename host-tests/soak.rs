@@ -82,6 +82,10 @@ fn soak_holds_the_operator_contract_every_cycle() {
         "soak thermal: {} compensation steps (invariant 12), {} cycles under an exposure hold (invariant 13), {} moves refused by a hold (0x0710)",
         f.thermal_steps, f.hold_cycles, f.hold_refusals
     );
+    println!(
+        "soak at rest: {} completions in position watched while idle, {} cycles, {} compensation steps among them, a slider at most {:.4} um beyond the last step (invariant 14)",
+        f.placements, f.placed_cycles, f.placed_steps, f.placed_worst_um
+    );
     assert!(
         s.violations().is_empty(),
         "{} violations, first: {:?}",
@@ -105,11 +109,19 @@ fn soak_holds_the_operator_contract_every_cycle() {
         "the soak watched {} move completions, fewer than {MIN_MOVES_IN_POSITION}: {f:?}",
         f.moves_in_position
     );
-    // Invariants 12 and 13 are checked here whenever the adversary lets the
-    // compensation step or an exposure hold last (a few steps, tens of seconds of holds
-    // per run, fewer on a loaded machine: no minimum is asserted); the deterministic
-    // thermal soak (`thermal_compensated_hold::thermal_soak_...`) asserts they are
-    // exercised.
+    // Invariant 14 watches each of them at rest from its completion (the rest after a
+    // watched move, `WATCH_REST_CYCLES`, lets the compensation step under it).
+    assert!(
+        f.placements >= MIN_MOVES_IN_POSITION && f.placed_cycles > 0,
+        "invariant 14 watched {} placements, {} cycles: {f:?}",
+        f.placements,
+        f.placed_cycles
+    );
+    // Invariants 12 and 13, and 14's compensation steps, are checked here whenever the
+    // adversary lets the compensation step or an exposure hold last (a few steps, tens
+    // of seconds of holds per run, fewer on a loaded machine: no minimum is asserted);
+    // the deterministic thermal soak (`thermal_compensated_hold::thermal_soak_...`, its
+    // `Watch::check` every cycle) asserts they are exercised.
     assert!(
         f.switch_trips > 0 && f.blocked_motion_cycles > 0,
         "the adversary never tripped a switch during a motion: {f:?}"

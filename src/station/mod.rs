@@ -204,7 +204,15 @@ impl Station {
     /// The telecommand's reports are complete: a completion (success or failure) or an
     /// acceptance or start failure has arrived.
     pub fn finished(&self, rid: RequestId) -> bool {
-        self.reports(rid).iter().any(|v| {
+        self.finished_since(0, rid)
+    }
+
+    /// As [`Station::finished`], among the packets from `log[from..]` (the log's length
+    /// when the telecommand was sent): a long run's callers each cycle then read what
+    /// came since, not the whole log (and no earlier request with the same, wrapped,
+    /// sequence count).
+    pub fn finished_since(&self, from: usize, rid: RequestId) -> bool {
+        self.reports_since(from, rid).iter().any(|v| {
             matches!(
                 v,
                 Verification::CompletionSuccess

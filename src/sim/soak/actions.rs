@@ -265,12 +265,19 @@ impl<C: Choices> Soak<C> {
     /// idle, it may be watched to its end ([`super::WATCH_ONE_IN`], not by a fuzz
     /// input: [`Choices::watches_moves`]).
     fn sent_move(&mut self, rid: RequestId) {
-        self.moves.push(rid);
+        // Where the station's log stood when it was sent (`send`): its reports come after.
+        let from = self
+            .in_flight
+            .iter()
+            .rev()
+            .find(|(r, _)| *r == rid)
+            .map_or(0, |(_, from)| *from);
+        self.moves.push((rid, from));
         if self.rng.watches_moves()
             && self.r.ctl.state() == State::Idle
             && self.below(super::WATCH_ONE_IN) == 0
         {
-            self.watching = Some(rid);
+            self.watching = Some((rid, from));
             self.moves_watched += 1;
         }
     }

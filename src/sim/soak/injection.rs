@@ -147,6 +147,7 @@ impl<C: Choices> Soak<C> {
         self.check_reports(true);
         self.moves.clear();
         self.watching = None;
+        self.placed = None;
         let candidates = std::mem::take(&mut self.selecting);
         let in_writes = !self.r.flash_mut().is_powered();
         if in_writes {

@@ -1,7 +1,8 @@
 //! The invariants checked every control cycle (numbered as in the module documentation
 //! of [`super`]): limits (1), speed and continuity (2), nothing moves while faulted (3),
 //! a recovery move moves only its leg (4), no telemetry dropped (5), not toward an
-//! active switch (7), the speed limit in force (8), an upset repaired in time (10); and
+//! active switch (7), the speed limit in force (8), an upset repaired in time (10), a
+//! mirror put in position stays there while idle (14); and
 //! the telemetry events the model follows (selections, detections, repairs, switch
 //! trips).
 
@@ -25,6 +26,17 @@ const STEP_ROUNDING_MM: f64 = 2e-6;
 /// A slider "at rest" moves less than this per cycle (mm): 0.1 nm, above the f32
 /// resolution of a held stroke (a hold rounds the setpoint to the f32 of the interface).
 const STILL_MM: f64 = 1e-7;
+
+/// Invariant 14's record of a mirror put in position (`Soak::check_placed`).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Placed {
+    /// The held setpoint (mm, stroke at the thermal model's reference temperature).
+    setpoint_mm: [f32; LEGS],
+    /// The largest change of an applied offset in the last compensation step (mm).
+    last_step_mm: f32,
+    /// The largest in-position tolerance in force since (mm).
+    tolerance_mm: f32,
+}
 
 /// Cycles within which a detected upset must be repaired (invariant 10): two scrub
 /// periods (the reload may wait for a job that runs: a commit erases 0.3 s sectors) and
@@ -247,7 +259,8 @@ impl<C: Choices> Soak<C> {
         }
         // 6. Track completed selections from the telemetry.
         self.track_selections();
-        self.check_thermal_and_hold(&applied, state, &hk);
+        let step = self.check_thermal_and_hold(&applied, state, &hk);
+        self.check_placed(&applied, state, faulted || skip, step);
         self.prev_cmd = c;
         self.prev_truth = core::array::from_fn(|i| truth[i] - f64::from(applied[i]));
         self.prev_drives = drives;
@@ -260,7 +273,13 @@ impl<C: Choices> Soak<C> {
     /// Invariants 12 and 13 (module documentation): the compensation's steps bounded,
     /// and nothing released, stepped or started during an exposure hold (in force before
     /// and after the cycle: a hold that began or ended within it is not checked).
-    fn check_thermal_and_hold(&mut self, applied: &[f32; LEGS], state: State, hk: &Housekeeping) {
+    /// Returns the largest change of an applied offset in the cycle (mm).
+    fn check_thermal_and_hold(
+        &mut self,
+        applied: &[f32; LEGS],
+        state: State,
+        hk: &Housekeeping,
+    ) -> f32 {
         let step = (0..LEGS)
             .map(|i| (applied[i] - self.prev_applied[i]).abs())
             .fold(0.0f32, f32::max);
@@ -294,6 +313,61 @@ impl<C: Choices> Soak<C> {
         self.prev_applied = *applied;
         self.prev_hold = hold;
         self.prev_released = hk.schedule.released;
+        step
+    }
+
+    /// Invariant 14: a mirror put in position stays there while the controller is idle.
+    /// From a completion invariant 11 found in position, while the controller stays idle
+    /// with no fault latched, no plant fault injected and its setpoint unchanged, no true
+    /// slider stands further from its setpoint and applied offset than the last
+    /// compensation step (not followed yet), twice the in-position tolerance (where the
+    /// last fine positioning left it, and a count of reading) and the encoder noise's
+    /// sigma (the rule holds the mean reading). Upsets, table activations, parameter sets
+    /// and exposure holds do not end the watch: none of them may move an idle mirror by
+    /// more. `disturbed`: a fault latched or the soak itself moved a drive (a repair, a
+    /// slip) this cycle.
+    fn check_placed(&mut self, applied: &[f32; LEGS], state: State, disturbed: bool, step: f32) {
+        let Some(mut placed) = self.placed else {
+            return;
+        };
+        let plant_fault = self.r.plant.with(|p| p.faults().next().is_some());
+        if state != State::Idle
+            || disturbed
+            || plant_fault
+            || self.r.ctl.in_position_setpoint_mm() != placed.setpoint_mm
+        {
+            self.placed = None;
+            return;
+        }
+        if step > 0.0 {
+            placed.last_step_mm = step;
+            self.placed_steps += 1;
+        }
+        let table = *self.r.ctl.active_table();
+        placed.tolerance_mm = placed
+            .tolerance_mm
+            .max(self.r.ctl.parameters().in_position(&table).0);
+        self.placed = Some(placed);
+        self.placed_cycles += 1;
+        let bound = f64::from(placed.last_step_mm)
+            + 2.0 * f64::from(placed.tolerance_mm)
+            + crate::sim::plant::DEFAULT_ENCODER_NOISE_MM;
+        let truth = self.r.plant.with(|p| p.strokes_mm());
+        for i in 0..LEGS {
+            let off = truth[i] - f64::from(placed.setpoint_mm[i] + applied[i]);
+            let beyond_step = off.abs() - f64::from(placed.last_step_mm);
+            self.placed_worst_mm = self.placed_worst_mm.max(beyond_step);
+            if off.abs() > bound {
+                self.violation(format!(
+                    "idle, leg {} is {:.4} um from its setpoint and offset (bound {:.4} um)",
+                    i + 1,
+                    off * UM_PER_MM,
+                    bound * UM_PER_MM
+                ));
+                self.placed = None;
+                return;
+            }
+        }
     }
 
     /// A completed activation is a TABLE_ACTIVATED event: that table is now the one to
@@ -339,17 +413,20 @@ impl<C: Choices> Soak<C> {
     /// Invariant 11, in the cycle the station receives a coordinated move's completion
     /// success: every true slider within the in-position tolerance in force (and the
     /// encoder noise's sigma: the rule holds the mean reading) of the controller's
-    /// setpoint, unless an encoder is made to lie or the controller is no longer idle (a
-    /// fault since the completion holds the drives where they are: a new setpoint).
+    /// setpoint, unless an encoder is made to lie, the controller is no longer idle (a
+    /// fault since the completion holds the drives where they are: a new setpoint) or a
+    /// compensation step has moved the setpoint's offset since.
     pub(super) fn check_moves_completed(&mut self) {
         if self.moves.is_empty() {
             return;
         }
         let moves = std::mem::take(&mut self.moves);
-        for rid in moves {
-            if !self.r.st.finished(rid) {
-                self.moves.push(rid);
-            } else if self.r.st.reports(rid).last() == Some(&Verification::CompletionSuccess) {
+        for (rid, from) in moves {
+            if !self.r.st.finished_since(from, rid) {
+                self.moves.push((rid, from));
+            } else if self.r.st.reports_since(from, rid).last()
+                == Some(&Verification::CompletionSuccess)
+            {
                 self.check_in_position(rid);
             }
         }
@@ -366,7 +443,13 @@ impl<C: Choices> Soak<C> {
                 )
             })
         });
-        if misleading || self.r.ctl.state() != State::Idle {
+        // Nor once a compensation step's fine positioning has begun since the completion
+        // (idle, legs moving): the sliders follow the new offset (found by a 150 s run:
+        // legs "2.4 um from their setpoint" a cycle after a 2.3 um step was applied).
+        if misleading
+            || self.r.ctl.state() != State::Idle
+            || self.r.ctl.housekeeping().moving_legs != 0
+        {
             return;
         }
         self.moves_in_position += 1;
@@ -375,15 +458,26 @@ impl<C: Choices> Soak<C> {
         let set = self.r.ctl.in_position_setpoint_mm();
         let applied = self.r.ctl.compensation().applied_mm();
         let truth = self.r.plant.with(|p| p.strokes_mm());
+        let mut in_position = true;
         for i in 0..LEGS {
             let e = truth[i] - f64::from(applied[i]) - f64::from(set[i]);
             if !(e.abs() <= f64::from(tol_mm) + crate::sim::plant::DEFAULT_ENCODER_NOISE_MM) {
+                in_position = false;
                 self.violation(format!(
                     "move {rid:?} completed with leg {} {:.4} um from its setpoint",
                     i + 1,
                     e * UM_PER_MM
                 ));
             }
+        }
+        // Invariant 14 watches it from here.
+        if in_position {
+            self.placed = Some(Placed {
+                setpoint_mm: set,
+                last_step_mm: 0.0,
+                tolerance_mm: tol_mm,
+            });
+            self.placements += 1;
         }
     }
 }

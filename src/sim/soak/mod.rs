@@ -27,13 +27,20 @@
 //!     was running;
 //! 11. a coordinated move's completion success is never reported while a true slider is
 //!     outside the in-position tolerance of its setpoint (`motion::fine`; not checked
-//!     while an encoder is made to lie: stuck, offset or noisier than specified);
+//!     while an encoder is made to lie: stuck, offset or noisier than specified, nor
+//!     once a compensation step has begun since the completion);
 //! 12. the thermal compensation's applied offset never changes by more than the largest
 //!     step any parameter allows (`thermal::compensation::MAX_STEP_HIGHEST_MM`) in a
 //!     cycle, across enables, disables, sensor failures and recoveries, power cuts and
 //!     upsets (invariant 2 bounds what the drives do with it);
 //! 13. during an exposure hold (telecommand or discrete input) the applied offset does
-//!     not change, no scheduled activity is released and no operator motion starts.
+//!     not change, no scheduled activity is released and no operator motion starts;
+//! 14. a mirror put in position stays there: from a completion invariant 11 found in
+//!     position, while the controller stays idle, unfaulted, with no plant fault and its
+//!     setpoint unchanged, no true slider stands further from its setpoint and applied
+//!     offset than the last compensation step, twice the in-position tolerance and the
+//!     encoder noise's sigma, across compensation steps, upsets, table activations,
+//!     parameter sets and exposure holds.
 //!
 //! The plant's parts swing from +1 to +5 K over a 10-minute orbit with a 2 K gradient, its
 //! sensors fail and recover at random; the tables the soak uploads carry the thermal
@@ -66,7 +73,7 @@
 //! * `actions`: the random operator actions (telecommands, valid and invalid);
 //! * `injection`: the adversary (RAM upsets, plant faults and their repair, power cuts
 //!   and the reboot they cause);
-//! * `invariants`: the checks run every cycle (invariants 1 to 5, 7, 8, 10);
+//! * `invariants`: the checks run every cycle (invariants 1 to 5, 7, 8, 10 to 14);
 //! * `model`: what the operator may expect of flash (the table to boot, invariant 6;
 //!   the persisted parameters, invariant 9; the speed limits in force);
 //! * `verification`: every telecommand's service-1 reports (invariant 5);
@@ -111,6 +118,11 @@ pub const WATCH_ONE_IN: usize = 2;
 /// (0.05 mm/s) is 52 s; a watched move that dies in a reboot ends its watch at once.
 pub const WATCH_CYCLES: u32 = 60_000;
 
+/// Longest rest after a watched move (cycles, 5 s; chosen below it): with no action,
+/// the compensation, when enabled, steps the mirror it put in position (invariant 14).
+/// Without it a run saw 0 or 1 such step.
+pub const WATCH_REST_CYCLES: usize = 5_000;
+
 /// The soak plant's mean temperature above the tables' reference (K): a power cut
 /// rebuilds the plant at the start of its orbit, so the swing alone would keep it near
 /// the reference; with this the compensation has offsets to follow from every boot.
@@ -137,12 +149,13 @@ pub struct Soak<C> {
     selecting: Vec<(RequestId, Option<u32>)>,
     /// Telecommands sent since the last reboot, with the log length when sent.
     in_flight: Vec<(RequestId, usize)>,
-    /// The coordinated moves sent, until their reports end (invariant 11).
-    moves: Vec<RequestId>,
+    /// The coordinated moves sent, until their reports end (invariant 11), each with the
+    /// station log's length when it was sent.
+    moves: Vec<(RequestId, usize)>,
     /// Moves invariant 11 checked.
     moves_in_position: u64,
     /// The move being watched: no action until its reports end ([`Soak::round`]).
-    watching: Option<RequestId>,
+    watching: Option<(RequestId, usize)>,
     /// Moves watched.
     moves_watched: u64,
     /// The cycle after a plant repair (a drive re-referenced: its count moves, the
@@ -204,6 +217,16 @@ pub struct Soak<C> {
     hold_refusals: u64,
     /// When the camera's discrete input, raised, falls again (cycle).
     input_release_at: Option<u64>,
+    /// A mirror put in position, watched while idle (invariant 14).
+    placed: Option<invariants::Placed>,
+    /// Placements invariant 14 watched.
+    placements: u64,
+    /// Cycles invariant 14 checked.
+    placed_cycles: u64,
+    /// Compensation steps within them.
+    placed_steps: u64,
+    /// The furthest a watched slider stood beyond the last step (mm).
+    placed_worst_mm: f64,
 }
 
 fn fresh_bench(flash: MockFlash) -> Bench {
@@ -297,6 +320,11 @@ impl<C: Choices> Soak<C> {
             hold_cycles: 0,
             hold_refusals: 0,
             input_release_at: None,
+            placed: None,
+            placements: 0,
+            placed_cycles: 0,
+            placed_steps: 0,
+            placed_worst_mm: 0.0,
         }
         .with_limits_from_controller()
     }
@@ -341,9 +369,14 @@ impl<C: Choices> Soak<C> {
     /// end (at most [`WATCH_CYCLES`]).
     pub fn round(&mut self, max_gap: usize) {
         let mut watched = 0;
-        while let Some(rid) = self.watching {
-            if self.r.st.finished(rid) || watched >= WATCH_CYCLES {
+        while let Some((rid, from)) = self.watching {
+            if self.r.st.finished_since(from, rid) || watched >= WATCH_CYCLES {
                 self.watching = None;
+                // The mirror it put in position then rests a while (invariant 14 with
+                // the compensation stepping, when enabled).
+                for _ in 0..self.below(WATCH_REST_CYCLES) {
+                    self.step();
+                }
             } else {
                 self.step();
                 watched += 1;

@@ -44,6 +44,16 @@ pub struct SoakFigures {
     pub hold_cycles: u64,
     /// Operator moves refused by an exposure hold (0x0710).
     pub hold_refusals: u64,
+    /// Completions in position invariant 14 then watched at rest.
+    pub placements: u64,
+    /// Cycles invariant 14 checked (idle, watched from a completion in position).
+    pub placed_cycles: u64,
+    /// Compensation steps within them.
+    pub placed_steps: u64,
+    /// The furthest a slider so watched stood from its setpoint and offset beyond the
+    /// last compensation step (um; invariant 14 allows twice the in-position tolerance
+    /// and the encoder noise's sigma).
+    pub placed_worst_um: f64,
 }
 
 /// Actions kept in the history.
@@ -113,6 +123,10 @@ impl<C: Choices> Soak<C> {
             thermal_steps: self.thermal_steps,
             hold_cycles: self.hold_cycles,
             hold_refusals: self.hold_refusals,
+            placements: self.placements,
+            placed_cycles: self.placed_cycles,
+            placed_steps: self.placed_steps,
+            placed_worst_um: self.placed_worst_mm * crate::units::UM_PER_MM,
         }
     }
 }
