@@ -628,3 +628,88 @@ fn compensation_follows_a_swing_in_time_within_the_goal_every_cycle() {
         "{off:?}"
     );
 }
+
+/// A clear (accepted when idle) or a table activation while a
+/// compensation step's fine positioning is under way holds the drives where they stand
+/// and ends it: nothing moves after, and no drive jumps. Before the fix the ramp went
+/// on from its own last command after the hold: the 150 s soak saw drive setpoints jump
+/// 0.2 to 16.9 um in a cycle.
+#[test]
+fn a_clear_or_an_activation_during_a_steps_fine_positioning_holds_without_a_jump() {
+    for activate in [false, true] {
+        let mut b = bench(
+            Profile {
+                mean_c: REFERENCE_C + 5.0,
+                ..Profile::REFERENCE
+            },
+            10,
+        );
+        // A second table with the same model, committed, to activate.
+        let second = table_with_model(0x7E22_0002);
+        assert!(common::all_ok(&install(&mut b, &second, false)));
+        assert!(common::all_ok(&set(
+            &mut b,
+            &[(id(index::THERMAL_ENABLE), 1)]
+        )));
+        let mut watch = Watch::new(&b);
+        // Until a step, then into its fine positioning's first correction.
+        let mut n = 0;
+        while watch.check(&b, STEP_BOUND_MM) == 0.0 {
+            b.tick();
+            n += 1;
+            assert!(n < 5 * CONTROL_RATE_HZ, "no step");
+        }
+        let mut moving = 0;
+        while b.ctl.housekeeping().moving_legs == 0 {
+            b.tick();
+            watch.check(&b, STEP_BOUND_MM);
+            moving += 1;
+            assert!(
+                moving < CONTROL_RATE_HZ,
+                "the step's fine positioning never moved"
+            );
+        }
+        for _ in 0..5 {
+            b.tick();
+            watch.check(&b, STEP_BOUND_MM);
+        }
+        assert_eq!(b.ctl.state(), m2ctl::controller::State::Idle);
+        let cmd = if activate {
+            common::activate(&second)
+        } else {
+            Command::ClearFault
+        };
+        let rid = b.queue(&cmd);
+        // Every cycle to its completion, and 2 s after: no drive jumps (`Watch::check`);
+        // once it completed the drives stay where the hold put them.
+        // (Until the next compensation step, which may move them again.)
+        let mut held: Option<([f64; LEGS], [f32; LEGS])> = None;
+        let mut still = 0;
+        for _ in 0..3 * CONTROL_RATE_HZ {
+            b.tick();
+            let step = watch.check(&b, STEP_BOUND_MM);
+            let drives = b.plant.with(|p| p.drive_setpoints_mm());
+            match held {
+                Some((h, applied))
+                    if step == 0.0 && b.ctl.compensation().applied_mm() == applied =>
+                {
+                    assert_eq!(drives, h, "a drive moved after the hold ({cmd:?})");
+                    assert_eq!(b.ctl.housekeeping().moving_legs, 0);
+                    still += 1;
+                }
+                Some(_) => break,
+                None if b.st.finished(rid) => {
+                    assert!(
+                        common::all_ok(&b.st.reports(rid)),
+                        "{:?}",
+                        b.st.reports(rid)
+                    );
+                    held = Some((drives, b.ctl.compensation().applied_mm()));
+                }
+                None => {}
+            }
+        }
+        assert!(held.is_some(), "{cmd:?} never completed");
+        assert!(still >= 100, "{still} cycles checked still after {cmd:?}");
+    }
+}

@@ -500,6 +500,8 @@ fn the_compensation_and_exposure_hold_figures_in_the_prose_are_the_codes() {
             "compensation step made just before (within its {} s, each slider moving by at most the step and twice the in-position tolerance)",
             m2ctl::motion::fine::TIMEOUT_CYCLES / CONTROL_RATE_HZ
         ),
+        // The behaviour: `thermal_compensated_hold::a_clear_or_an_activation_during_a_steps_fine_positioning_holds_without_a_jump`.
+        "A clear fault or a table activation (activate, switch bank, revert) during it ends it where the drives stand: they hold there, nothing jumps".to_string(),
         format!(
             "Housekeeping reports the state (offset {}) and the applied offsets (offset {}), section 6.",
             m2ctl::link::hk::field::THERMAL_STATE.start,
