@@ -16,7 +16,7 @@ const DEFAULT_SOAK_SECONDS: u64 = 20;
 /// saturating (a saturated link is a different test).
 const MAX_GAP_CYCLES: usize = 300;
 /// Fewest move completions the soak must have checked in position (invariant 11).
-const MIN_MOVES_IN_POSITION: u64 = 5;
+const MIN_MOVES_IN_POSITION: u64 = 25;
 /// Cycles to let the last telecommands finish.
 const DRAIN_CYCLES: u32 = 30_000;
 
@@ -86,6 +86,23 @@ fn soak_holds_the_operator_contract_every_cycle() {
         "soak at rest: {} completions in position watched while idle, {} cycles, {} compensation steps among them, a slider at most {:.4} um beyond the last step (invariant 14)",
         f.placements, f.placed_cycles, f.placed_steps, f.placed_worst_um
     );
+    // The violations by kind (their text with the numbers taken out), with the first of
+    // each: a long run's count alone does not say what broke.
+    let mut kinds: Vec<(String, usize, &String)> = Vec::new();
+    for v in s.violations() {
+        let kind: String = v
+            .split(|c: char| c.is_ascii_digit() || c == '.' || c == '-')
+            .filter(|p| !p.is_empty())
+            .collect::<Vec<_>>()
+            .join("#");
+        match kinds.iter_mut().find(|(k, _, _)| *k == kind) {
+            Some((_, n, _)) => *n += 1,
+            None => kinds.push((kind, 1, v)),
+        }
+    }
+    for (_, n, first) in &kinds {
+        println!("soak violations: {n} like \"{first}\"");
+    }
     assert!(
         s.violations().is_empty(),
         "{} violations, first: {:?}",
@@ -102,8 +119,8 @@ fn soak_holds_the_operator_contract_every_cycle() {
         "the adversary never upset RAM, or no upset was repaired: {f:?}"
     );
     // Invariant 11 (no completion success while a true slider is out of position) must
-    // have been exercised: about 25 completions watched per default run on an idle
-    // machine; a fifth of that speed still watches 5.
+    // have been exercised: 330 to 420 completions watched per default run on an idle
+    // machine (seeds 0..2); a tenth of that speed still watches 25.
     assert!(
         f.moves_in_position >= MIN_MOVES_IN_POSITION,
         "the soak watched {} move completions, fewer than {MIN_MOVES_IN_POSITION}: {f:?}",

@@ -118,8 +118,10 @@ impl<C: Choices> Soak<C> {
         };
         self.faults_injected += 1;
         if matches!(f, InjectedFault::MissedSteps { .. }) {
-            // The slip itself is the fault: its cycle is not a commanded motion.
+            // The slip itself is the fault: its cycle is not a commanded motion, nor is
+            // the slider's drift after it (invariant 1).
             self.repaired = true;
+            self.slipped |= 1 << leg;
         }
         self.note(format!("inject {f:?}"));
         self.r.plant.with(|p| p.inject(f));
@@ -148,6 +150,7 @@ impl<C: Choices> Soak<C> {
         self.moves.clear();
         self.watching = None;
         self.placed = None;
+        self.slipped = 0;
         let candidates = std::mem::take(&mut self.selecting);
         let in_writes = !self.r.flash_mut().is_powered();
         if in_writes {

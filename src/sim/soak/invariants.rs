@@ -73,7 +73,17 @@ impl<C: Choices> Soak<C> {
                 limits.max_mm[i] + LIMIT_TOL_MM,
             );
             let ci = f64::from(c_ref[i]);
-            if !(lo..=hi).contains(&ci) {
+            // Outside, a hold (the drive commanded to where it stood) or a command back
+            // toward the limits is no command outward: a slip can carry a slider out
+            // and a repair re-reference its drive there, which the controller then
+            // holds until a recovery move brings it in (found by a 10-minute run:
+            // 248,912 cycles of a hold at 5.029 mm counted). The repair's own cycle is
+            // skipped, as by the other checks: the drive re-referenced there.
+            let hold = (drives[i] - self.prev_positions[i]).abs() <= STILL_MM;
+            let prev_ci = f64::from(self.prev_cmd[i]) - f64::from(self.prev_applied[i]);
+            let toward_inside = (prev_ci > hi && ci <= prev_ci + STILL_MM)
+                || (prev_ci < lo && ci >= prev_ci - STILL_MM);
+            if !(lo..=hi).contains(&ci) && !hold && !toward_inside && !skip {
                 self.violation(format!(
                     "leg {} commanded {ci} mm outside [{lo}, {hi}]",
                     i + 1
@@ -91,8 +101,17 @@ impl<C: Choices> Soak<C> {
             } else {
                 t > self.prev_truth[i] + STILL_MM
             };
+            // A slip's travel reaches the slider through the drive train over the
+            // following cycles (its settling), not in the cycle of the slip: until the
+            // controller commands the leg again, the slider's own drift is the slip's
+            // (found by a 10-minute run: a 44 um slip at 4.985 mm carried a slider out
+            // over 17 cycles, each counted).
+            if drives[i] != self.prev_drives[i] {
+                self.slipped &= !(1 << i);
+            }
+            let drifting = self.slipped & (1 << i) != 0;
             let was_inside = (lo..=hi).contains(&self.prev_truth[i]);
-            if !(lo..=hi).contains(&t) && (outward || was_inside) && !skip {
+            if !(lo..=hi).contains(&t) && (outward || was_inside) && !skip && !drifting {
                 self.violation(format!("leg {} true stroke {t} mm outside", i + 1));
             }
         }
@@ -161,16 +180,21 @@ impl<C: Choices> Soak<C> {
             }
         }
         // 4. During a recovery move only its leg's drive setpoint changes; the others
-        //    keep exactly theirs. Checked from the second cycle of the same move: a move
-        //    may come to rest (its leg's last setpoint) and the next start in one cycle,
-        //    the last step then belonging to the move that ended (invariant 2 bounds it).
+        //    keep theirs (to the f32 rounding of a stroke). Checked from the second
+        //    cycle of the same move: a move may come to rest (its leg's last setpoint)
+        //    and the next start in one cycle, the last step then belonging to the move
+        //    that ended (invariant 2 bounds it).
         if state == State::StrokeMoving
             && self.prev_state == State::StrokeMoving
             && hk.moving_legs == self.prev_moving_legs
             && !skip
         {
+            // To the f32 rounding of a held stroke: a hold leaves a drive at its own
+            // (f64) position, and the move commands it back as the f32 stroke plus the
+            // f32 offset, one f32 step away (found by the 10-minute run: 0.47 pm at
+            // 7 um, 3.7 pm at 52 um; a microstep is 312,500 pm).
             for i in (0..LEGS).filter(|i| hk.moving_legs & (1 << i) == 0) {
-                if drives[i] != self.prev_drives[i] {
+                if (drives[i] - self.prev_drives[i]).abs() > STEP_ROUNDING_MM {
                     self.violation(format!(
                         "leg {} drive setpoint {} -> {} during a recovery move of legs {:#08b}",
                         i + 1,
