@@ -152,13 +152,11 @@ impl<C: Choices> Soak<C> {
             24 | 25 => self.upset(),
             0..=4 => {
                 let p = self.pose();
-                let rid = self.send(&Command::MoveAbsolute(p));
-                self.sent_move(rid);
+                self.send_move(&Command::MoveAbsolute(p));
             }
             5 | 6 => {
                 let d = self.small_delta();
-                let rid = self.send(&Command::MoveRelative(d));
-                self.sent_move(rid);
+                self.send_move(&Command::MoveRelative(d));
             }
             7 => {
                 self.send(&Command::Stop);
@@ -263,15 +261,11 @@ impl<C: Choices> Soak<C> {
 
     /// A coordinated move sent: its completion is checked (invariant 11); sent while
     /// idle, it may be watched to its end ([`super::WATCH_ONE_IN`], not by a fuzz
-    /// input: [`Choices::watches_moves`]).
-    fn sent_move(&mut self, rid: RequestId) {
-        // Where the station's log stood when it was sent (`send`): its reports come after.
-        let from = self
-            .in_flight
-            .iter()
-            .rev()
-            .find(|(r, _)| *r == rid)
-            .map_or(0, |(_, from)| *from);
+    /// input: [`Choices::watches_moves`]). Its reports come after where the station's
+    /// log stands now.
+    fn send_move(&mut self, cmd: &Command) {
+        let from = self.r.st.log.len();
+        let rid = self.send(cmd);
         self.moves.push((rid, from));
         if self.rng.watches_moves()
             && self.r.ctl.state() == State::Idle
